@@ -1,0 +1,75 @@
+"""Named errors of bscomp.
+
+Every error says which component, port, parameter or variable is involved and how to fix it.
+"""
+
+__all__ = [
+    "BscompError",
+    "ModelDefinitionError",
+    "PortConnectionError",
+    "UnconnectedPortError",
+    "DuplicateNameError",
+    "UnknownNameError",
+    "ParameterError",
+    "StructuralError",
+    "UnderdeterminedError",
+    "OverdeterminedError",
+    "HighIndexError",
+    "SingularSystemError",
+    "NotLinearError",
+]
+
+
+class BscompError(Exception):
+    """Base class of all bscomp errors."""
+
+
+class ModelDefinitionError(BscompError):
+    """A component class is written in a way the kernel cannot use (e.g. a flow is not defined)."""
+
+
+class PortConnectionError(BscompError):
+    """Two ports cannot be connected (different kinds or units, two outputs on one signal, ...)."""
+
+
+class UnconnectedPortError(BscompError):
+    """A required port is not connected and has no default."""
+
+
+class DuplicateNameError(BscompError):
+    """A name is used twice in one system."""
+
+
+class UnknownNameError(BscompError, KeyError):
+    """A dotted name (component, port, parameter, variable) does not exist."""
+
+    def __str__(self):  # KeyError quotes its message; keep it readable
+        return str(self.args[0]) if self.args else ""
+
+
+class ParameterError(BscompError, ValueError):
+    """A parameter value is non-physical (outside its bounds, NaN or inf) or malformed."""
+
+
+class StructuralError(BscompError):
+    """The flattened equations are not a well-posed index-1 DAE."""
+
+
+class UnderdeterminedError(StructuralError):
+    """More unknowns than independent equations."""
+
+
+class OverdeterminedError(StructuralError):
+    """More equations than unknowns, or redundant/inconsistent constraints."""
+
+
+class HighIndexError(StructuralError):
+    """An algebraic constraint acts on differential states: differentiation index > 1."""
+
+
+class SingularSystemError(StructuralError):
+    """A matrix that must be invertible is numerically singular (e.g. mass matrix of a mechanism)."""
+
+
+class NotLinearError(BscompError):
+    """A second-order (M, C, K) form was requested for a system that has no such form."""

@@ -1,0 +1,734 @@
+"""Flatten a connected :class:`~bscomp.System` into an index-1 :class:`~bscomp.dae.Dae`.
+
+Algorithm (one pass, linear in the number of components):
+
+1. **Connection sets.** Union-find over port potentials: connected potentials become one
+   *coordinate* (alias elimination); connected signals one signal. Each connection set's flows sum to
+   zero, which is imposed below as the generalised force balance of its coordinate.
+2. **Components.** Every leaf component's methods are called once with CasADi symbols bound to its
+   names. Explicit equations (``port.f - expr``, ``y - expr``, ``var - expr``) are solved locally, so
+   flows, outputs and most internal variables never become DAE unknowns.
+3. **Constraints.** The affine holonomic constraints ``A q + b = 0`` (rigid joints, ideal lead screw
+   ``s = r_g phi``, fixed points) are eliminated by sparse Gauss-Jordan with partial pivoting:
+   ``q = T q_r + t0``. Their reactions ``A^T lambda`` vanish in the projected balance
+   ``T^T Q(q, q', q'') = 0`` (principle of virtual work), so no index reduction is needed.
+4. **State selection.** A reduced coordinate with inertia gets states (q, v); one with damping but no
+   inertia is a first-order state; one with neither is algebraic (quasi-static).
+5. **Structural blocks** (``LinearStructure``) are assembled as sparse ``M, C, K`` and projected with
+   ``T``: they enter the residual as sparse matrix products, never as scalar expressions.
+6. **Checks.** Equation/unknown counts, structural rank of ``[dF/dx', dF/dz]`` (index 1), and a
+   numeric LU at the start point; each failure raises a named error naming components.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+
+import casadi as ca
+import numpy as np
+import scipy.sparse as sp
+
+from .component import Component, Constraint, _Context, _PortBinding
+from .dae import Dae, MechanicalInfo
+from .errors import (
+    HighIndexError,
+    ModelDefinitionError,
+    OverdeterminedError,
+    UnconnectedPortError,
+    UnderdeterminedError,
+)
+from .system import System
+
+__all__ = ["flatten"]
+
+
+class _UnionFind:
+    def __init__(self):
+        self.parent = {}
+
+    def add(self, k):
+        self.parent.setdefault(k, k)
+
+    def find(self, k):
+        p = self.parent
+        root = k
+        while p[root] != root:
+            root = p[root]
+        while p[k] != root:
+            p[k], k = root, p[k]
+        return root
+
+    def union(self, a, b):
+        ra, rb = self.find(a), self.find(b)
+        if ra != rb:
+            # keep the earlier-declared key as root (stable names)
+            if self._order[ra] <= self._order[rb]:
+                self.parent[rb] = ra
+            else:
+                self.parent[ra] = rb
+
+
+def _eliminate_explicit(eqs, unknowns, pvals):
+    """Solve equations that are affine in one unknown with a constant (or parameter) coefficient.
+
+    Returns (solutions {index: expr}, remaining equations, indices of equations used).
+    """
+    solved = {}
+    remaining = list(eqs)
+    used = set()
+    if not unknowns or not eqs:
+        return solved, remaining, used
+    usyms = list(unknowns)
+    progress = True
+    while progress:
+        progress = False
+        for k, eq in enumerate(remaining):
+            if k in used:
+                continue
+            for i, u in enumerate(usyms):
+                if i in solved or not ca.depends_on(eq, u):
+                    continue
+                coef = ca.jacobian(eq, u)
+                if ca.depends_on(coef, ca.vertcat(*usyms)) or ca.depends_on(coef, pvals[2]):
+                    continue
+                if coef.is_constant():
+                    c = float(ca.evalf(coef))
+                else:
+                    c = float(ca.evalf(ca.substitute(coef, pvals[0], pvals[1])))
+                if c == 0.0 or not np.isfinite(c):
+                    continue
+                rest = ca.substitute(eq, u, ca.SX(0))
+                expr = -rest / coef
+                solved[i] = expr
+                used.add(k)
+                for j in range(len(remaining)):
+                    if j not in used:
+                        remaining[j] = ca.substitute(remaining[j], u, expr)
+                for j in list(solved):
+                    if j != i:
+                        solved[j] = ca.substitute(solved[j], u, expr)
+                progress = True
+                break
+    return solved, remaining, used
+
+
+class _Leaf:
+    """Bookkeeping of one leaf component during flattening."""
+
+    def __init__(self, path, comp):
+        self.path = path
+        self.comp = comp
+
+
+def flatten(system: System, *, check: bool = True) -> Dae:
+    """Flatten a system into a :class:`~bscomp.dae.Dae` (see module docstring).
+
+    Parameters
+    ----------
+    system : System
+    check : bool
+        Run the structural and numeric checks (index 1, non-singular start).
+
+    Raises
+    ------
+    UnconnectedPortError, ModelDefinitionError, OverdeterminedError, UnderdeterminedError,
+    HighIndexError, SingularSystemError, ParameterError
+    """
+    t_start = time.perf_counter()
+    leaves = [_Leaf(p, c) for p, c in system.leaves()]
+    if not leaves:
+        raise UnderdeterminedError(f"system '{system.name}' has no components")
+    by_path = {lf.path: lf for lf in leaves}
+
+    # -- parameters must have values -----------------------------------------------------------
+    for lf in leaves:
+        for n, p in lf.comp.parameters().items():
+            if lf.comp._values.get(n) is None:
+                raise_missing = p.validate(None, lf.comp) if False else None  # noqa: F841
+                from .errors import ParameterError
+                raise ParameterError(f"parameter {lf.path}.{n} [{p.unit}] has no value ({p.doc}); set it with "
+                                     f"system.set('{lf.path}.{n}', value)")
+
+    # -- 1. connection sets --------------------------------------------------------------------
+    uf = _UnionFind()
+    order = {}
+    connected = set()
+    for lf in leaves:
+        for pname, spec in lf.comp.ports().items():
+            for i in range(len(spec.kind.potentials)):
+                key = (lf.path, pname, i)
+                order[key] = len(order)
+                uf.add(key)
+    uf._order = order
+    for a, b in system.connections():
+        pa, _, na = a.rpartition(".")
+        pb, _, nb = b.rpartition(".")
+        spec = by_path[pa].comp.ports()[na]
+        connected.add((pa, na))
+        connected.add((pb, nb))
+        for i in range(len(spec.kind.potentials)):
+            uf.union((pa, na, i), (pb, nb, i))
+
+    for lf in leaves:
+        for pname, spec in lf.comp.ports().items():
+            if not spec.kind.is_signal and not spec.optional and (lf.path, pname) not in connected:
+                raise UnconnectedPortError(
+                    f"port '{lf.path}.{pname}' ({spec.kind.name} of {type(lf.comp).__name__}) is not connected; "
+                    f"connect it with system.connect('{lf.path}.{pname}', ...) or fix it to ground with a "
+                    "Fixed/FixedRotational component")
+
+    # physical coordinates and signal sets
+    coord_of = {}          # root key -> coordinate index
+    coord_names, coord_units = [], []
+    named = set()                          # coordinates named after a body (``mass.s``)
+    sig_of = {}            # root key -> signal index
+    sig_names, sig_units, sig_out_owner, sig_inputs = [], [], {}, defaultdict(list)
+    for lf in leaves:
+        for pname, spec in lf.comp.ports().items():
+            for i, (pot, unit) in enumerate(spec.kind.potentials):
+                root = uf.find((lf.path, pname, i))
+                if spec.kind.is_signal:
+                    if root not in sig_of:
+                        sig_of[root] = len(sig_names)
+                        sig_names.append(f"{lf.path}.{pname}")
+                        sig_units.append(spec.unit)
+                    k = sig_of[root]
+                    if spec.kind.signal == "out":
+                        sig_out_owner[k] = f"{lf.path}.{pname}"
+                        sig_names[k] = f"{lf.path}.{pname}"
+                    else:
+                        sig_inputs[k].append((lf.path, pname, spec))
+                else:
+                    if root not in coord_of:
+                        coord_of[root] = len(coord_names)
+                        rp, rn, _ = root
+                        rpot = by_path[rp].comp.ports()[rn].kind.potentials[i][0]
+                        coord_names.append(f"{rp}.{rn}.{rpot}")
+                        coord_units.append(unit)
+                    alias = getattr(lf.comp, "coordinate_names", {}).get(f"{pname}.{pot}")
+                    c = coord_of[root]
+                    if alias and c not in named:
+                        named.add(c)
+                        coord_names[c] = f"{lf.path}.{alias}"
+    nq = len(coord_names)
+    q_full = [ca.SX.sym(n) for n in coord_names]
+    qd_full = [ca.SX.sym(f"der({n})") for n in coord_names]
+    qdd_full = [ca.SX.sym(f"der(der({n}))") for n in coord_names]
+    sig_syms = [ca.SX.sym(n) for n in sig_names]
+
+    # -- 2. components -------------------------------------------------------------------------
+    p_syms, p_vals, p_names, p_units = [], [], [], []
+    Q = [[] for _ in range(nq)]            # explicit flow contributions per coordinate
+    eqs, eq_origin = [], []                # global residual equations (internal)
+    xint, xint_d, xint_names, xint_start = [], [], [], []
+    zint, zint_names, zint_start = [], [], []
+    sig_def = {}                           # signal index -> expression
+    constraints = []                       # (coeff dict, const, solve_for coord, origin)
+    observables = {}
+    blocks = []                            # (coord indices, M, C, K)
+    structural = set()
+    for lf in leaves:
+        comp, path = lf.comp, lf.path
+        ctx = _Context()
+        for n, p in comp.parameters().items():
+            v = comp._values[n]
+            shape = np.shape(v)
+            sym = ca.SX.sym(f"{path}.{n}", *(shape if len(shape) == 2 else (shape[0], 1) if shape else (1, 1)))
+            ctx.params[n] = sym
+            vv = np.asarray(v, dtype=float)
+            p_syms.append(ca.vec(sym))
+            p_vals.append(vv.reshape(-1, order="F"))
+            cnt = int(vv.size)
+            p_names.extend([f"{path}.{n}"] if cnt == 1 else [f"{path}.{n}[{j}]" for j in range(cnt)])
+            p_units.extend([p.unit] * cnt)
+        loc_p = ca.vertcat(*[ca.vec(s) for s in ctx.params.values()]) if ctx.params else ca.SX(0, 1)
+        loc_pv = np.concatenate([np.asarray(comp._values[n], float).reshape(-1, order="F")
+                                 for n in ctx.params]) if ctx.params else np.zeros(0)
+        port_coords = {}
+        flow_syms = []  # (symbol, port, coordinate index)
+        out_sig = []    # (symbol, signal index)
+        for pname, spec in comp.ports().items():
+            if spec.kind.is_signal:
+                k = sig_of[uf.find((path, pname, 0))]
+                b = _PortBinding(spec, [sig_syms[k]], [], None)
+                if spec.kind.signal == "out":
+                    out_sig.append((sig_syms[k], k))
+            else:
+                idx = [coord_of[uf.find((path, pname, i))] for i in range(len(spec.kind.potentials))]
+                port_coords[pname] = idx
+                fl = [ca.SX.sym(f"{path}.{pname}.{fn}") for fn, _ in spec.kind.flows]
+                flow_syms.extend((f, pname, c) for f, c in zip(fl, idx))
+                b = _PortBinding(spec, [q_full[c] for c in idx], fl, None)
+                for c in idx:
+                    ctx.der_pairs.append((q_full[c], qd_full[c]))
+                    ctx.der_pairs.append((qd_full[c], qdd_full[c]))
+            ctx.ports[pname] = b
+        for n, v in comp.variables().items():
+            s = ca.SX.sym(f"{path}.{n}")
+            ds = ca.SX.sym(f"der({path}.{n})")
+            ctx.vars[n] = s
+            ctx.dvars[n] = ds
+            ctx.der_pairs.append((s, ds))
+
+        # structure() sees numeric parameter values
+        comp.__dict__["_read_params"] = set()
+        struct = comp.structure()
+        read_struct = set(comp.__dict__.pop("_read_params", set()))
+        comp.__dict__["_ctx"] = ctx
+        try:
+            ceqs = [ca.SX(e) for e in comp.connector_equations() + comp.equations()]
+            cons = comp.constraints()
+            obs = comp.observables()
+        except ModelDefinitionError:
+            raise
+        except Exception as exc:  # a bug in a component file: say which one
+            raise ModelDefinitionError(f"component '{path}' ({type(comp).__name__}) failed while building its "
+                                       f"equations: {type(exc).__name__}: {exc}") from exc
+        finally:
+            comp.__dict__["_ctx"] = None
+        ceqs = [e[j] for e in ceqs for j in range(e.numel())]
+        if struct is not None:
+            structural.update(f"{path}.{n}" for n in read_struct)
+            blocks.append(_block(struct, path, comp, port_coords))
+
+        # local explicit elimination: flows, outputs, algebraic variables
+        var_names = list(ctx.vars)
+        is_diff = {n: any(ca.depends_on(e, ctx.dvars[n]) for e in ceqs) for n in var_names}
+        alg_vars = [n for n in var_names if not is_diff[n]]
+        unknowns = [f for f, _, _ in flow_syms] + [s for s, _ in out_sig] + [ctx.vars[n] for n in alg_vars]
+        forbid = ca.vertcat(*[ctx.dvars[n] for n in var_names]) if var_names else ca.SX(0, 1)
+        solved, remaining, used = _eliminate_explicit(ceqs, unknowns, (loc_p, loc_pv, forbid))
+        nflow, nout = len(flow_syms), len(out_sig)
+        subs_from, subs_to = [], []
+        for i, expr in solved.items():
+            subs_from.append(unknowns[i])
+            subs_to.append(expr)
+
+        def _sub(e, subs_from=subs_from, subs_to=subs_to):
+            if not subs_from:
+                return e
+            return ca.substitute(e, ca.vertcat(*subs_from), ca.vertcat(*subs_to))
+
+        # constraints
+        con_coords = set()
+        for cexpr in cons:
+            solve_for = None
+            if isinstance(cexpr, Constraint):
+                solve_for, cexpr = cexpr.solve_for, cexpr.expr
+            cexpr = ca.SX(cexpr)
+            for j in range(cexpr.numel()):
+                constraints.append(_constraint(cexpr[j], solve_for, comp, path, port_coords, q_full, qd_full,
+                                               qdd_full, ctx, loc_p, loc_pv))
+                con_coords.update(constraints[-1][0])
+                structural.update(f"{path}.{n}" for n, s in ctx.params.items() if ca.depends_on(cexpr, ca.vec(s)))
+
+        for i, (fsym, pname, c) in enumerate(flow_syms):
+            if i in solved:
+                Q[c].append(solved[i])
+                continue
+            if any(ca.depends_on(e, fsym) for k, e in enumerate(remaining) if k not in used):
+                raise ModelDefinitionError(
+                    f"component '{path}' ({type(comp).__name__}) defines flow '{pname}.{fsym.name().split('.')[-1]}' "
+                    "implicitly; write it explicitly as an equation 'port.f - expr' (or introduce a Variable)")
+            if c in con_coords:
+                continue  # pure constraint reaction
+            spec = comp.ports()[pname]
+            if spec.optional and (path, pname) not in connected:
+                continue  # free end: zero flow
+            raise ModelDefinitionError(
+                f"component '{path}' ({type(comp).__name__}) does not define the flow of port '{pname}': give an "
+                "equation 'port.f - expr', or a constraint on its potential (ideal joint)")
+        for j, (osym, k) in enumerate(out_sig):
+            if nflow + j in solved:
+                sig_def[k] = solved[nflow + j]
+            else:
+                raise ModelDefinitionError(
+                    f"component '{path}' ({type(comp).__name__}) does not define its output '{sig_names[k]}' "
+                    "explicitly; add an equation 'port.y - expr'")
+        for j, n in enumerate(alg_vars):
+            if nflow + nout + j not in solved:
+                zint.append(ctx.vars[n])
+                zint_names.append(f"{path}.{n}")
+                zint_start.append(comp.variables()[n].start)
+        for n in var_names:
+            if is_diff[n]:
+                xint.append(ctx.vars[n])
+                xint_d.append(ctx.dvars[n])
+                xint_names.append(f"{path}.{n}")
+                xint_start.append(comp.variables()[n].start)
+        for k, e in enumerate(remaining):
+            if k not in used:
+                eqs.append(e)
+                eq_origin.append(f"equation {k} of component '{path}' ({type(comp).__name__})")
+
+        # observables: parameters, potentials, variables, declared ones
+        for n, s in ctx.params.items():
+            observables[f"{path}.{n}"] = s
+        for pname, idx in port_coords.items():
+            for (pot, _), c in zip(comp.ports()[pname].kind.potentials, idx):
+                observables[f"{path}.{pname}.{pot}"] = q_full[c]
+        for pname, spec in comp.ports().items():
+            if spec.kind.is_signal:
+                observables[f"{path}.{pname}"] = sig_syms[sig_of[uf.find((path, pname, 0))]]
+        for n in var_names:
+            observables[f"{path}.{n}"] = _sub(ctx.vars[n])
+        for n, e in obs.items():
+            observables[f"{path}.{n}"] = _sub(ca.SX(e))
+    p_all = ca.vertcat(*p_syms) if p_syms else ca.SX(0, 1)
+    p0 = np.concatenate(p_vals) if p_vals else np.zeros(0)
+
+    # -- signals: inputs, constants, definitions -----------------------------------------------
+    u_syms, u_names, u_units = [], [], []
+    const_from, const_to = [], []
+    for k in range(len(sig_names)):
+        if k in sig_def:
+            continue
+        ins = sig_inputs[k]
+        defaults = [spec.default for _, _, spec in ins if spec.default is not None]
+        if defaults:
+            const_from.append(sig_syms[k])
+            const_to.append(ca.SX(float(defaults[0])))
+        else:
+            u_syms.append(sig_syms[k])
+            u_names.append(sig_names[k])
+            u_units.append(sig_units[k])
+    sig_from, sig_to, sig_loop = _order_signal_definitions(sig_def, sig_syms)
+    sig_from += const_from
+    sig_to += const_to
+
+    # -- 3. constraint elimination --------------------------------------------------------------
+    T, t0, indep, dep_of = _eliminate_constraints(constraints, nq, coord_names)
+    nr = len(indep)
+    Tcsr = T.tocsr()
+
+    # substitution of dependent coordinates and defined signals
+    dep_idx = [c for c in range(nq) if c not in dep_of]
+    dep_idx = sorted(dep_of)
+    qr = [q_full[c] for c in indep]
+    qdr = [qd_full[c] for c in indep]
+    qddr = [qdd_full[c] for c in indep]
+    sub_from = []
+    sub_to = []
+    if dep_idx:
+        Td = ca.DM(sp.csc_matrix(Tcsr[dep_idx, :]))
+        qr_v, qdr_v, qddr_v = ca.vertcat(*qr), ca.vertcat(*qdr), ca.vertcat(*qddr)
+        qdep = ca.mtimes(Td, qr_v) + ca.DM(t0[dep_idx])
+        qddep = ca.mtimes(Td, qdr_v)
+        qdddep = ca.mtimes(Td, qddr_v)
+        for j, c in enumerate(dep_idx):
+            sub_from += [q_full[c], qd_full[c], qdd_full[c]]
+            sub_to += [qdep[j], qddep[j], qdddep[j]]
+    sub_from += sig_from
+    sub_to += sig_to
+
+    Qsum = [ca.sum1(ca.vertcat(*lst)) if lst else ca.SX(0) for lst in Q]
+    # projected balance R = T^T Q (sparse, never dense)
+    TT = Tcsr.T.tocsr()
+    R = []
+    for j in range(nr):
+        row = slice(TT.indptr[j], TT.indptr[j + 1])
+        terms = [float(a) * Qsum[c] if a != 1.0 else Qsum[c] for c, a in zip(TT.indices[row], TT.data[row])]
+        R.append(ca.sum1(ca.vertcat(*terms)) if terms else ca.SX(0))
+    big = ca.vertcat(*(R + eqs))
+    if sub_from:
+        big = ca.substitute(big, ca.vertcat(*sub_from), ca.densify(ca.vertcat(*sub_to)))
+    R = big[:nr]
+    eqs_s = big[nr:]
+
+    # structural blocks: project
+    Ms, Cs, Ks = (sp.csr_matrix((nq, nq)) for _ in range(3))
+    for idx, Mb, Cb, Kb in blocks:
+        P = sp.csr_matrix((np.ones(len(idx)), (idx, np.arange(len(idx)))), shape=(nq, len(idx)))
+        if Mb is not None:
+            Ms = Ms + P @ sp.csr_matrix(Mb) @ P.T
+        if Cb is not None:
+            Cs = Cs + P @ sp.csr_matrix(Cb) @ P.T
+        if Kb is not None:
+            Ks = Ks + P @ sp.csr_matrix(Kb) @ P.T
+    Mr = (TT @ Ms @ Tcsr).tocsc()
+    Cr = (TT @ Cs @ Tcsr).tocsc()
+    Kr = (TT @ Ks @ Tcsr).tocsc()
+    # affine offset of dependent coordinates acting through structural stiffness
+    Kt0 = TT @ (Ks @ t0) if np.any(t0) else np.zeros(nr)
+
+    # -- 4. state selection ---------------------------------------------------------------------
+    qddr_v = ca.vertcat(*qddr) if nr else ca.SX(0, 1)
+    qdr_v = ca.vertcat(*qdr) if nr else ca.SX(0, 1)
+    Rv = ca.vertcat(*[R[j] for j in range(nr)]) if nr else ca.SX(0, 1)
+    Jm = ca.jacobian(Rv, qddr_v).sparsity() if nr else None
+    Jc = ca.jacobian(Rv, qdr_v).sparsity() if nr else None
+    m_cols = np.zeros(nr, bool)
+    c_cols = np.zeros(nr, bool)
+    if nr:
+        m_cols[np.unique(np.array(Jm.get_col(), dtype=int))] = True if Jm.nnz() else m_cols[[]]
+        c_cols[np.unique(np.array(Jc.get_col(), dtype=int))] = True if Jc.nnz() else c_cols[[]]
+        m_cols |= np.asarray(abs(Mr).sum(axis=0)).ravel() > 0
+        c_cols |= np.asarray(abs(Cr).sum(axis=0)).ravel() > 0
+    inertial = [j for j in range(nr) if m_cols[j]]
+    damped = [j for j in range(nr) if not m_cols[j] and c_cols[j]]
+    static = [j for j in range(nr) if not m_cols[j] and not c_cols[j]]
+
+    # -- 5. DAE symbols ---------------------------------------------------------------------------
+    rnames = [coord_names[c] for c in indep]
+    dq_in = [ca.SX.sym(f"dt({rnames[j]})") for j in inertial]
+    X = [qr[j] for j in inertial] + [qdr[j] for j in inertial] + [qr[j] for j in damped] + xint
+    XD = dq_in + [qddr[j] for j in inertial] + [qdr[j] for j in damped] + xint_d
+    Z = [qr[j] for j in static] + zint + [sig_syms[k] for k in sig_loop]
+    x_names = ([rnames[j] for j in inertial] + [f"der({rnames[j]})" for j in inertial]
+               + [rnames[j] for j in damped] + xint_names)
+    z_names = [rnames[j] for j in static] + zint_names + [sig_names[k] for k in sig_loop]
+    loop_eqs = [sig_syms[k] - sig_def[k] for k in sig_loop]
+    if loop_eqs and sub_from:
+        loop_eqs = [ca.substitute(e, ca.vertcat(*sub_from), ca.densify(ca.vertcat(*sub_to))) for e in loop_eqs]
+    kin = [dq_in[i] - qdr[j] for i, j in enumerate(inertial)]
+    Fsx = ca.vertcat(*(kin + [Rv[j] for j in range(nr)] + [eqs_s[j] for j in range(eqs_s.numel())] + loop_eqs))
+    origins = ([f"kinematics of {rnames[j]}" for j in inertial]
+               + [f"force balance at {rnames[j]}" for j in range(nr)] + eq_origin
+               + [f"algebraic loop through signal {sig_names[k]}" for k in sig_loop])
+    xs, xds, zs = _vc(X), _vc(XD), _vc(Z)
+    us = _vc(u_syms)
+
+    # every symbol used must be known
+    known = ca.vertcat(xs, xds, zs, us, p_all)
+    _check_symbols(Fsx, known, rnames, inertial, damped, static, qdr, qddr)
+
+    n_eq, n_unk = Fsx.numel(), xs.numel() + zs.numel()
+    if n_eq != n_unk:
+        _count_error(n_eq, n_unk, origins, x_names, z_names, leaves)
+
+    # sparse structural part, in the balance rows (rows offset by len(kin))
+    n_x, n_z = xs.numel(), zs.numel()
+    ni = len(inertial)
+    sel = _Selectors(nr, n_x, n_z, inertial, damped, static)
+    mech = MechanicalInfo(
+        coordinate_names=rnames, coordinate_units=[coord_units[c] for c in indep],
+        full_coordinate_names=coord_names, T=Tcsr, t0=t0, inertial=inertial, damped=damped, static=static,
+        q_in_x=sel.q_in_x, q_in_z=sel.q_in_z, v_in_x=sel.v_in_x, v_in_xd=sel.v_in_xd, a_in_xd=sel.a_in_xd,
+        balance_rows=list(range(ni, ni + nr)), M=Mr, C=Cr, K=Kr, Kt0=Kt0,
+        has_internal_states=bool(xint))
+
+    dae = Dae(
+        name=system.name, xs=xs, xds=xds, zs=zs, us=us, ps=p_all, F_sx=Fsx, mech=mech,
+        x_names=x_names, z_names=z_names, u_names=u_names, u_units=u_units, p_names=p_names, p_units=p_units,
+        p0=p0, x_start=np.concatenate([np.zeros(2 * ni + len(damped)), np.asarray(xint_start, float)]),
+        z_start=np.concatenate([np.zeros(len(static)), np.asarray(zint_start, float), np.zeros(len(sig_loop))]),
+        eq_origin=origins, observables=observables, substitutions=(sub_from, sub_to),
+        structural_parameters=sorted(structural), system=system)
+    dae.stats["flatten_s"] = time.perf_counter() - t_start
+    if check:
+        dae.check_index1()
+    return dae
+
+
+def _vc(lst):
+    return ca.vertcat(*lst) if lst else ca.SX(0, 1)
+
+
+class _Selectors:
+    """Where each reduced coordinate's position/velocity/acceleration lives in (x, x', z)."""
+
+    def __init__(self, nr, n_x, n_z, inertial, damped, static):
+        ni = len(inertial)
+        self.q_in_x = {j: i for i, j in enumerate(inertial)}
+        self.q_in_x.update({j: 2 * ni + i for i, j in enumerate(damped)})
+        self.q_in_z = {j: i for i, j in enumerate(static)}
+        self.v_in_x = {j: ni + i for i, j in enumerate(inertial)}
+        self.v_in_xd = {j: 2 * ni + i for i, j in enumerate(damped)}
+        self.a_in_xd = {j: ni + i for i, j in enumerate(inertial)}
+
+
+def _block(struct, path, comp, port_coords):
+    idx = []
+    for d in struct.dofs:
+        pname, _, pot = d.partition(".")
+        spec = comp.ports().get(pname)
+        if spec is None or spec.kind.is_signal:
+            raise ModelDefinitionError(f"structure() of '{path}' names dof '{d}': no physical port '{pname}'")
+        names = [n for n, _ in spec.kind.potentials]
+        if pot not in names:
+            raise ModelDefinitionError(f"structure() of '{path}' names dof '{d}': port '{pname}' has {names}")
+        idx.append(port_coords[pname][names.index(pot)])
+    n = len(idx)
+    mats = []
+    for name, m in (("M", struct.M), ("C", struct.C), ("K", struct.K)):
+        if m is None:
+            mats.append(None)
+            continue
+        if m.shape != (n, n):
+            raise ModelDefinitionError(f"structure() of '{path}': {name} is {m.shape}, expected ({n}, {n})")
+        mats.append(m)
+    return (idx, *mats)
+
+
+def _constraint(expr, solve_for, comp, path, port_coords, q_full, qd_full, qdd_full, ctx, loc_p, loc_pv):
+    own = sorted({c for idx in port_coords.values() for c in idx})
+    qv = ca.vertcat(*[q_full[c] for c in own]) if own else ca.SX(0, 1)
+    others = [ca.vertcat(*[qd_full[c] for c in own]), ca.vertcat(*[qdd_full[c] for c in own])]
+    others += [v for v in ctx.vars.values()]
+    for o in others:
+        if o.numel() and ca.depends_on(expr, o):
+            raise ModelDefinitionError(
+                f"constraint of '{path}' ({type(comp).__name__}) involves velocities or variables: constraints must "
+                "be affine in port potentials (write velocity laws as equations)")
+    J = ca.jacobian(expr, qv)
+    if J.numel() and ca.depends_on(J, qv):
+        raise ModelDefinitionError(f"constraint of '{path}' ({type(comp).__name__}) is not affine in the port "
+                                   "potentials; only linear holonomic constraints are eliminated")
+    f = ca.Function("c", [loc_p, qv], [J, ca.substitute(expr, qv, ca.DM.zeros(qv.shape))])
+    Jn, b = f(loc_pv, np.zeros(qv.numel()))
+    Jn = np.asarray(Jn, float).ravel()
+    coeffs = {own[i]: float(a) for i, a in enumerate(Jn) if a != 0.0}
+    sf = None
+    if solve_for is not None:
+        for c in own:
+            if ca.is_equal(q_full[c], ca.SX(solve_for)):
+                sf = c
+    return coeffs, float(b), sf, f"constraint of '{path}' ({type(comp).__name__})"
+
+
+def _eliminate_constraints(constraints, nq, coord_names):
+    """Sparse Gauss-Jordan with partial pivoting: q = T q_r + t0."""
+    dep = {}                      # coordinate -> (dict{coord: coef}, const)
+    users = defaultdict(set)      # independent coordinate -> dependents that reference it
+    origin_of = {}
+    for coeffs, b, sf, origin in constraints:
+        lin = defaultdict(float)
+        const = b
+        for c, a in coeffs.items():
+            if c in dep:
+                d, k = dep[c]
+                for j, t in d.items():
+                    lin[j] += a * t
+                const += a * k
+            else:
+                lin[c] += a
+        scale = max([abs(a) for a in coeffs.values()] + [1e-300])
+        lin = {c: a for c, a in lin.items() if abs(a) > 1e-12 * scale}
+        if not lin:
+            names = ", ".join(coord_names[c] for c in coeffs)
+            who = ", ".join(origin_of.get(c, "?") for c in coeffs if c in origin_of)
+            if abs(const) > 1e-9 * max(1.0, abs(b)):
+                raise OverdeterminedError(f"inconsistent constraints on {names}: {origin} contradicts {who}; "
+                                          "remove one of them")
+            raise OverdeterminedError(f"redundant constraint on {names}: {origin} repeats what {who} already "
+                                      "imposes (a closed kinematic loop or a point fixed twice); remove one of them")
+        if sf is not None and sf in lin:
+            piv = sf
+        else:
+            piv = max(lin, key=lambda c: (abs(lin[c]) * (1 + 1e-9), c))
+        ap = lin.pop(piv)
+        expr = {j: -a / ap for j, a in lin.items()}
+        kconst = -const / ap
+        # substitute pivot into existing dependents
+        for d_c in list(users.get(piv, ())):
+            d, k = dep[d_c]
+            t = d.pop(piv)
+            for j, a in expr.items():
+                d[j] = d.get(j, 0.0) + t * a
+                users[j].add(d_c)
+            dep[d_c] = (d, k + t * kconst)
+        users.pop(piv, None)
+        dep[piv] = (expr, kconst)
+        origin_of[piv] = origin
+        for j in expr:
+            users[j].add(piv)
+    indep = [c for c in range(nq) if c not in dep]
+    col = {c: i for i, c in enumerate(indep)}
+    rows, cols, vals = [], [], []
+    for c in indep:
+        rows.append(c)
+        cols.append(col[c])
+        vals.append(1.0)
+    t0 = np.zeros(nq)
+    for c, (d, k) in dep.items():
+        t0[c] = k
+        for j, a in d.items():
+            if a != 0.0:
+                rows.append(c)
+                cols.append(col[j])
+                vals.append(a)
+    T = sp.coo_matrix((vals, (rows, cols)), shape=(nq, len(indep)))
+    return T, t0, indep, dep
+
+
+def _order_signal_definitions(sig_def, sig_syms):
+    """Topologically order signal definitions; members of cycles become algebraic variables."""
+    keys = list(sig_def)
+    deps = {}
+    for k in keys:
+        e = sig_def[k]
+        deps[k] = [j for j in keys if j != k and ca.depends_on(e, sig_syms[j])]
+        if ca.depends_on(e, sig_syms[k]):
+            deps[k].append(k)
+    order, state = [], {}
+    loop = set()
+
+    def visit(k, stack):
+        st = state.get(k)
+        if st == 2:
+            return
+        if st == 1:
+            loop.update(stack[stack.index(k):])
+            return
+        state[k] = 1
+        stack.append(k)
+        for j in deps[k]:
+            visit(j, stack)
+        stack.pop()
+        state[k] = 2
+        order.append(k)
+
+    for k in keys:
+        visit(k, [])
+    # resolve in dependency order (dependencies first)
+    resolved = {}
+    for k in order:
+        if k in loop:
+            continue
+        e = sig_def[k]
+        dd = [j for j in deps[k] if j in resolved]
+        if dd:
+            e = ca.substitute(e, ca.vertcat(*[sig_syms[j] for j in dd]), ca.vertcat(*[resolved[j] for j in dd]))
+        resolved[k] = e
+    return [sig_syms[k] for k in resolved], [resolved[k] for k in resolved], sorted(loop)
+
+
+def _check_symbols(F, known, rnames, inertial, damped, static, qdr, qddr):
+    used = ca.symvar(F)
+    kset = {s.name() for s in ca.symvar(known)}
+    bad = [s.name() for s in used if s.name() not in kset]
+    if not bad:
+        return
+    msgs = []
+    for b in bad:
+        if b.startswith("der(der("):
+            msgs.append(f"the acceleration {b} of a coordinate without inertia is used (an acceleration sensor or "
+                        "inertial force on a massless node): add a mass there")
+        elif b.startswith("der("):
+            msgs.append(f"the velocity {b} of a coordinate with neither inertia nor damping is used: add a mass "
+                        "or a damper there")
+        else:
+            msgs.append(f"symbol {b} is not a variable of the system")
+    raise HighIndexError("; ".join(msgs))
+
+
+def _count_error(n_eq, n_unk, origins, x_names, z_names, leaves):
+    comp_lines = []
+    for lf in leaves:
+        nv = len(lf.comp.variables())
+        if nv:
+            comp_lines.append(f"{lf.path} ({type(lf.comp).__name__}): {nv} variable(s)")
+    detail = "; ".join(comp_lines[:20])
+    if n_eq > n_unk:
+        raise OverdeterminedError(
+            f"{n_eq} equations for {n_unk} unknowns: {n_eq - n_unk} equation(s) too many. Internal equations: "
+            f"{[o for o in origins if o.startswith('equation')][:20]}. Components with variables: {detail}. "
+            "A component gives one equation per variable plus one per flow/output it defines")
+    raise UnderdeterminedError(
+        f"{n_eq} equations for {n_unk} unknowns: {n_unk - n_eq} equation(s) missing. Unknowns: "
+        f"{(x_names + z_names)[:30]}. Components with variables: {detail}")
+
+
+# keep names used by type checkers
+_ = Component

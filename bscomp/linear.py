@@ -1,0 +1,315 @@
+"""Linearization of a flattened model.
+
+* :func:`linearize` -> python-control ``StateSpace`` with state, input and output names, from the
+  implicit DAE at an operating point: with ``W = [dF/dx', dF/dz]`` (index 1, non-singular),
+
+  .. math:: \\begin{bmatrix}\\delta\\dot x\\\\ \\delta z\\end{bmatrix}
+            = -W^{-1}\\left(F_x\\,\\delta x + F_u\\,\\delta u\\right)
+
+  solved with a sparse LU (no dense inverse).
+* :func:`second_order` -> :class:`SecondOrderModel` ``M q'' + C q' + K q = B u``,
+  ``y = C_q q + C_v q' + C_a q'' + D u`` over the reduced mechanical coordinates (thesis Eq 3.44 / 5.1),
+  sparse. Internal algebraic variables are eliminated by a Schur complement.
+
+Operating points and parameters passed in are honoured: ``at`` sets states and inputs by name, ``params``
+overrides parameters (structural ones re-flatten a copy of the system).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .dae import Dae, _sp
+from .errors import NotLinearError, SingularSystemError, UnknownNameError
+
+__all__ = ["linearize", "second_order", "SecondOrderModel", "OperatingPoint", "resolve_model", "control_labels"]
+
+
+def control_labels(names):
+    """bscomp names as python-control signal labels: python-control forbids '.', so ``motor.tau`` ->
+    ``motor/tau``."""
+    return [n.replace(".", "/") for n in names]
+
+
+@dataclass
+class OperatingPoint:
+    """Numeric operating point of a Dae: ``x``, ``x'``, ``z``, ``u``, ``p``."""
+
+    xd: np.ndarray
+    x: np.ndarray
+    z: np.ndarray
+    u: np.ndarray
+    p: np.ndarray
+
+
+def resolve_model(model, params: dict | None = None) -> Dae:
+    """A Dae from a System or Dae, with parameter overrides applied (re-flattening if structural)."""
+    from .flatten import flatten
+    from .system import System
+
+    params = dict(params or {})
+    if isinstance(model, System):
+        return flatten(model.with_parameters(params) if params else model)
+    if isinstance(model, Dae):
+        structural = [k for k in params if k in model.structural_parameters]
+        if structural:
+            if model.system is None:
+                raise UnknownNameError(f"parameters {structural} are structural and the Dae has no system to "
+                                       "re-flatten; pass the System instead")
+            return flatten(model.system.with_parameters(params))
+        return model
+    raise TypeError(f"expected a System or Dae, got {type(model).__name__}")
+
+
+def operating_point(dae: Dae, at: dict | None = None, params: dict | None = None) -> OperatingPoint:
+    """Consistent operating point: states and inputs set by name in ``at``; (x', z) solved."""
+    p = dae.parameter_vector({k: v for k, v in (params or {}).items() if k not in dae.structural_parameters})
+    x = dae.x_start.copy()
+    u = np.zeros(dae.nu)
+    for k, v in (at or {}).items():
+        if k in dae.x_names:
+            x[dae.x_names.index(k)] = float(v)
+        elif k in dae.u_names:
+            u[dae.u_names.index(k)] = float(v)
+        else:
+            raise UnknownNameError(f"operating point names '{k}', which is neither a state {dae.x_names[:10]}... "
+                                   f"nor an input {dae.u_names} of '{dae.name}'")
+    xd, z = dae.initialize(x, u, p)
+    return OperatingPoint(xd, x, z, u, p)
+
+
+def _jac(dae: Dae, op: OperatingPoint):
+    _, Jxd, Jx, Jz, Ju = dae.jacobians(op.xd, op.x, op.z, op.u, op.p)
+    return _sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju)
+
+
+def _output_jac(dae: Dae, names, op: OperatingPoint):
+    import casadi as ca
+
+    y = dae.output_expr(names)
+    f = ca.Function("gj", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
+                    [ca.jacobian(y, dae.xds), ca.jacobian(y, dae.xs), ca.jacobian(y, dae.zs), ca.jacobian(y, dae.us)])
+    return [_sp(m) for m in f(op.xd, op.x, op.z, op.u, op.p)]
+
+
+def _select_inputs(dae: Dae, inputs):
+    if inputs is None:
+        return list(range(dae.nu)), list(dae.u_names)
+    idx = []
+    for n in inputs:
+        if n not in dae.u_names:
+            raise UnknownNameError(f"'{n}' is not an input of '{dae.name}'; inputs are the unconnected signal inputs "
+                                   f"{dae.u_names}")
+        idx.append(dae.u_names.index(n))
+    return idx, list(inputs)
+
+
+def linearize(model, inputs=None, outputs=None, at: dict | None = None, params: dict | None = None):
+    """Linearize a System or Dae into a python-control ``StateSpace``.
+
+    Parameters
+    ----------
+    model : System or Dae
+    inputs : list of str, optional
+        Input names (unconnected signal inputs, e.g. ``"motor.tau"``); default all.
+    outputs : list of str, optional
+        Output names (any observable, e.g. ``"table.a"``, ``"rotor.w"``); default the states.
+    at : dict, optional
+        Operating point: state and input values by name; the rest of the state is at its start value
+        and ``(x', z)`` are solved consistently.
+    params : dict, optional
+        Parameter overrides by dotted name.
+
+    Returns
+    -------
+    control.StateSpace
+        With ``state_labels``, ``input_labels`` and ``output_labels`` set (python-control forbids '.' in
+        labels, so ``"motor.tau"`` appears as ``"motor/tau"``). Its attribute
+        ``second_order`` holds the :class:`SecondOrderModel` when the model is mechanical-linear
+        (else None).
+    """
+    import control
+
+    dae = resolve_model(model, params)
+    op = operating_point(dae, at, params)
+    Jxd, Jx, Jz, Ju = _jac(dae, op)
+    uidx, unames = _select_inputs(dae, inputs)
+    nx = dae.nx
+    W = sp.hstack([Jxd, Jz]).tocsc()
+    try:
+        lu = spla.splu(W)
+    except RuntimeError as exc:
+        raise SingularSystemError(dae._singular_message(W)) from exc
+    rhs = sp.hstack([Jx, Ju[:, uidx]]).toarray() if (nx + len(uidx)) else np.zeros((W.shape[0], 0))
+    sol = -lu.solve(rhs) if rhs.size else np.zeros((W.shape[0], 0))
+    A, B = sol[:nx, :nx], sol[:nx, nx:]
+    Zx, Zu = sol[nx:, :nx], sol[nx:, nx:]
+    if outputs is None:
+        outputs = list(dae.x_names)
+        C = np.eye(nx)
+        D = np.zeros((nx, len(uidx)))
+    else:
+        Gxd, Gx, Gz, Gu = _output_jac(dae, outputs, op)
+        C = Gx.toarray() + Gxd @ A + Gz @ Zx
+        D = Gu[:, uidx].toarray() + Gxd @ B + Gz @ Zu
+    sys = control.ss(A, B, np.asarray(C), np.asarray(D), states=control_labels(dae.x_names),
+                     inputs=control_labels(unames), outputs=control_labels(outputs), name=dae.name)
+    try:
+        sys.second_order = second_order(dae, inputs=unames, outputs=outputs, at=at, params=params, _op=op)
+    except NotLinearError:
+        sys.second_order = None
+    sys.operating_point = op
+    return sys
+
+
+@dataclass
+class SecondOrderModel:
+    """``M q'' + C q' + K q = B u``, ``y = Cq q + Cv q' + Ca q'' + D u`` (sparse), thesis Eq 3.44 / 5.1-5.3.
+
+    Attributes
+    ----------
+    coordinates : list of str
+        Names of the reduced coordinates ``q``.
+    units : list of str
+    inputs, outputs : list of str
+    """
+
+    M: Any
+    C: Any
+    K: Any
+    B: Any
+    Cq: Any
+    Cv: Any
+    Ca: Any
+    D: Any
+    coordinates: list
+    units: list
+    inputs: list
+    outputs: list
+
+    @property
+    def n(self):
+        return self.M.shape[0]
+
+    def frf(self, freqs_hz):
+        """Frequency response ``H[k, i, j]`` (freq, output, input) by sparse solves; no dense inverse.
+
+        .. math:: H(j\\omega) = (C_q + j\\omega C_v - \\omega^2 C_a)
+                  (K + j\\omega C - \\omega^2 M)^{-1} B + D
+        """
+        f = np.atleast_1d(np.asarray(freqs_hz, float))
+        H = np.zeros((len(f), len(self.outputs), len(self.inputs)), complex)
+        M, C, K = (sp.csc_matrix(m, dtype=complex) for m in (self.M, self.C, self.K))
+        B = self.B.toarray() if sp.issparse(self.B) else np.asarray(self.B)
+        for k, fk in enumerate(f):
+            w = 2 * np.pi * fk
+            Z = (K + 1j * w * C - w * w * M).tocsc()
+            X = spla.splu(Z).solve(B.astype(complex)) if B.size else np.zeros((self.n, 0), complex)
+            Y = (self.Cq + 1j * w * self.Cv - w * w * self.Ca) @ X
+            H[k] = np.asarray(Y) + np.asarray(self.D.toarray() if sp.issparse(self.D) else self.D)
+        return H
+
+    def to_statespace(self):
+        """First-order form x = (q, q') (Eq 5.3); needs a non-singular M."""
+        import control
+
+        M = self.M.toarray()
+        try:
+            Minv_K = np.linalg.solve(M, self.K.toarray())
+            Minv_C = np.linalg.solve(M, self.C.toarray())
+            Minv_B = np.linalg.solve(M, self.B.toarray())
+        except np.linalg.LinAlgError as exc:
+            raise SingularSystemError("mass matrix is singular (massless coordinates): use linearize() on the Dae, "
+                                      "which handles quasi-static coordinates") from exc
+        n = self.n
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv_K, -Minv_C]])
+        B = np.vstack([np.zeros((n, Minv_B.shape[1])), Minv_B])
+        Ca = self.Ca.toarray()
+        C = np.hstack([self.Cq.toarray() - Ca @ Minv_K, self.Cv.toarray() - Ca @ Minv_C])
+        D = self.D.toarray() + Ca @ Minv_B
+        return control.ss(A, B, C, D,
+                          states=control_labels(self.coordinates + [f"der({c})" for c in self.coordinates]),
+                          inputs=control_labels(self.inputs), outputs=control_labels(self.outputs))
+
+
+def second_order(model, inputs=None, outputs=None, at: dict | None = None, params: dict | None = None,
+                 _op: OperatingPoint | None = None) -> SecondOrderModel:
+    """Second-order form of a mechanical system, linearized at ``at`` (see :class:`SecondOrderModel`).
+
+    Raises
+    ------
+    NotLinearError
+        If the model has internal differential states (controllers, electrical dynamics...): use
+        :func:`linearize` for the first-order form.
+    """
+    dae = resolve_model(model, params)
+    m = dae.mech
+    if m.has_internal_states:
+        raise NotLinearError(f"'{dae.name}' has internal differential states (not only mechanical coordinates); "
+                             "its linearization has no second-order form: use linearize()")
+    op = _op if _op is not None else operating_point(dae, at, params)
+    Jxd, Jx, Jz, Ju = _jac(dae, op)
+    uidx, unames = _select_inputs(dae, inputs)
+    nr = len(m.coordinate_names)
+    nx, nz = dae.nx, dae.nz
+
+    def S(where, n):
+        rows = [where[j] for j in where]
+        cols = list(where)
+        return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, nr))
+
+    Sq_x, Sq_z = S(m.q_in_x, nx), S(m.q_in_z, nz)
+    Sv_x, Sv_xd, Sa_xd = S(m.v_in_x, nx), S(m.v_in_xd, nx), S(m.a_in_xd, nx)
+    # derivative of an inertial position (dt(q)) is its velocity: for outputs only
+    Sv_xd_out = Sv_xd + S({j: i for i, j in enumerate(m.inertial)}, nx)
+    zint = [i for i in range(nz) if i not in set(m.q_in_z.values())]
+    Sw = sp.csr_matrix((np.ones(len(zint)), (zint, np.arange(len(zint)))), shape=(nz, len(zint)))
+    ni = len(m.inertial)
+    rows_R = m.balance_rows
+    rows_G = list(range(ni + nr, Jx.shape[0]))
+
+    def blocks(rows):
+        Jxd_r, Jx_r, Jz_r = Jxd[rows], Jx[rows], Jz[rows]
+        return (Jx_r @ Sq_x + Jz_r @ Sq_z, Jx_r @ Sv_x + Jxd_r @ Sv_xd, Jxd_r @ Sa_xd, Jz_r @ Sw,
+                Ju[rows][:, uidx])
+
+    Rq, Rv, Ra, Rw, Ru = blocks(rows_R)
+    if zint:
+        Gq, Gv, Ga, Gw, Gu = blocks(rows_G)
+        try:
+            lu = spla.splu(sp.csc_matrix(Gw))
+        except RuntimeError as exc:
+            raise SingularSystemError(f"'{dae.name}': internal algebraic equations are singular") from exc
+
+        def schur(Rx, Gx):
+            Gx = sp.csc_matrix(Gx)
+            if Gx.nnz == 0:
+                return sp.csr_matrix(Rx)
+            return sp.csr_matrix(Rx - Rw @ sp.csr_matrix(lu.solve(Gx.toarray())))
+
+        Kq, Cv_, Ma, Bu = schur(Rq, Gq), schur(Rv, Gv), schur(Ra, Ga), schur(Ru, Gu)
+    else:
+        Kq, Cv_, Ma, Bu = sp.csr_matrix(Rq), sp.csr_matrix(Rv), sp.csr_matrix(Ra), sp.csr_matrix(Ru)
+        Gq = Gv = Ga = Gu = None
+    if outputs is None:
+        outputs = list(m.coordinate_names)
+    Gxd, Gx, Gz, Gu_y = _output_jac(dae, outputs, op)
+    Cq = Gx @ Sq_x + Gz @ Sq_z
+    Cv = Gx @ Sv_x + Gxd @ Sv_xd_out
+    Ca = Gxd @ Sa_xd
+    Dy = Gu_y[:, uidx]
+    Yw = Gz @ Sw
+    if zint and Yw.nnz:
+        def ysub(Yx, Gx_):
+            return sp.csr_matrix(Yx - Yw @ lu.solve(sp.csc_matrix(Gx_).toarray()))
+        Cq, Cv, Ca, Dy = ysub(Cq, Gq), ysub(Cv, Gv), ysub(Ca, Ga), ysub(Dy, Gu)
+    return SecondOrderModel(
+        M=sp.csr_matrix(Ma), C=sp.csr_matrix(Cv_), K=sp.csr_matrix(Kq), B=-sp.csr_matrix(Bu),
+        Cq=sp.csr_matrix(Cq), Cv=sp.csr_matrix(Cv), Ca=sp.csr_matrix(Ca), D=sp.csr_matrix(Dy),
+        coordinates=list(m.coordinate_names), units=list(m.coordinate_units), inputs=unames,
+        outputs=list(outputs))

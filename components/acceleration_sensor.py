@@ -1,0 +1,19 @@
+"""Ideal absolute acceleration sensor (an accelerometer on the table): ``a = der(der(flange.s))``."""
+
+from bscomp.component import Component
+from bscomp.ports import Flange, RealOutput
+
+
+class AccelerationSensor(Component):
+    """Absolute acceleration sensor.
+
+    # Connectors
+    - ``flange``: measured flange (draws no force)
+    - ``a``: real output [m/s^2]
+    """
+
+    flange = Flange("measured flange")
+    a = RealOutput("absolute acceleration [m/s2]", unit="m/s2")
+
+    def equations(self):
+        return [self.flange.f, self.a.y - self.der(self.der(self.flange.s))]

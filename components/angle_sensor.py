@@ -1,0 +1,19 @@
+"""Ideal absolute angle sensor (the motor encoder): ``phi = flange.phi``, no torque."""
+
+from bscomp.component import Component
+from bscomp.ports import RealOutput, RotFlange
+
+
+class AngleSensor(Component):
+    """Absolute angle sensor.
+
+    # Connectors
+    - ``flange``: measured flange (draws no torque)
+    - ``phi``: real output [rad]
+    """
+
+    flange = RotFlange("measured flange")
+    phi = RealOutput("absolute angle [rad]", unit="rad")
+
+    def equations(self):
+        return [self.flange.tau, self.phi.y - self.flange.phi]

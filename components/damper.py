@@ -1,0 +1,17 @@
+"""Linear translational damper, ``f = d v_rel`` (e.g. the guideway viscous coefficient, Table 5.2)."""
+
+from bscomp.component import Parameter
+from bscomp.partials import PartialCompliant
+
+
+class Damper(PartialCompliant):
+    """Linear translational damper.
+
+    # Parameters
+    - ``d`` [N.s/m]: damping constant (>= 0)
+    """
+
+    d = Parameter(unit="N.s/m", min=0.0, doc="damping constant")
+
+    def equations(self):
+        return [self.f - self.d * self.v_rel]

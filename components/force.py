@@ -1,0 +1,22 @@
+"""Force source driven by a signal: the input ``f`` acts on ``flange`` (``flange.f = -f``).
+
+With a positive input the flange is pushed in the positive direction (Modelica ``Force``).
+"""
+
+from bscomp.component import Component
+from bscomp.ports import Flange, RealInput
+
+
+class Force(Component):
+    """Ideal force source.
+
+    # Connectors
+    - ``flange``: translational flange the force acts on
+    - ``f``: real input [N]; unconnected, it becomes the system input ``<name>.f``
+    """
+
+    flange = Flange("flange the force acts on")
+    f = RealInput("force [N], positive in +s direction", unit="N")
+
+    def equations(self):
+        return [self.flange.f + self.f.u]

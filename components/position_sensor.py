@@ -1,0 +1,19 @@
+"""Ideal absolute position sensor (e.g. the table's linear encoder): ``s = flange.s``, no force."""
+
+from bscomp.component import Component
+from bscomp.ports import Flange, RealOutput
+
+
+class PositionSensor(Component):
+    """Absolute position sensor.
+
+    # Connectors
+    - ``flange``: measured flange (draws no force)
+    - ``s``: real output [m]
+    """
+
+    flange = Flange("measured flange")
+    s = RealOutput("absolute position [m]", unit="m")
+
+    def equations(self):
+        return [self.flange.f, self.s.y - self.flange.s]

@@ -1,0 +1,22 @@
+"""Linear translational spring, ``f = c (s_rel - s_rel0)`` (joint springs of Sec 3.3.3)."""
+
+from bscomp.component import Parameter
+from bscomp.partials import PartialCompliant
+
+
+class Spring(PartialCompliant):
+    """Linear translational spring.
+
+    # Parameters
+    - ``c`` [N/m]: spring constant (> 0)
+    - ``s_rel0`` [m]: unstretched length
+
+    # Connectors
+    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.partials.PartialCompliant`)
+    """
+
+    c = Parameter(unit="N/m", positive=True, doc="spring constant")
+    s_rel0 = Parameter(0.0, unit="m", doc="unstretched length")
+
+    def equations(self):
+        return [self.f - self.c * (self.s_rel - self.s_rel0)]

@@ -1,0 +1,17 @@
+"""Linear torsional damper, ``tau = d w_rel`` (e.g. B reflected at the motor, Eq 4.2)."""
+
+from bscomp.component import Parameter
+from bscomp.partials import PartialRotCompliant
+
+
+class TorsionalDamper(PartialRotCompliant):
+    """Linear torsional damper.
+
+    # Parameters
+    - ``d`` [N.m.s/rad]: damping constant (>= 0)
+    """
+
+    d = Parameter(unit="N.m.s/rad", min=0.0, doc="torsional damping constant")
+
+    def equations(self):
+        return [self.tau - self.d * self.w_rel]

@@ -1,0 +1,19 @@
+"""Linear torsional spring, ``tau = c (phi_rel - phi_rel0)`` (the coupling's k_T, Fig 3.7)."""
+
+from bscomp.component import Parameter
+from bscomp.partials import PartialRotCompliant
+
+
+class TorsionalSpring(PartialRotCompliant):
+    """Linear torsional spring.
+
+    # Parameters
+    - ``c`` [N.m/rad]: torsional stiffness (> 0)
+    - ``phi_rel0`` [rad]: unstretched angle
+    """
+
+    c = Parameter(unit="N.m/rad", positive=True, doc="torsional stiffness")
+    phi_rel0 = Parameter(0.0, unit="rad", doc="unstretched angle")
+
+    def equations(self):
+        return [self.tau - self.c * (self.phi_rel - self.phi_rel0)]

@@ -1,0 +1,19 @@
+"""Ideal absolute velocity sensor: ``v = der(flange.s)``, no force."""
+
+from bscomp.component import Component
+from bscomp.ports import Flange, RealOutput
+
+
+class VelocitySensor(Component):
+    """Absolute velocity sensor.
+
+    # Connectors
+    - ``flange``: measured flange (draws no force)
+    - ``v``: real output [m/s]
+    """
+
+    flange = Flange("measured flange")
+    v = RealOutput("absolute velocity [m/s]", unit="m/s")
+
+    def equations(self):
+        return [self.flange.f, self.v.y - self.der(self.flange.s)]

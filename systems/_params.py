@@ -1,0 +1,149 @@
+"""Loader for the test-bed parameter files in ``bscomp/systems/data``.
+
+A parameter file is TOML. Every *entry* is a table holding at least ``value``, ``unit`` and
+``source`` (and optionally ``note``); every other table is a *group* of entries or sub-groups.
+The top-level ``[meta]`` table is free-form. See ``docs/testbed-parameters.md``.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - exercised only on Python 3.10
+    import tomli as tomllib
+
+__all__ = ["DATA_DIR", "load_parameters", "get_value", "flatten"]
+
+DATA_DIR = Path(__file__).resolve().parent / "data"
+
+_REQUIRED = ("value", "unit", "source")
+_OPTIONAL = ("note",)
+_ENTRY_KEYS = frozenset(_REQUIRED + _OPTIONAL)
+_FREE_TABLES = frozenset({"meta"})
+
+
+def _resolve(name: str | Path) -> Path:
+    """Return the path of parameter set ``name`` (a bundled name or a path to a ``.toml`` file)."""
+    p = Path(name)
+    if p.suffix == ".toml" or p.is_absolute() or len(p.parts) > 1:
+        return p
+    return DATA_DIR / f"{name}.toml"
+
+
+def _is_entry(table: dict[str, Any]) -> bool:
+    return any(k in table for k in _ENTRY_KEYS)
+
+
+def _check_entry(path: Path, key: str, entry: dict[str, Any]) -> None:
+    missing = [k for k in _REQUIRED if k not in entry]
+    if missing:
+        raise ValueError(f"{path}: entry '{key}' lacks required field(s) {', '.join(missing)}")
+    unknown = sorted(set(entry) - _ENTRY_KEYS)
+    if unknown:
+        raise ValueError(f"{path}: entry '{key}' has unknown field(s) {', '.join(unknown)}")
+    for k in ("unit", "source"):
+        if not isinstance(entry[k], str):
+            raise ValueError(f"{path}: entry '{key}' field '{k}' must be a string")
+    if not entry["source"].strip():
+        raise ValueError(f"{path}: entry '{key}' has an empty 'source'")
+    if "note" in entry and not isinstance(entry["note"], str):
+        raise ValueError(f"{path}: entry '{key}' field 'note' must be a string")
+
+
+def _check_group(path: Path, prefix: str, group: dict[str, Any]) -> None:
+    if not group:
+        raise ValueError(f"{path}: group '{prefix}' is empty")
+    for k, v in group.items():
+        key = f"{prefix}.{k}" if prefix else k
+        if not isinstance(v, dict):
+            raise ValueError(
+                f"{path}: key '{key}' is a bare value; write it as an entry "
+                f"{{ value = ..., unit = ..., source = ... }}"
+            )
+        if _is_entry(v):
+            _check_entry(path, key, v)
+        else:
+            _check_group(path, key, v)
+
+
+def load_parameters(name: str | Path = "fadal_vmc2216_x") -> dict[str, Any]:
+    """Load and validate a parameter set.
+
+    Parameters
+    ----------
+    name : str or pathlib.Path, optional
+        Name of a bundled parameter file in :data:`DATA_DIR` (without ``.toml``), or a path to a
+        TOML file. Default ``"fadal_vmc2216_x"``, the thesis test bed.
+
+    Returns
+    -------
+    dict
+        The parsed TOML as nested dicts. Each entry is a dict with keys ``value``, ``unit``,
+        ``source`` and possibly ``note``; use :func:`get_value` for plain values.
+
+    Raises
+    ------
+    FileNotFoundError
+        If the file does not exist.
+    ValueError
+        If the TOML cannot be parsed, or an entry lacks ``value``/``unit``/``source``, has unknown
+        fields, or a group holds a bare value. The message names the file and the dotted key.
+    """
+    path = _resolve(name)
+    if not path.is_file():
+        raise FileNotFoundError(f"parameter file not found: {path}")
+    try:
+        with path.open("rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: invalid TOML: {exc}") from exc
+    for k, v in data.items():
+        if k in _FREE_TABLES:
+            continue
+        if not isinstance(v, dict):
+            raise ValueError(f"{path}: top-level key '{k}' must be a table (group or entry)")
+        if _is_entry(v):
+            _check_entry(path, k, v)
+        else:
+            _check_group(path, k, v)
+    return data
+
+
+def get_value(params: dict[str, Any], key: str) -> Any:
+    """Return the ``value`` of the entry at dotted ``key`` (e.g. ``"coupling.kT"``).
+
+    Raises
+    ------
+    KeyError
+        If ``key`` does not name an entry.
+    """
+    node: Any = params
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            raise KeyError(f"no parameter entry '{key}'")
+        node = node[part]
+    if not isinstance(node, dict) or "value" not in node:
+        raise KeyError(f"'{key}' is a group, not a parameter entry")
+    return node["value"]
+
+
+def flatten(params: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """Return ``{dotted_key: entry}`` for every entry (the ``[meta]`` table is skipped)."""
+    out: dict[str, dict[str, Any]] = {}
+
+    def walk(prefix: str, group: dict[str, Any]) -> None:
+        for k, v in group.items():
+            key = f"{prefix}.{k}" if prefix else k
+            if not prefix and k in _FREE_TABLES:
+                continue
+            if isinstance(v, dict) and "value" in v:
+                out[key] = v
+            elif isinstance(v, dict):
+                walk(key, v)
+
+    walk("", params)
+    return out
