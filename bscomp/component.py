@@ -249,9 +249,28 @@ class Component:
     def variables(cls) -> dict[str, Variable]:
         return cls._collect(Variable)
 
-    @classmethod
-    def ports(cls) -> dict[str, PortSpec]:
-        return cls._collect(PortSpec)
+    def ports(self) -> dict[str, PortSpec]:
+        """Declared ports: class-level declarations plus ports added per instance (:meth:`add_port`)."""
+        out = self._collect(PortSpec)
+        out.update(self.__dict__.get("_extra_ports", {}))
+        return out
+
+    def add_port(self, name: str, spec: PortSpec) -> None:
+        """Declare a port on this instance (e.g. one Node6 per FE node; call in ``__init__``).
+
+        It is then reached as ``self.<name>`` like a class-level port.
+        """
+        extra = self.__dict__.setdefault("_extra_ports", {})
+        if name in extra or name in self._collect(PortSpec) or name in self.parameters():
+            raise ModelDefinitionError(f"{type(self).__name__} already has a port or parameter named '{name}'")
+        spec.name = name
+        extra[name] = spec
+
+    def __getattr__(self, item):
+        extra = self.__dict__.get("_extra_ports")
+        if extra is not None and item in extra:
+            return self._port_instance(item)
+        raise AttributeError(f"{type(self).__name__} has no attribute '{item}'")
 
     @classmethod
     def _collect(cls, kind):

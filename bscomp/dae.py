@@ -212,9 +212,9 @@ class Dae:
                 raise UnknownNameError(f"no output named '{n}' in '{self.name}'; outputs of that component: {close}")
             exprs.append(self.observables[n])
         e = ca.vertcat(*exprs) if exprs else ca.SX(0, 1)
-        sf, st = self.substitutions
-        if sf:
-            e = ca.substitute(e, ca.vertcat(*sf), ca.densify(ca.vertcat(*st)))
+        for sf, st in self.substitutions:
+            if sf:
+                e = ca.substitute(e, ca.vertcat(*sf), ca.densify(ca.vertcat(*st)))
         known = {s.name() for s in ca.symvar(ca.vertcat(self.xs, self.xds, self.zs, self.us, self.ps))}
         bad = [s.name() for s in ca.symvar(e) if s.name() not in known]
         if bad:

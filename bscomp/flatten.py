@@ -288,9 +288,11 @@ def flatten(system: System, *, check: bool = True) -> Dae:
         finally:
             comp.__dict__["_ctx"] = None
         ceqs = [e[j] for e in ceqs for j in range(e.numel())]
+        struct_coords = set()
         if struct is not None:
             structural.update(f"{path}.{n}" for n in read_struct)
             blocks.append(_block(struct, path, comp, port_coords))
+            struct_coords.update(blocks[-1][0])  # flows of these dofs are the block's M q'' + C q' + K q
 
         # local explicit elimination: flows, outputs, algebraic variables
         var_names = list(ctx.vars)
@@ -331,8 +333,8 @@ def flatten(system: System, *, check: bool = True) -> Dae:
                 raise ModelDefinitionError(
                     f"component '{path}' ({type(comp).__name__}) defines flow '{pname}.{fsym.name().split('.')[-1]}' "
                     "implicitly; write it explicitly as an equation 'port.f - expr' (or introduce a Variable)")
-            if c in con_coords:
-                continue  # pure constraint reaction
+            if c in con_coords or c in struct_coords:
+                continue  # pure constraint reaction, or a structural block's force
             spec = comp.ports()[pname]
             if spec.optional and (path, pname) not in connected:
                 continue  # free end: zero flow
@@ -419,8 +421,8 @@ def flatten(system: System, *, check: bool = True) -> Dae:
         for j, c in enumerate(dep_idx):
             sub_from += [q_full[c], qd_full[c], qdd_full[c]]
             sub_to += [qdep[j], qddep[j], qdddep[j]]
-    sub_from += sig_from
-    sub_to += sig_to
+    # signals first (their definitions may use dependent coordinates), then coordinates
+    stages = [(sig_from, sig_to), (sub_from, sub_to)]
 
     Qsum = [ca.sum1(ca.vertcat(*lst)) if lst else ca.SX(0) for lst in Q]
     # projected balance R = T^T Q (sparse, never dense)
@@ -430,9 +432,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
         row = slice(TT.indptr[j], TT.indptr[j + 1])
         terms = [float(a) * Qsum[c] if a != 1.0 else Qsum[c] for c, a in zip(TT.indices[row], TT.data[row])]
         R.append(ca.sum1(ca.vertcat(*terms)) if terms else ca.SX(0))
-    big = ca.vertcat(*(R + eqs))
-    if sub_from:
-        big = ca.substitute(big, ca.vertcat(*sub_from), ca.densify(ca.vertcat(*sub_to)))
+    big = _apply_stages(ca.vertcat(*(R + eqs)), stages)
     R = big[:nr]
     eqs_s = big[nr:]
 
@@ -479,14 +479,16 @@ def flatten(system: System, *, check: bool = True) -> Dae:
                + [rnames[j] for j in damped] + xint_names)
     z_names = [rnames[j] for j in static] + zint_names + [sig_names[k] for k in sig_loop]
     loop_eqs = [sig_syms[k] - sig_def[k] for k in sig_loop]
-    if loop_eqs and sub_from:
-        loop_eqs = [ca.substitute(e, ca.vertcat(*sub_from), ca.densify(ca.vertcat(*sub_to))) for e in loop_eqs]
+    if loop_eqs:
+        loop_eqs = [_apply_stages(e, stages) for e in loop_eqs]
     kin = [dq_in[i] - qdr[j] for i, j in enumerate(inertial)]
     Fsx = ca.vertcat(*(kin + [Rv[j] for j in range(nr)] + [eqs_s[j] for j in range(eqs_s.numel())] + loop_eqs))
     origins = ([f"kinematics of {rnames[j]}" for j in inertial]
                + [f"force balance at {rnames[j]}" for j in range(nr)] + eq_origin
                + [f"algebraic loop through signal {sig_names[k]}" for k in sig_loop])
     xs, xds, zs = _vc(X), _vc(XD), _vc(Z)
+    for n, sym in zip(x_names + z_names, X + Z):
+        observables.setdefault(n, sym)
     us = _vc(u_syms)
 
     # every symbol used must be known
@@ -513,12 +515,20 @@ def flatten(system: System, *, check: bool = True) -> Dae:
         x_names=x_names, z_names=z_names, u_names=u_names, u_units=u_units, p_names=p_names, p_units=p_units,
         p0=p0, x_start=np.concatenate([np.zeros(2 * ni + len(damped)), np.asarray(xint_start, float)]),
         z_start=np.concatenate([np.zeros(len(static)), np.asarray(zint_start, float), np.zeros(len(sig_loop))]),
-        eq_origin=origins, observables=observables, substitutions=(sub_from, sub_to),
+        eq_origin=origins, observables=observables, substitutions=stages,
         structural_parameters=sorted(structural), system=system)
     dae.stats["flatten_s"] = time.perf_counter() - t_start
     if check:
         dae.check_index1()
     return dae
+
+
+def _apply_stages(e, stages):
+    """Apply substitution stages in order (each stage simultaneous)."""
+    for frm, to in stages:
+        if frm:
+            e = ca.substitute(e, ca.vertcat(*frm), ca.densify(ca.vertcat(*to)))
+    return e
 
 
 def _vc(lst):

@@ -139,6 +139,10 @@ def linearize(model, inputs=None, outputs=None, at: dict | None = None, params: 
     op = operating_point(dae, at, params)
     Jxd, Jx, Jz, Ju = _jac(dae, op)
     uidx, unames = _select_inputs(dae, inputs)
+    if not uidx:
+        raise NotLinearError(f"'{dae.name}' has no inputs and python-control's StateSpace needs at least one: add a "
+                             "Force/Torque source (its unconnected input becomes a system input); second_order() "
+                             "works without inputs")
     nx = dae.nx
     W = sp.hstack([Jxd, Jz]).tocsc()
     try:
@@ -155,8 +159,8 @@ def linearize(model, inputs=None, outputs=None, at: dict | None = None, params: 
         D = np.zeros((nx, len(uidx)))
     else:
         Gxd, Gx, Gz, Gu = _output_jac(dae, outputs, op)
-        C = Gx.toarray() + Gxd @ A + Gz @ Zx
-        D = Gu[:, uidx].toarray() + Gxd @ B + Gz @ Zu
+        C = np.asarray(Gx.toarray() + Gxd @ A + Gz @ Zx).reshape(len(outputs), nx)
+        D = np.asarray(Gu[:, uidx].toarray() + Gxd @ B + Gz @ Zu).reshape(len(outputs), len(uidx))
     sys = control.ss(A, B, np.asarray(C), np.asarray(D), states=control_labels(dae.x_names),
                      inputs=control_labels(unames), outputs=control_labels(outputs), name=dae.name)
     try:

@@ -6,6 +6,7 @@ from .damper import Damper
 from .fixed import Fixed
 from .fixed_rotational import FixedRotational
 from .force import Force
+from .gain import Gain
 from .ideal_lead_screw import IdealLeadScrew
 from .inertia import Inertia
 from .mass import Mass
@@ -18,7 +19,7 @@ from .torsional_spring import TorsionalSpring
 from .velocity_sensor import VelocitySensor
 
 __all__ = [
-    "AccelerationSensor", "AngleSensor", "Damper", "Fixed", "FixedRotational", "Force", "IdealLeadScrew",
+    "AccelerationSensor", "AngleSensor", "Damper", "Fixed", "FixedRotational", "Force", "Gain", "IdealLeadScrew",
     "Inertia", "Mass", "PositionSensor", "SpeedSensor", "Spring", "Torque", "TorsionalDamper",
     "TorsionalSpring", "VelocitySensor",
 ]

@@ -1,0 +1,22 @@
+"""Static gain on a signal, ``y = k u`` (amplifier K_a, torque constant K_t, tachometer H_g: Eq 4.1)."""
+
+from bscomp.component import Component, Parameter
+from bscomp.ports import RealInput, RealOutput
+
+
+class Gain(Component):
+    """Signal gain.
+
+    # Parameters
+    - ``k`` [-]: gain (units follow the connected signals)
+
+    # Connectors
+    - ``u``: real input; ``y``: real output
+    """
+
+    u = RealInput("input signal")
+    y = RealOutput("output signal")
+    k = Parameter(1.0, unit="1", doc="gain")
+
+    def equations(self):
+        return [self.y.y - self.k * self.u.u]
