@@ -228,155 +228,100 @@ def flatten(system: System, *, check: bool = True) -> Dae:
     observables = {}
     blocks = []                            # (coord indices, M, C, K)
     structural = set()
+    templates = {}
     for lf in leaves:
         comp, path = lf.comp, lf.path
-        ctx = _Context()
-        for n, p in comp.parameters().items():
-            v = comp._values[n]
-            shape = np.shape(v)
+        ports = comp.ports()
+        params = comp.parameters()
+        variables = comp.variables()
+        key = (type(comp), tuple((n, s.kind.name, s.optional) for n, s in ports.items()),
+               tuple((n, np.shape(comp._values[n])) for n in params), tuple(variables))
+        tpl = templates.get(key)
+        if tpl is None:
+            tpl = templates[key] = _Template(comp, path, ports, params, variables)
+        # numeric/structural parts are per instance
+        comp.__dict__["_read_params"] = set()
+        struct = comp.structure()
+        read_struct = set(comp.__dict__.pop("_read_params", set()))
+
+        # global symbols of this instance
+        pv = [np.asarray(comp._values[n], dtype=float) for n in params]
+        psym = []
+        for (n, p), vv in zip(params.items(), pv):
+            shape = vv.shape
             sym = ca.SX.sym(f"{path}.{n}", *(shape if len(shape) == 2 else (shape[0], 1) if shape else (1, 1)))
-            ctx.params[n] = sym
-            vv = np.asarray(v, dtype=float)
+            psym.append(sym)
             p_syms.append(ca.vec(sym))
             p_vals.append(vv.reshape(-1, order="F"))
             cnt = int(vv.size)
             p_names.extend([f"{path}.{n}"] if cnt == 1 else [f"{path}.{n}[{j}]" for j in range(cnt)])
             p_units.extend([p.unit] * cnt)
-        loc_p = ca.vertcat(*[ca.vec(s) for s in ctx.params.values()]) if ctx.params else ca.SX(0, 1)
-        loc_pv = np.concatenate([np.asarray(comp._values[n], float).reshape(-1, order="F")
-                                 for n in ctx.params]) if ctx.params else np.zeros(0)
+        loc_pv = np.concatenate([v.reshape(-1, order="F") for v in pv]) if pv else np.zeros(0)
         port_coords = {}
-        flow_syms = []  # (symbol, port, coordinate index)
-        out_sig = []    # (symbol, signal index)
-        for pname, spec in comp.ports().items():
-            if spec.kind.is_signal:
-                k = sig_of[uf.find((path, pname, 0))]
-                b = _PortBinding(spec, [sig_syms[k]], [], None)
-                if spec.kind.signal == "out":
-                    out_sig.append((sig_syms[k], k))
-            else:
-                idx = [coord_of[uf.find((path, pname, i))] for i in range(len(spec.kind.potentials))]
-                port_coords[pname] = idx
-                fl = [ca.SX.sym(f"{path}.{pname}.{fn}") for fn, _ in spec.kind.flows]
-                flow_syms.extend((f, pname, c) for f, c in zip(fl, idx))
-                b = _PortBinding(spec, [q_full[c] for c in idx], fl, None)
-                for c in idx:
-                    ctx.der_pairs.append((q_full[c], qd_full[c]))
-                    ctx.der_pairs.append((qd_full[c], qdd_full[c]))
-            ctx.ports[pname] = b
-        for n, v in comp.variables().items():
-            s = ca.SX.sym(f"{path}.{n}")
-            ds = ca.SX.sym(f"der({path}.{n})")
-            ctx.vars[n] = s
-            ctx.dvars[n] = ds
-            ctx.der_pairs.append((s, ds))
-
-        # structure() sees numeric parameter values
-        comp.__dict__["_read_params"] = set()
-        struct = comp.structure()
-        read_struct = set(comp.__dict__.pop("_read_params", set()))
-        comp.__dict__["_ctx"] = ctx
-        try:
-            ceqs = [ca.SX(e) for e in comp.connector_equations() + comp.equations()]
-            cons = comp.constraints()
-            obs = comp.observables()
-        except ModelDefinitionError:
-            raise
-        except Exception as exc:  # a bug in a component file: say which one
-            raise ModelDefinitionError(f"component '{path}' ({type(comp).__name__}) failed while building its "
-                                       f"equations: {type(exc).__name__}: {exc}") from exc
-        finally:
-            comp.__dict__["_ctx"] = None
-        ceqs = [e[j] for e in ceqs for j in range(e.numel())]
-        struct_coords = set()
+        for pname in tpl.phys_ports:
+            port_coords[pname] = [coord_of[uf.find((path, pname, i))]
+                                  for i in range(len(ports[pname].kind.potentials))]
+        cidx = [c for pname in tpl.phys_ports for c in port_coords[pname]]
+        sidx = [sig_of[uf.find((path, pname, 0))] for pname in tpl.sig_ports]
+        vsym = [ca.SX.sym(f"{path}.{n}") for n in tpl.var_names]
+        dsym = [ca.SX.sym(f"der({path}.{n})") for n in tpl.var_names]
+        out = tpl.fun(_vc([q_full[c] for c in cidx]), _vc([qd_full[c] for c in cidx]),
+                      _vc([qdd_full[c] for c in cidx]), _vc([sig_syms[k] for k in sidx]),
+                      _vc([ca.vec(s) for s in psym]), _vc(vsym), _vc(dsym))
+        flows_e, outs_e, rem_e, obs_e = out
+        for j, c in enumerate(cidx):
+            st = tpl.flow_status[j]
+            if st == "solved":
+                Q[c].append(flows_e[tpl.flow_pos[j]])
+            elif st == "constrained":
+                pass
+            else:  # undefined: fine only for an unconnected optional port
+                pname = tpl.flow_port[j]
+                if not (ports[pname].optional and (path, pname) not in connected):
+                    raise ModelDefinitionError(
+                        f"component '{path}' ({type(comp).__name__}) does not define the flow of port '{pname}': "
+                        "give an equation 'port.f - expr', or a constraint on its potential (ideal joint)")
+        for j, k in enumerate(tpl.out_sig_idx):
+            sig_def[sidx[k]] = outs_e[j]
+        for j, n in enumerate(tpl.var_names):
+            if n in tpl.alg_unsolved:
+                zint.append(vsym[j])
+                zint_names.append(f"{path}.{n}")
+                zint_start.append(variables[n].start)
+            elif n in tpl.diff_vars:
+                xint.append(vsym[j])
+                xint_d.append(dsym[j])
+                xint_names.append(f"{path}.{n}")
+                xint_start.append(variables[n].start)
+        for j, k in enumerate(tpl.rem_index):
+            eqs.append(rem_e[j])
+            eq_origin.append(f"equation {k} of component '{path}' ({type(comp).__name__})")
+        for j, n in enumerate(tpl.obs_names):
+            observables[f"{path}.{n}"] = obs_e[j]
+        for pname, idx in port_coords.items():
+            for (pot, _), c in zip(ports[pname].kind.potentials, idx):
+                observables[f"{path}.{pname}.{pot}"] = q_full[c]
+        for pname, k in zip(tpl.sig_ports, sidx):
+            observables[f"{path}.{pname}"] = sig_syms[k]
+        for n, s in zip(params, psym):
+            observables[f"{path}.{n}"] = s
+        # constraints: numeric coefficients per instance
+        if tpl.n_cons:
+            J, b = tpl.cons_fun(loc_pv)
+            J = np.asarray(J, float).reshape(tpl.n_cons, len(cidx))
+            b = np.asarray(b, float).ravel()
+            for r in range(tpl.n_cons):
+                coeffs = {}
+                for j, a in enumerate(J[r]):
+                    if a != 0.0:
+                        coeffs[cidx[j]] = coeffs.get(cidx[j], 0.0) + float(a)
+                sf = tpl.cons_solve_for[r]
+                constraints.append((coeffs, float(b[r]), cidx[sf] if sf is not None else None,
+                                    f"constraint of '{path}' ({type(comp).__name__})"))
+            structural.update(f"{path}.{n}" for n in tpl.cons_params)
         if struct is not None:
             structural.update(f"{path}.{n}" for n in read_struct)
             blocks.append(_block(struct, path, comp, port_coords))
-            struct_coords.update(blocks[-1][0])  # flows of these dofs are the block's M q'' + C q' + K q
-
-        # local explicit elimination: flows, outputs, algebraic variables
-        var_names = list(ctx.vars)
-        is_diff = {n: any(ca.depends_on(e, ctx.dvars[n]) for e in ceqs) for n in var_names}
-        alg_vars = [n for n in var_names if not is_diff[n]]
-        unknowns = [f for f, _, _ in flow_syms] + [s for s, _ in out_sig] + [ctx.vars[n] for n in alg_vars]
-        forbid = ca.vertcat(*[ctx.dvars[n] for n in var_names]) if var_names else ca.SX(0, 1)
-        solved, remaining, used = _eliminate_explicit(ceqs, unknowns, (loc_p, loc_pv, forbid))
-        nflow, nout = len(flow_syms), len(out_sig)
-        subs_from, subs_to = [], []
-        for i, expr in solved.items():
-            subs_from.append(unknowns[i])
-            subs_to.append(expr)
-
-        def _sub(e, subs_from=subs_from, subs_to=subs_to):
-            if not subs_from:
-                return e
-            return ca.substitute(e, ca.vertcat(*subs_from), ca.vertcat(*subs_to))
-
-        # constraints
-        con_coords = set()
-        for cexpr in cons:
-            solve_for = None
-            if isinstance(cexpr, Constraint):
-                solve_for, cexpr = cexpr.solve_for, cexpr.expr
-            cexpr = ca.SX(cexpr)
-            for j in range(cexpr.numel()):
-                constraints.append(_constraint(cexpr[j], solve_for, comp, path, port_coords, q_full, qd_full,
-                                               qdd_full, ctx, loc_p, loc_pv))
-                con_coords.update(constraints[-1][0])
-                structural.update(f"{path}.{n}" for n, s in ctx.params.items() if ca.depends_on(cexpr, ca.vec(s)))
-
-        for i, (fsym, pname, c) in enumerate(flow_syms):
-            if i in solved:
-                Q[c].append(solved[i])
-                continue
-            if any(ca.depends_on(e, fsym) for k, e in enumerate(remaining) if k not in used):
-                raise ModelDefinitionError(
-                    f"component '{path}' ({type(comp).__name__}) defines flow '{pname}.{fsym.name().split('.')[-1]}' "
-                    "implicitly; write it explicitly as an equation 'port.f - expr' (or introduce a Variable)")
-            if c in con_coords or c in struct_coords:
-                continue  # pure constraint reaction, or a structural block's force
-            spec = comp.ports()[pname]
-            if spec.optional and (path, pname) not in connected:
-                continue  # free end: zero flow
-            raise ModelDefinitionError(
-                f"component '{path}' ({type(comp).__name__}) does not define the flow of port '{pname}': give an "
-                "equation 'port.f - expr', or a constraint on its potential (ideal joint)")
-        for j, (osym, k) in enumerate(out_sig):
-            if nflow + j in solved:
-                sig_def[k] = solved[nflow + j]
-            else:
-                raise ModelDefinitionError(
-                    f"component '{path}' ({type(comp).__name__}) does not define its output '{sig_names[k]}' "
-                    "explicitly; add an equation 'port.y - expr'")
-        for j, n in enumerate(alg_vars):
-            if nflow + nout + j not in solved:
-                zint.append(ctx.vars[n])
-                zint_names.append(f"{path}.{n}")
-                zint_start.append(comp.variables()[n].start)
-        for n in var_names:
-            if is_diff[n]:
-                xint.append(ctx.vars[n])
-                xint_d.append(ctx.dvars[n])
-                xint_names.append(f"{path}.{n}")
-                xint_start.append(comp.variables()[n].start)
-        for k, e in enumerate(remaining):
-            if k not in used:
-                eqs.append(e)
-                eq_origin.append(f"equation {k} of component '{path}' ({type(comp).__name__})")
-
-        # observables: parameters, potentials, variables, declared ones
-        for n, s in ctx.params.items():
-            observables[f"{path}.{n}"] = s
-        for pname, idx in port_coords.items():
-            for (pot, _), c in zip(comp.ports()[pname].kind.potentials, idx):
-                observables[f"{path}.{pname}.{pot}"] = q_full[c]
-        for pname, spec in comp.ports().items():
-            if spec.kind.is_signal:
-                observables[f"{path}.{pname}"] = sig_syms[sig_of[uf.find((path, pname, 0))]]
-        for n in var_names:
-            observables[f"{path}.{n}"] = _sub(ctx.vars[n])
-        for n, e in obs.items():
-            observables[f"{path}.{n}"] = _sub(ca.SX(e))
     p_all = ca.vertcat(*p_syms) if p_syms else ca.SX(0, 1)
     p0 = np.concatenate(p_vals) if p_vals else np.zeros(0)
 
@@ -531,6 +476,156 @@ def _apply_stages(e, stages):
     return e
 
 
+class _Template:
+    """Symbolic processing of one component class, done once and reused for every instance.
+
+    The component's methods are called with local symbols; explicit equations are solved; the result
+    is a CasADi Function of (q, q', q'', signals, p, vars, der(vars)) that each instance calls with its
+    own global symbols (inlined), so N identical components cost one symbolic pass, not N.
+    """
+
+    def __init__(self, comp, path, ports, params, variables):
+        self.phys_ports = [n for n, s in ports.items() if not s.kind.is_signal]
+        self.sig_ports = [n for n, s in ports.items() if s.kind.is_signal]
+        ctx = _Context()
+        psyms = []
+        for n in params:
+            shape = np.shape(comp._values[n])
+            sym = ca.SX.sym(n, *(shape if len(shape) == 2 else (shape[0], 1) if shape else (1, 1)))
+            ctx.params[n] = sym
+            psyms.append(ca.vec(sym))
+        q, qd, qdd, flows, flow_port = [], [], [], [], []
+        for pname in self.phys_ports:
+            spec = ports[pname]
+            pq = [ca.SX.sym(f"{pname}.{pot}") for pot, _ in spec.kind.potentials]
+            pqd = [ca.SX.sym(f"der({pname}.{pot})") for pot, _ in spec.kind.potentials]
+            pqdd = [ca.SX.sym(f"der(der({pname}.{pot}))") for pot, _ in spec.kind.potentials]
+            fl = [ca.SX.sym(f"{pname}.{fn}") for fn, _ in spec.kind.flows]
+            q += pq
+            qd += pqd
+            qdd += pqdd
+            flows += fl
+            flow_port += [pname] * len(fl)
+            ctx.ports[pname] = _PortBinding(spec, pq, fl, None)
+            for a, b_, c in zip(pq, pqd, pqdd):
+                ctx.der_pairs += [(a, b_), (b_, c)]
+        sig = []
+        out_sig = []
+        for k, pname in enumerate(self.sig_ports):
+            spec = ports[pname]
+            s = ca.SX.sym(pname)
+            sig.append(s)
+            ctx.ports[pname] = _PortBinding(spec, [s], [], None)
+            if spec.kind.signal == "out":
+                out_sig.append(k)
+        self.var_names = list(variables)
+        vs = [ca.SX.sym(n) for n in self.var_names]
+        ds = [ca.SX.sym(f"der({n})") for n in self.var_names]
+        for n, v, d in zip(self.var_names, vs, ds):
+            ctx.vars[n] = v
+            ctx.dvars[n] = d
+            ctx.der_pairs.append((v, d))
+        comp.__dict__["_ctx"] = ctx
+        try:
+            ceqs = [ca.SX(e) for e in comp.connector_equations() + comp.equations()]
+            cons = comp.constraints()
+            obs = comp.observables()
+        except ModelDefinitionError:
+            raise
+        except Exception as exc:  # a bug in a component file: say which one
+            raise ModelDefinitionError(f"component '{path}' ({type(comp).__name__}) failed while building its "
+                                       f"equations: {type(exc).__name__}: {exc}") from exc
+        finally:
+            comp.__dict__["_ctx"] = None
+        ceqs = [e[j] for e in ceqs for j in range(e.numel())]
+        p_loc = _vc(psyms)
+        pv = np.concatenate([np.asarray(comp._values[n], float).reshape(-1, order="F") for n in params]) \
+            if params else np.zeros(0)
+        self.diff_vars = {n for n, d in zip(self.var_names, ds) if any(ca.depends_on(e, d) for e in ceqs)}
+        alg = [n for n in self.var_names if n not in self.diff_vars]
+        unknowns = flows + [sig[k] for k in out_sig] + [ctx.vars[n] for n in alg]
+        forbid = _vc([ctx.dvars[n] for n in self.var_names])
+        solved, remaining, used = _eliminate_explicit(ceqs, unknowns, (p_loc, pv, forbid))
+        nflow = len(flows)
+        sub_from = [unknowns[i] for i in solved]
+        sub_to = [solved[i] for i in solved]
+
+        def _sub(e):
+            if not sub_from:
+                return e
+            return ca.substitute(e, ca.vertcat(*sub_from), ca.densify(ca.vertcat(*sub_to)))
+
+        # constraints (affine in q, numeric coefficients evaluated per instance)
+        cexprs, self.cons_solve_for = [], []
+        for cexpr in cons:
+            solve_for = None
+            if isinstance(cexpr, Constraint):
+                solve_for, cexpr = cexpr.solve_for, cexpr.expr
+            cexpr = ca.SX(cexpr)
+            for j in range(cexpr.numel()):
+                cexprs.append(cexpr[j])
+                sf = None
+                if solve_for is not None:
+                    for i, qq in enumerate(q):
+                        if ca.is_equal(qq, ca.SX(solve_for)):
+                            sf = i
+                self.cons_solve_for.append(sf)
+        self.n_cons = len(cexprs)
+        con_q = set()
+        qv = _vc(q)
+        if cexprs:
+            C = ca.vertcat(*cexprs)
+            for o in [_vc(qd), _vc(qdd)] + vs + flows:
+                if o.numel() and ca.depends_on(C, o):
+                    raise ModelDefinitionError(
+                        f"constraint of '{path}' ({type(comp).__name__}) involves velocities, flows or variables: "
+                        "constraints must be affine in port potentials (write other laws as equations)")
+            J = ca.jacobian(C, qv)
+            if ca.depends_on(J, qv):
+                raise ModelDefinitionError(f"constraint of '{path}' ({type(comp).__name__}) is not affine in the "
+                                           "port potentials; only linear holonomic constraints are eliminated")
+            b = ca.substitute(C, qv, ca.DM.zeros(qv.shape))
+            self.cons_fun = ca.Function("cons", [p_loc], [ca.densify(J), ca.densify(b)])
+            spj = J.sparsity()
+            con_q = set(int(c) for c in spj.get_col())
+            self.cons_params = [n for n, s in ctx.params.items() if ca.depends_on(C, ca.vec(s))]
+        else:
+            self.cons_params = []
+        self.flow_status, self.flow_pos, self.flow_port = [], [], flow_port
+        fl_out = []
+        for i, f in enumerate(flows):
+            if i in solved:
+                self.flow_status.append("solved")
+                self.flow_pos.append(len(fl_out))
+                fl_out.append(solved[i])
+                continue
+            self.flow_pos.append(None)
+            if any(ca.depends_on(e, f) for k, e in enumerate(remaining) if k not in used):
+                raise ModelDefinitionError(
+                    f"component '{path}' ({type(comp).__name__}) defines flow '{f.name()}' implicitly; write it "
+                    "explicitly as an equation 'port.f - expr' (or introduce a Variable)")
+            self.flow_status.append("constrained" if i in con_q else "undefined")
+        outs = []
+        self.out_sig_idx = []
+        for j, k in enumerate(out_sig):
+            if nflow + j not in solved:
+                raise ModelDefinitionError(
+                    f"component '{path}' ({type(comp).__name__}) does not define its output '{self.sig_ports[k]}' "
+                    "explicitly; add an equation 'port.y - expr'")
+            outs.append(solved[nflow + j])
+            self.out_sig_idx.append(k)
+        self.alg_unsolved = {n for j, n in enumerate(alg) if nflow + len(out_sig) + j not in solved}
+        self.rem_index = [k for k in range(len(remaining)) if k not in used]
+        rem = [remaining[k] for k in self.rem_index]
+        self.obs_names = list(self.var_names) + list(obs)
+        obs_e = [_sub(v) for v in vs] + [_sub(ca.SX(e)) for e in obs.values()]
+        obs_e = [e if e.numel() == 1 else e[0] for e in obs_e]
+        self.fun = ca.Function(
+            f"tpl_{type(comp).__name__}",
+            [qv, _vc(qd), _vc(qdd), _vc(sig), p_loc, _vc(vs), _vc(ds)],
+            [_vc(fl_out), _vc(outs), _vc(rem), _vc(obs_e)])
+
+
 def _vc(lst):
     return ca.vertcat(*lst) if lst else ca.SX(0, 1)
 
@@ -569,32 +664,6 @@ def _block(struct, path, comp, port_coords):
             raise ModelDefinitionError(f"structure() of '{path}': {name} is {m.shape}, expected ({n}, {n})")
         mats.append(m)
     return (idx, *mats)
-
-
-def _constraint(expr, solve_for, comp, path, port_coords, q_full, qd_full, qdd_full, ctx, loc_p, loc_pv):
-    own = sorted({c for idx in port_coords.values() for c in idx})
-    qv = ca.vertcat(*[q_full[c] for c in own]) if own else ca.SX(0, 1)
-    others = [ca.vertcat(*[qd_full[c] for c in own]), ca.vertcat(*[qdd_full[c] for c in own])]
-    others += [v for v in ctx.vars.values()]
-    for o in others:
-        if o.numel() and ca.depends_on(expr, o):
-            raise ModelDefinitionError(
-                f"constraint of '{path}' ({type(comp).__name__}) involves velocities or variables: constraints must "
-                "be affine in port potentials (write velocity laws as equations)")
-    J = ca.jacobian(expr, qv)
-    if J.numel() and ca.depends_on(J, qv):
-        raise ModelDefinitionError(f"constraint of '{path}' ({type(comp).__name__}) is not affine in the port "
-                                   "potentials; only linear holonomic constraints are eliminated")
-    f = ca.Function("c", [loc_p, qv], [J, ca.substitute(expr, qv, ca.DM.zeros(qv.shape))])
-    Jn, b = f(loc_pv, np.zeros(qv.numel()))
-    Jn = np.asarray(Jn, float).ravel()
-    coeffs = {own[i]: float(a) for i, a in enumerate(Jn) if a != 0.0}
-    sf = None
-    if solve_for is not None:
-        for c in own:
-            if ca.is_equal(q_full[c], ca.SX(solve_for)):
-                sf = c
-    return coeffs, float(b), sf, f"constraint of '{path}' ({type(comp).__name__})"
 
 
 def _eliminate_constraints(constraints, nq, coord_names):

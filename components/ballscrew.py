@@ -128,7 +128,7 @@ class Ballscrew(Component):
             for k, d in enumerate(DOF_NAMES):
                 row = N.getrow(k)
                 expr = getattr(port, d)
-                for j, a in zip(row.indices, row.data):
+                for j, a in zip(row.indices, row.data, strict=True):
                     node, dof = divmod(int(j), 6)
                     if DOF_NAMES[dof] in self.dofs:
                         expr = expr - float(a) * getattr(getattr(self, f"n{node}"), DOF_NAMES[dof])
