@@ -11,6 +11,7 @@ import numpy as np
 
 def _demo(args) -> int:
     from . import flatten, linearize
+    from .modal import modes
     from bscomp.systems import small_drive
 
     out = Path(args.out)
@@ -21,23 +22,14 @@ def _demo(args) -> int:
     print(f"  flattened: {dae.nx} states {dae.x_names}, inputs {dae.u_names} "
           f"({dae.stats['flatten_s'] * 1e3:.1f} ms)")
     lin = linearize(dae, inputs=["motor.tau"], outputs=["rotor.w", "table.a"])
-    ev = np.linalg.eigvals(lin.A)
-    order = np.argsort(np.abs(ev))
-    print("  modes (from the linearized DAE):")
-    print(f"    {'#':>2} {'f_n [Hz]':>10} {'zeta [-]':>9}")
-    k = 0
-    for i in order:
-        if ev[i].imag < 0:
-            continue
-        wn = abs(ev[i])
-        zeta = -ev[i].real / wn if wn > 0 else 0.0
-        k += 1
-        print(f"    {k:>2} {wn / (2 * np.pi):>10.2f} {zeta:>9.4f}" + ("   (rigid body)" if wn < 1e-3 else ""))
-    # J reflected at the motor (thesis Eq 4.2): rotor + screw + table r_g^2
     so = lin.second_order
-    r_g = 0.010 / (2 * np.pi)
-    J = so.M.diagonal()[0] + so.M.diagonal()[1] + so.M.diagonal()[2] * r_g**2
-    print(f"  J reflected at the motor = {J:.4e} kg m^2 (thesis Eq 4.2: 8.55e-3 for the full test bed)")
+    md = modes(so)
+    print("  modes (undamped K phi = w^2 M phi; damping from the damped poles):")
+    print("    " + md.table("rotor.phi").replace("\n", "\n    "))
+    # J reflected at the motor (thesis Eq 4.2): the rigid-body modal mass at the motor angle
+    J = md.reflected_inertia("rotor.phi")
+    print(f"  J reflected at the motor = {J:.4e} kg m^2 (thesis Eq 4.2: 8.55e-3 for the full test bed), "
+          f"B = {md.reflected_damping('rotor.phi'):.4g} N m s/rad")
     f = np.logspace(0, np.log10(2000), 600)
     H = so.frf(f)
     from .plotting import bode_plot
@@ -48,12 +40,112 @@ def _demo(args) -> int:
     return 0
 
 
+def _parse_set(items) -> dict:
+    from .errors import ParameterError
+
+    out = {}
+    for item in items or []:
+        name, eq, value = item.partition("=")
+        if not eq or not name.strip():
+            raise ParameterError(f"--set expects NAME=VALUE (e.g. coupling.c=45940), got {item!r}")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            out[name.strip()] = value.strip()
+    return out
+
+
+def _build(args):
+    """(system, overrides) from SYSTEM, --set and --position (the system's ``position_parameter``)."""
+    from .sweep import build_system, position_parameter
+
+    overrides = _parse_set(args.set)
+    if args.position is not None:
+        base = build_system(args.system, overrides)
+        overrides[position_parameter(base)] = float(args.position)
+    return build_system(args.system, overrides)
+
+
+def _modes(args) -> int:
+    from .modal import modes
+
+    system = _build(args)
+    md = modes(system, inputs=args.input or None, outputs=args.output or None, n=args.n, fmax=args.fmax)
+    if args.json:
+        print(md.to_json())
+    else:
+        print(f"{system.name}: {len(md)} modes over {len(md.coordinates)} coordinates ({md.method}; damping: "
+              f"{md.damping_method})")
+        print(md.table(args.reference) if args.reference else md.table())
+        for note in md.notes:
+            print(f"note: {note}")
+    if args.csv:
+        md.to_csv(args.csv)
+    if args.png:
+        md.plot(args.png)
+    return 0
+
+
+def _frf(args) -> int:
+    from .frf import frf
+
+    system = _build(args)
+    res = frf(system, args.input, args.output, fmin=args.fmin, fmax=args.fmax, n=args.n)
+    if args.csv:
+        res.to_csv(args.csv)
+    if args.png:
+        res.plot(args.png)
+    if not args.csv and not args.png:
+        res.to_csv(sys.stdout)
+    else:
+        h = np.abs(res.response())
+        k = int(np.argmax(h))
+        print(f"{system.name}: {args.input} -> {args.output}, {res.freqs.size} points {args.fmin:g}-{args.fmax:g} Hz; "
+              f"largest |H| = {h[k]:.4g} at {res.freqs[k]:.4g} Hz")
+        for f_ in (args.csv, args.png):
+            if f_:
+                print(f"  written {f_}")
+    return 0
+
+
+def _add_system_args(p):
+    p.add_argument("system", help="a system registered in bscomp.systems (e.g. small_drive) or a .py file "
+                                  "defining build()")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="parameter override (repeatable)")
+    p.add_argument("--position", type=float, metavar="X",
+                   help="nut position: sets the system's position_parameter (declared by its build function)")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="bscomp", description="Ballscrew feed drives as acausal components.")
     sub = parser.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("demo", help="build a small drive, print its modes, write a Bode plot")
     p.add_argument("--out", default="out", help="folder for figures (default: out)")
     p.set_defaults(func=_demo)
+
+    p = sub.add_parser("modes", help="natural frequencies, damping, modal masses and shapes")
+    _add_system_args(p)
+    p.add_argument("--input", action="append", help="input for the participation factors (repeatable)")
+    p.add_argument("--output", action="append", help="output for the participation factors (repeatable)")
+    p.add_argument("--n", type=int, help="keep the n lowest modes")
+    p.add_argument("--fmax", type=float, help="keep the modes up to FMAX [Hz]")
+    p.add_argument("--reference", help="coordinate at which modal masses are reported (e.g. rotor.phi)")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--csv", help="write the mode table and shapes to a CSV file")
+    p.add_argument("--png", help="write a mode-shape plot")
+    p.set_defaults(func=_modes)
+
+    p = sub.add_parser("frf", help="frequency response between an input and an output")
+    _add_system_args(p)
+    p.add_argument("--input", required=True, help="input name, e.g. motor.tau")
+    p.add_argument("--output", required=True, help="output name, e.g. rotor.w")
+    p.add_argument("--fmin", type=float, default=1.0, help="lowest frequency [Hz] (default 1)")
+    p.add_argument("--fmax", type=float, default=1000.0, help="highest frequency [Hz] (default 1000)")
+    p.add_argument("--n", type=int, default=500, help="number of log-spaced frequencies (default 500)")
+    p.add_argument("--csv", help="write the FRF to a CSV file (default: CSV on stdout when no --png)")
+    p.add_argument("--png", help="write a Bode plot")
+    p.set_defaults(func=_frf)
+
     args = parser.parse_args(argv)
     try:
         return args.func(args)

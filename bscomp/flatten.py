@@ -235,7 +235,10 @@ def flatten(system: System, *, check: bool = True) -> Dae:
         params = comp.parameters()
         variables = comp.variables()
         key = (type(comp), tuple((n, s.kind.name, s.optional) for n, s in ports.items()),
-               tuple((n, np.shape(comp._values[n])) for n in params), tuple(variables))
+               tuple((n, np.shape(comp._values[n])) for n in params), tuple(variables),
+               # instance configuration that shapes equations/constraints beyond parameters (dof
+               # subsets, shape-function coefficients, attachment offsets): see Component docs
+               getattr(comp, "template_key", lambda: None)())
         tpl = templates.get(key)
         if tpl is None:
             tpl = templates[key] = _Template(comp, path, ports, params, variables)
@@ -243,6 +246,11 @@ def flatten(system: System, *, check: bool = True) -> Dae:
         comp.__dict__["_read_params"] = set()
         struct = comp.structure()
         read_struct = set(comp.__dict__.pop("_read_params", set()))
+        block = _block(struct, path, comp, {p: [coord_of[uf.find((path, p, i))]
+                                                for i in range(len(sp_.kind.potentials))]
+                                            for p, sp_ in ports.items() if not sp_.kind.is_signal}) \
+            if struct is not None else None
+        struct_coords = set(block[0]) if block is not None else set()  # flows given by M q'' + C q' + K q
 
         # global symbols of this instance
         pv = [np.asarray(comp._values[n], dtype=float) for n in params]
@@ -273,7 +281,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
             st = tpl.flow_status[j]
             if st == "solved":
                 Q[c].append(flows_e[tpl.flow_pos[j]])
-            elif st == "constrained":
+            elif st == "constrained" or c in struct_coords:
                 pass
             else:  # undefined: fine only for an unconnected optional port
                 pname = tpl.flow_port[j]
@@ -321,7 +329,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
             structural.update(f"{path}.{n}" for n in tpl.cons_params)
         if struct is not None:
             structural.update(f"{path}.{n}" for n in read_struct)
-            blocks.append(_block(struct, path, comp, port_coords))
+            blocks.append(block)
     p_all = ca.vertcat(*p_syms) if p_syms else ca.SX(0, 1)
     p0 = np.concatenate(p_vals) if p_vals else np.zeros(0)
 

@@ -106,6 +106,12 @@ class Ballscrew(Component):
         v = self._values
         return self._beam(E=v["E"], rho=v["rho"], nu=v["nu"], kappa=v["kappa"])
 
+    def template_key(self):
+        """Instance configuration baked into the constraints (kept dofs, shape-function coefficients)."""
+        v = self._values
+        geometry = tuple((s.length, s.d_out, s.d_in, s.n_elements, s.d_mass) for s in self.sections)
+        return (self.dofs, tuple(self.points.items()), geometry, v["E"], v["nu"], v["kappa"])
+
     def _beam(self, E, rho, nu, kappa):
         return assemble_shaft(self.sections, E=E, rho=rho, nu=nu, kappa=kappa)
 

@@ -42,7 +42,7 @@ class Coupling(Component):
     - ``d`` [N.m.s/rad]: torsional viscous damping (default 0)
 
     # Connectors
-    - ``flange_a``, ``flange_b`` (RotFlange) or ``node_a``, ``node_b`` (Node6, tz only); required
+    - ``flange_a``, ``flange_b`` (RotFlange, optional) or ``node_a``, ``node_b`` (Node6, tz only, required)
     """
 
     k_T = Parameter(unit="N.m/rad", positive=True, doc="torsional stiffness")
@@ -57,10 +57,13 @@ class Coupling(Component):
         self.ends = ends
         for side, which in (("a", "motor"), ("b", "screw")):
             if ends == "flange":
-                self.add_port(f"flange_{side}", RotFlange(f"end {side} (e.g. {which} side)"))
+                self.add_port(f"flange_{side}", RotFlange(f"end {side} (e.g. {which} side)", optional=True))
             else:
                 self.add_port(f"node_{side}",
                               Node6(f"end {side} (e.g. {which} side), tz only", optional=False))
+
+    def template_key(self):
+        return self.ends
 
     def structure(self):
         pair = np.array([[1.0, -1.0], [-1.0, 1.0]])

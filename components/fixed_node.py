@@ -30,6 +30,9 @@ class FixedNode(Component):
         super().__init__(**params)
         self.dofs = check_dofs(dofs, "FixedNode")
 
+    def template_key(self):
+        return self.dofs
+
     def constraints(self):
         return [getattr(self.node, d) for d in self.dofs]
 

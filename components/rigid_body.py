@@ -69,6 +69,10 @@ class RigidBody(Component):
             self.points[name] = r
             self.add_port(name, Node6(f"attachment point at r = {tuple(r)} m from the COM (Eq 3.3)"))
 
+    def template_key(self):
+        """Instance configuration baked into the constraints (kept dofs, attachment offsets)."""
+        return (self.dofs, tuple((n, tuple(r)) for n, r in self.points.items()))
+
     def mass_matrix(self, m=None, I=None) -> np.ndarray:
         """The full 6x6 mass matrix of Eq (3.2) at the COM."""
         m = self.m if m is None else m

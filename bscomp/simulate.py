@@ -1,0 +1,289 @@
+"""Time-domain simulation of a flattened model with IDAS (SUNDIALS, through CasADi).
+
+The implicit index-1 DAE ``F(x', x, z, u, p) = 0`` is handed to IDAS in semi-explicit form by making
+the derivatives algebraic unknowns ``w``:
+
+.. math:: \\dot x = w, \\qquad 0 = F(w, x, z, u, p)
+
+whose algebraic Jacobian ``[dF/dw, dF/dz]`` is the index-1 matrix the kernel already checked. Keeping
+accelerations algebraic makes them (and the table acceleration users look at) as accurate as the
+states, rather than differences of velocities (see DESIGN.md, "Known pitfalls").
+
+Inputs are held piecewise constant on the output grid (arrays: value at the interval start; callables:
+value at the interval midpoint). Sampled-data controllers run at their own period with zero-order hold.
+The maximum BDF order defaults to 2 (A-stable), which matters for lightly damped structures.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import casadi as ca
+import numpy as np
+
+from .errors import BscompError, UnknownNameError
+from .linear import resolve_model
+
+__all__ = ["simulate", "SimulationResult", "SimulationError", "SampledController"]
+
+
+class SimulationError(BscompError):
+    """The integrator failed; the message names the time window, the variable and a hint."""
+
+
+@dataclass
+class SampledController:
+    """A discrete controller in the loop: every ``Ts`` it reads ``measure`` and sets ``actuate`` (ZOH).
+
+    Parameters
+    ----------
+    law : callable
+        ``law(t_k, y_k) -> u_k`` with ``y_k`` the measured outputs (array, order of ``measure``) and
+        ``u_k`` the values of the actuated inputs (order of ``actuate``). It may keep internal state.
+    measure : list of str
+        Output names read at each sample (any observable).
+    actuate : list of str
+        System inputs it drives.
+    Ts : float
+        Sampling period [s].
+    """
+
+    law: Callable
+    measure: list
+    actuate: list
+    Ts: float
+
+
+@dataclass
+class SimulationResult:
+    """Time histories of a simulation.
+
+    Attributes
+    ----------
+    t : ndarray (nt,)
+    x, xd : ndarray (nt, nx)
+        States and their derivatives.
+    z : ndarray (nt, nz)
+    u : ndarray (nt, nu)
+        Inputs applied on the interval ending at each time (at t0: the first interval's).
+    outputs : dict name -> ndarray (nt,)
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    xd: np.ndarray
+    z: np.ndarray
+    u: np.ndarray
+    x_names: list
+    z_names: list
+    u_names: list
+    outputs: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+
+    def __getitem__(self, name):
+        if name in self.outputs:
+            return self.outputs[name]
+        if name in self.x_names:
+            return self.x[:, self.x_names.index(name)]
+        if name in self.z_names:
+            return self.z[:, self.z_names.index(name)]
+        if name in self.u_names:
+            return self.u[:, self.u_names.index(name)]
+        raise UnknownNameError(f"no signal '{name}' in this result; outputs: {list(self.outputs)}, states: "
+                               f"{self.x_names[:10]}..., inputs: {self.u_names}")
+
+    def to_csv(self, path, names=None):
+        """Write t and the named signals (default: outputs, else states) as CSV with a header row."""
+        names = list(names or (list(self.outputs) or self.x_names))
+        data = np.column_stack([self.t] + [self[n] for n in names])
+        np.savetxt(path, data, delimiter=",", header=",".join(["t"] + names), comments="")
+        return path
+
+    def plot(self, names=None, path=None, title=""):
+        """Plot the named signals against time (one axis each)."""
+        from .plotting import time_plot
+
+        names = list(names or (list(self.outputs) or self.x_names[:4]))
+        return time_plot(self.t, [self[n] for n in names], names, title=title, path=path)
+
+
+def _input_matrix(dae, t, inputs, fixed):
+    """(nu, nt-1) values held on each interval [t_k, t_k+1)."""
+    nint = len(t) - 1
+    U = np.zeros((dae.nu, max(nint, 1)))
+    for k, v in (inputs or {}).items():
+        if k not in dae.u_names:
+            raise UnknownNameError(f"'{k}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
+        i = dae.u_names.index(k)
+        if callable(v):
+            tm = 0.5 * (t[:-1] + t[1:])
+            U[i] = np.array([float(v(tt)) for tt in tm])
+        else:
+            arr = np.asarray(v, float)
+            if arr.ndim == 0:
+                U[i] = float(arr)
+            elif arr.shape == (len(t),):
+                U[i] = arr[:-1]
+            elif arr.shape == (nint,):
+                U[i] = arr
+            else:
+                raise ValueError(f"input '{k}' has {arr.shape[0]} values; give one per time point ({len(t)}) or per "
+                                 f"interval ({nint}), a scalar, or a function of t")
+    for k in fixed:
+        if k not in dae.u_names:
+            raise UnknownNameError(f"'{k}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
+    return U
+
+
+def _integrator(dae, h, n_sub, opts, cache):
+    key = (round(h, 15), n_sub, tuple(sorted(opts.items())))
+    if key not in cache:
+        x = ca.MX.sym("x", dae.nx)
+        w = ca.MX.sym("w", dae.nx)
+        z = ca.MX.sym("z", dae.nz)
+        u = ca.MX.sym("u", dae.nu)
+        p = ca.MX.sym("p", dae.np)
+        res = dae.F(w, x, z, u, p)
+        d = {"x": x, "z": ca.vertcat(w, z), "p": ca.vertcat(u, p), "ode": w, "alg": res}
+        grid = list(np.arange(1, n_sub + 1) * h)
+        cache[key] = ca.integrator("sim", "idas", d, 0.0, grid, opts)
+    return cache[key]
+
+
+def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, params: dict | None = None,
+             outputs=None, controllers=None, rtol: float = 1e-6, atol: float = 1e-9, max_order: int = 2,
+             progress: bool | None = None, max_num_steps: int = 100000) -> SimulationResult:
+    """Integrate a System or Dae with IDAS over the time grid ``t``.
+
+    Parameters
+    ----------
+    model : System or Dae
+    t : array
+        Output times (increasing); the first is the start time.
+    inputs : dict, optional
+        Input name -> scalar, array (per time point or per interval) or function of t.
+    x0 : dict, optional
+        Initial states by name (others at their start values; (x', z) made consistent).
+    params : dict, optional
+        Parameter overrides by dotted name.
+    outputs : list of str, optional
+        Observables to record (``"table.a"``...).
+    controllers : list of SampledController, optional
+        Discrete controllers in the loop (their actuated inputs are overwritten every ``Ts``).
+    rtol, atol : float
+        IDAS tolerances.
+    max_order : int
+        Maximum BDF order (2 keeps A-stability for lightly damped structures).
+    progress : bool, optional
+        Print a progress bar to stderr (default: when the run has more than 200 intervals and stderr is
+        a terminal).
+
+    Returns
+    -------
+    SimulationResult
+
+    Raises
+    ------
+    SimulationError
+        With the time window, the largest state and a hint, when IDAS fails.
+    """
+    dae = resolve_model(model, params)
+    t = np.asarray(t, float)
+    if t.ndim != 1 or len(t) < 2 or np.any(np.diff(t) <= 0):
+        raise ValueError("t must be an increasing 1-D array of at least two times")
+    controllers = list(controllers or [])
+    p = dae.parameter_vector({k: v for k, v in (params or {}).items() if k not in dae.structural_parameters})
+    xs = dae.x_start.copy()
+    for k, v in (x0 or {}).items():
+        if k not in dae.x_names:
+            raise UnknownNameError(f"x0 names '{k}', which is not a state of '{dae.name}' ({dae.x_names[:8]}...)")
+        xs[dae.x_names.index(k)] = float(v)
+    U = _input_matrix(dae, t, inputs, [a for c in controllers for a in c.actuate])
+    opts = {"reltol": rtol, "abstol": atol, "max_order": float(max_order), "max_num_steps": max_num_steps,
+            "disable_internal_warnings": True}
+    outputs = list(outputs or [])
+    meas_names = [m for c in controllers for m in c.measure]
+    yfun = dae.output_function(outputs) if outputs else None
+    mfun = dae.output_function(meas_names) if meas_names else None
+    nt = len(t)
+    X = np.zeros((nt, dae.nx))
+    XD = np.zeros((nt, dae.nx))
+    Z = np.zeros((nt, dae.nz))
+    Uh = np.zeros((nt, dae.nu))
+    xd, z = dae.initialize(xs, U[:, 0], p)
+    X[0], XD[0], Z[0], Uh[0] = xs, xd, z, U[:, 0]
+    cache = {}
+    if progress is None:
+        progress = nt > 200 and sys.stderr.isatty()
+    t_wall = time.perf_counter()
+    x_cur, w_cur, z_cur = xs, xd, z
+    ctrl_next = [t[0] for _ in controllers]
+    ctrl_u = [None for _ in controllers]
+    n_calls = 0
+    k = 0
+    # uniform stretches of the grid are integrated in chunks with one reusable integrator
+    h_all = np.diff(t)
+    while k < nt - 1:
+        u_k = U[:, k].copy()
+        # sampled controllers: update at their sample times (ZOH), forcing grid alignment
+        for ci, c in enumerate(controllers):
+            if t[k] + 1e-12 >= ctrl_next[ci]:
+                y = np.asarray(mfun(w_cur, x_cur, z_cur, u_k, p)).ravel() if mfun is not None else np.zeros(0)
+                off = sum(len(cc.measure) for cc in controllers[:ci])
+                val = np.atleast_1d(np.asarray(c.law(t[k], y[off:off + len(c.measure)]), float))
+                ctrl_u[ci] = val
+                ctrl_next[ci] = ctrl_next[ci] + c.Ts * max(1, int(np.floor((t[k] - ctrl_next[ci]) / c.Ts + 1e-9)) + 0)
+                while ctrl_next[ci] <= t[k] + 1e-12:
+                    ctrl_next[ci] += c.Ts
+            if ctrl_u[ci] is not None:
+                for a, v in zip(c.actuate, ctrl_u[ci]):
+                    u_k[dae.u_names.index(a)] = v
+        # chunk of equal steps with equal inputs (no controller update inside)
+        h = h_all[k]
+        n = 1
+        if not controllers:
+            while (k + n < nt - 1 and n < 64 and abs(h_all[k + n] - h) < 1e-12 * h
+                   and np.array_equal(U[:, k + n], U[:, k])):
+                n += 1
+        I = _integrator(dae, h, n, opts, cache)
+        try:
+            r = I(x0=x_cur, z0=np.concatenate([w_cur, z_cur]), p=np.concatenate([u_k, p]))
+        except RuntimeError as exc:
+            big = int(np.argmax(np.abs(x_cur))) if dae.nx else 0
+            raise SimulationError(
+                f"IDAS failed on '{dae.name}' between t = {t[k]:.6g} s and t = {t[k + n]:.6g} s; largest state "
+                f"'{dae.x_names[big] if dae.nx else '-'}' = {x_cur[big] if dae.nx else 0:.3g}. Hints: a stiff "
+                "contact or a switching element (friction, backlash) needs smaller steps (denser t) or "
+                "regularisation; lower rtol; check inputs for jumps of unphysical size. "
+                f"IDAS said: {str(exc).splitlines()[-1][:300]}") from exc
+        n_calls += 1
+        xf = np.asarray(r["xf"]).reshape(dae.nx, n)
+        zf = np.asarray(r["zf"]).reshape(dae.nx + dae.nz, n)
+        if not np.all(np.isfinite(xf)):
+            bad = int(np.argmax(~np.isfinite(xf).all(axis=1)))
+            raise SimulationError(f"state '{dae.x_names[bad]}' became non-finite after t = {t[k]:.6g} s")
+        X[k + 1:k + 1 + n] = xf.T
+        XD[k + 1:k + 1 + n] = zf[:dae.nx].T
+        Z[k + 1:k + 1 + n] = zf[dae.nx:].T
+        Uh[k + 1:k + 1 + n] = u_k
+        x_cur, w_cur, z_cur = xf[:, -1], zf[:dae.nx, -1], zf[dae.nx:, -1]
+        k += n
+        if progress and (n_calls % 20 == 0 or k == nt - 1):
+            frac = k / (nt - 1)
+            bar = "#" * int(30 * frac)
+            sys.stderr.write(f"\r  simulating '{dae.name}' [{bar:<30}] {100 * frac:5.1f}%  t = {t[k]:.4g} s")
+            if k == nt - 1:
+                sys.stderr.write("\n")
+    wall = time.perf_counter() - t_wall
+    out = {}
+    if yfun is not None:
+        Y = np.asarray(yfun.map(nt)(XD.T, X.T, Z.T, Uh.T, np.tile(p[:, None], (1, nt))))
+        for i, n in enumerate(outputs):
+            out[n] = Y[i]
+    return SimulationResult(t=t, x=X, xd=XD, z=Z, u=Uh, x_names=list(dae.x_names), z_names=list(dae.z_names),
+                            u_names=list(dae.u_names), outputs=out,
+                            stats={"wall_s": wall, "integrator_calls": n_calls,
+                                   "real_time_factor": (t[-1] - t[0]) / wall if wall > 0 else np.inf})
