@@ -335,3 +335,58 @@ def damped_modal_properties(
     s = s[order]
     omega = np.abs(s)
     return omega, -s.real / omega
+
+
+class ModalDamping:
+    """System-level option: modal damping ratios turned into ``C`` (Eq A.10-A.15) at flattening.
+
+    Set ``system.damping = ModalDamping(zeta)``; :func:`bscomp.flatten` linearizes the mechanical part at
+    the start point, builds ``C`` over the reduced coordinates with :func:`modal_damping_matrix` and
+    adds it to the structural damping. Rigid-body modes get none (Sec 5.2.2.1).
+
+    Parameters
+    ----------
+    zeta : float or sequence
+        One ratio for every elastic mode, or one per elastic mode in ascending frequency (the last
+        value is used for the remaining modes).
+    """
+
+    def __init__(self, zeta):
+        z = np.atleast_1d(np.asarray(zeta, float))
+        if np.any(z < 0) or np.any(z >= 1) or not np.all(np.isfinite(z)):
+            raise ValueError(f"ModalDamping: zeta must be in [0, 1), got {zeta!r}")
+        self.zeta = z
+
+    def matrix(self, M, K):
+        n = M.shape[0]
+        Md, Kd = _check_pair(M, K)
+        w2, _ = _mass_normalised_modes(Md, Kd)
+        n_el = int(np.sum(np.sqrt(np.clip(w2, 0, None)) > 1e-6 * max(np.sqrt(np.abs(w2).max()), 1e-300)))
+        z = self.zeta
+        if z.size > 1:
+            full = np.full(n, z[-1])
+            full[n - n_el:n - n_el + min(z.size, n_el)] = z[:n_el]
+            z = full
+        else:
+            z = float(z[0])
+        return modal_damping_matrix(M, K, z)
+
+    def __repr__(self):
+        return f"ModalDamping({self.zeta.tolist()})"
+
+
+class RayleighDamping:
+    """System-level option ``C = alpha M + beta K`` (from coefficients, or ratios ``zeta`` at f1, f2)."""
+
+    def __init__(self, alpha=None, beta=None, zeta=None, f1=None, f2=None):
+        if zeta is not None:
+            alpha, beta = rayleigh_coefficients(zeta, f1, f2)
+        if alpha is None or beta is None or alpha < 0 or beta < 0:
+            raise ValueError("RayleighDamping needs alpha >= 0 and beta >= 0, or zeta with f1 and f2")
+        self.alpha, self.beta = float(alpha), float(beta)
+
+    def matrix(self, M, K):
+        return self.alpha * sp.csr_matrix(M) + self.beta * sp.csr_matrix(K)
+
+    def __repr__(self):
+        return f"RayleighDamping(alpha={self.alpha:.4g}, beta={self.beta:.4g})"

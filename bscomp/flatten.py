@@ -470,10 +470,30 @@ def flatten(system: System, *, check: bool = True) -> Dae:
         z_start=np.concatenate([np.zeros(len(static)), np.asarray(zint_start, float), np.zeros(len(sig_loop))]),
         eq_origin=origins, observables=observables, substitutions=stages,
         structural_parameters=sorted(structural), system=system)
+    if getattr(system, "damping", None) is not None:
+        _apply_system_damping(dae, system.damping)
     dae.stats["flatten_s"] = time.perf_counter() - t_start
     if check:
         dae.check_index1()
     return dae
+
+
+def _apply_system_damping(dae, damping):
+    """Add a system-level damping matrix (modal or Rayleigh, Eq A.10-A.15) to the structural C."""
+    from .errors import SingularSystemError
+    from .linear import second_order
+
+    m = dae.mech
+    if m.static or m.damped:
+        names = [m.coordinate_names[j] for j in m.static + m.damped]
+        raise SingularSystemError(f"system damping {damping!r} needs inertia on every coordinate of "
+                                  f"'{dae.name}'; without inertia: {names[:10]} (add masses or drop the option)")
+    dae.check_index1()
+    so = second_order(dae, inputs=[], outputs=[])
+    Cadd = sp.csc_matrix(damping.matrix(so.M, so.K))
+    m.C = (m.C + Cadd).tocsc()
+    dae._cache.clear()
+    dae.stats["system_damping"] = repr(damping)
 
 
 def _apply_stages(e, stages):

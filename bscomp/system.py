@@ -37,6 +37,7 @@ class System:
         self._parent = None
         self.description = ""
         self.sources: dict[str, str] = {}
+        self.damping = None  # system-level option: bscomp.damping.ModalDamping / RayleighDamping
 
     # ---- building -----------------------------------------------------------------------------
     def add(self, name: str, component):

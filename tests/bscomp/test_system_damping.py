@@ -1,0 +1,75 @@
+"""System-level damping options (Eq A.10-A.15): modal ratios recovered, rigid-body mode undamped."""
+
+import numpy as np
+import pytest
+
+import bscomp
+from bscomp import System, second_order
+from bscomp.components import Force, Mass, Spring
+from bscomp.damping import ModalDamping, RayleighDamping
+
+
+def free_chain():
+    s = System("free3")
+    for i in range(3):
+        s.add(f"m{i}", Mass(m=1.0 + i))
+    s.add("k0", Spring(c=1.0e4))
+    s.add("k1", Spring(c=3.0e4))
+    s.add("F", Force())
+    s.connect("m0.flange_b", "k0.flange_a")
+    s.connect("k0.flange_b", "m1.flange_a")
+    s.connect("m1.flange_b", "k1.flange_a")
+    s.connect("k1.flange_b", "m2.flange_a")
+    s.connect("F.flange", "m0.flange_a")
+    return s
+
+
+def damping_ratios(so):
+    lin = so.to_statespace()
+    ev = np.linalg.eigvals(lin.A)
+    ev = ev[(ev.imag > 1e-6) & (np.abs(ev) > 1e-3)]  # elastic modes only
+    return np.sort(-ev.real / np.abs(ev))
+
+
+def test_modal_damping_gives_the_ratios_and_leaves_rigid_body_free():
+    s = free_chain()
+    s.damping = ModalDamping([0.02, 0.07])
+    so = second_order(s, inputs=["F.f"])
+    np.testing.assert_allclose(damping_ratios(so), [0.02, 0.07], rtol=1e-8)
+    rigid = np.ones(3)
+    np.testing.assert_allclose(so.C.toarray() @ rigid, 0.0, atol=1e-9)
+    np.testing.assert_allclose(so.C.toarray(), so.C.toarray().T, atol=1e-12)
+
+
+def test_rayleigh_damping_hits_two_targets():
+    s = free_chain()
+    so0 = second_order(s, inputs=["F.f"])
+    import scipy.linalg as sl
+    w = np.sqrt(np.clip(sl.eigh(so0.K.toarray(), so0.M.toarray(), eigvals_only=True), 0, None))[1:]
+    f1, f2 = w / (2 * np.pi)
+    s.damping = RayleighDamping(zeta=0.03, f1=f1, f2=f2)
+    so = second_order(s, inputs=["F.f"])
+    np.testing.assert_allclose(damping_ratios(so), [0.03, 0.03], rtol=1e-6)
+
+
+def test_bad_damping_values():
+    with pytest.raises(ValueError, match="zeta"):
+        ModalDamping(-0.1)
+    with pytest.raises(ValueError, match="alpha"):
+        RayleighDamping()
+
+
+def test_massless_coordinate_with_modal_damping_is_a_named_error():
+    s = System("massless")
+    s.add("m", Mass(m=1.0))
+    s.add("k1", Spring(c=1.0))
+    s.add("k2", Spring(c=1.0))
+    s.add("F", Force())
+    s.connect("F.flange", "m.flange_a")
+    s.connect("m.flange_b", "k1.flange_a")
+    s.connect("k1.flange_b", "k2.flange_a")
+    s.add("F2", Force())
+    s.connect("k2.flange_b", "F2.flange")
+    s.damping = ModalDamping(0.05)
+    with pytest.raises(bscomp.SingularSystemError, match="inertia on every coordinate"):
+        bscomp.flatten(s)
