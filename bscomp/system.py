@@ -81,6 +81,37 @@ class System:
             raise PortConnectionError(f"cannot connect port '{na}' to itself")
         self._connections.append((na, nb))
 
+    # ---- editing (used by diagnose to insert candidate effects) -------------------------------
+    def disconnect(self, a, b) -> None:
+        """Remove the connection between ports ``a`` and ``b`` (made at this level, either order)."""
+        na, nb = self._port_name(a), self._port_name(b)
+        for i, (x, y) in enumerate(self._connections):
+            if (x, y) in ((na, nb), (nb, na)):
+                del self._connections[i]
+                return
+        raise UnknownNameError(f"system '{self.name}' has no connection between '{na}' and '{nb}'; connections: "
+                               f"{self._connections[:20]}")
+
+    def insert(self, name: str, component, between: tuple, ports: tuple = ("flange_a", "flange_b")):
+        """Cut the connection ``between = (a, b)`` and put ``component`` in series:
+        ``a -> name.ports[0]``, ``name.ports[1] -> b``. Returns the component."""
+        a, b = between
+        self.disconnect(a, b)
+        self.add(name, component)
+        self.connect(a, f"{name}.{ports[0]}")
+        self.connect(f"{name}.{ports[1]}", b)
+        return component
+
+    def remove(self, name: str) -> None:
+        """Remove a component and every connection of this level that touches it."""
+        if name not in self._components:
+            raise UnknownNameError(f"system '{self.name}' has no component '{name}'")
+        comp = self._components.pop(name)
+        comp._parent = None
+        comp._name = None
+        self._connections = [(x, y) for x, y in self._connections
+                             if x.split(".")[0] != name and y.split(".")[0] != name]
+
     def expose(self, outer: str, inner) -> None:
         """Make an inner port reachable as ``outer`` when this system is used as a component."""
         ni = self._port_name(inner)

@@ -252,3 +252,16 @@ def test_internal_states_linearize_and_have_no_second_order_form():
         second_order(s)
     # DC gain: 1/k
     assert lin.dcgain() == pytest.approx(1 / 800.0, rel=1e-10)
+
+
+def test_insert_a_compliance_between_connected_ports():
+    """Insert a spring in series into the two-mass chain: frequencies follow the new series stiffness."""
+    s = two_mass(k2=2.5e4)
+    s.insert("joint", Spring(c=2.5e4), between=("m1.flange_b", "k2.flange_a"))
+    # k2 in series with the joint: 1.25e4
+    np.testing.assert_allclose(freqs_of(second_order(s)), analytic_two_mass(2.0, 3.0, 1.0e4, 1.25e4), rtol=1e-9)
+    s.remove("joint")
+    s.connect("m1.flange_b", "k2.flange_a")
+    np.testing.assert_allclose(freqs_of(second_order(s)), analytic_two_mass(2.0, 3.0, 1.0e4, 2.5e4), rtol=1e-9)
+    with pytest.raises(bscomp.UnknownNameError, match="no connection"):
+        s.disconnect("m1.flange_a", "m2.flange_b")
