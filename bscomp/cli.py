@@ -10,9 +10,10 @@ import numpy as np
 
 
 def _demo(args) -> int:
+    from bscomp.systems import small_drive
+
     from . import flatten, linearize
     from .modal import modes
-    from bscomp.systems import small_drive
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -34,7 +35,8 @@ def _demo(args) -> int:
     H = so.frf(f)
     from .plotting import bode_plot
     png = out / "demo_bode.png"
-    bode_plot(f, H[:, :, 0], labels=["motor.tau -> rotor.w [rad/s/(N m)]", "motor.tau -> table.a [m/s^2/(N m)]"],
+    bode_plot(f, H[:, :, 0],
+              labels=["motor.tau -> rotor.w [rad/s/(N m)]", "motor.tau -> table.a [m/s^2/(N m)]"],
               title="small_drive: open-loop FRF", path=png)
     print(f"  Bode plot written to {png}")
     return 0
@@ -100,8 +102,8 @@ def _frf(args) -> int:
     else:
         h = np.abs(res.response())
         k = int(np.argmax(h))
-        print(f"{system.name}: {args.input} -> {args.output}, {res.freqs.size} points {args.fmin:g}-{args.fmax:g} Hz; "
-              f"largest |H| = {h[k]:.4g} at {res.freqs[k]:.4g} Hz")
+        print(f"{system.name}: {args.input} -> {args.output}, {res.freqs.size} points "
+              f"{args.fmin:g}-{args.fmax:g} Hz; largest |H| = {h[k]:.4g} at {res.freqs[k]:.4g} Hz")
         for f_ in (args.csv, args.png):
             if f_:
                 print(f"  written {f_}")
@@ -117,7 +119,8 @@ def _add_system_args(p):
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="bscomp", description="Ballscrew feed drives as acausal components.")
+    parser = argparse.ArgumentParser(prog="bscomp",
+                                     description="Ballscrew feed drives as acausal components.")
     sub = parser.add_subparsers(dest="cmd", required=True)
     p = sub.add_parser("demo", help="build a small drive, print its modes, write a Bode plot")
     p.add_argument("--out", default="out", help="folder for figures (default: out)")

@@ -147,8 +147,10 @@ def _statespace_frf(lin, f):
     H = np.empty((f.size, C.shape[0], B.shape[1]), complex)
     I = sp.identity(n, format="csc")
     for k, fk in enumerate(f):
-        X = spla.splu((2j * np.pi * fk * I - A).tocsc()).solve(B.astype(complex)) if n else np.zeros((0, B.shape[1]))
-        H[k] = C @ X + D
+        if n:
+            H[k] = C @ spla.splu((2j * np.pi * fk * I - A).tocsc()).solve(B.astype(complex)) + D
+        else:
+            H[k] = D
     return H
 
 
@@ -261,8 +263,8 @@ def transfer_function(model, input: str, output: str, modes=None, include_rigid:
 
     and each mode contributes the exact partial fractions of its damped poles. For proportional damping
     and a displacement output this is Eq 4.3, :math:`R_k / (s^2 + 2\\zeta_k\\omega_k s + \\omega_k^2)` with
-    :math:`R_k = c\\phi_k\\,\\phi_k^T b` (Eq 4.4); a velocity output multiplies by ``s`` (Eq 4.5-4.6); a rigid-
-    body mode gives :math:`R_0/(s(s + B/J))` (Eq 4.8) or :math:`R_0/s^2` without viscous damping.
+    :math:`R_k = c\\phi_k\\,\\phi_k^T b` (Eq 4.4); a velocity output multiplies by ``s`` (Eq 4.5-4.6);
+    a rigid-body mode gives :math:`R_0/(s(s + B/J))` (Eq 4.8) or :math:`R_0/s^2` without viscous damping.
 
     Parameters
     ----------
@@ -304,7 +306,8 @@ def transfer_function(model, input: str, output: str, modes=None, include_rigid:
         else:
             idx = np.asarray(list(modes), int)
             if np.any(idx < 0) or np.any(idx >= lam.size):
-                raise UnknownNameError(f"mode indices {list(idx)} out of range: the model has {lam.size} modes")
+                raise UnknownNameError(f"mode indices {list(idx)} out of range: the model has "
+                                       f"{lam.size} modes")
     if not include_rigid:
         idx = idx[~rigid[idx]]
     idx = np.unique(idx)
@@ -331,7 +334,9 @@ def transfer_function(model, input: str, output: str, modes=None, include_rigid:
             poles = groups.poles[k]
             num, den = _section_from_poles(poles, res)
         num, den = _cancel_s(num, den)
-        z = np.nan if rigid[k] else float(np.real(den[1] / (2 * np.sqrt(den[2])))) if len(den) == 3 else np.nan
+        z = np.nan
+        if not rigid[k] and len(den) == 3 and den[2] > 0:
+            z = float(den[1] / (2 * np.sqrt(den[2])))
         sections.append(ModalSection(mode=int(idx[k]), f_n=float(omega[k] / (2 * np.pi)), zeta=z,
                                      rigid=bool(rigid[k]), num=num, den=den, poles=np.asarray(poles)))
     den = np.array([1.0])

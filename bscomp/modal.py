@@ -38,7 +38,8 @@ def _second_order(model, inputs=None, outputs=None, at=None, params=None):
 
     if isinstance(model, SecondOrderModel):
         if at or params:
-            raise TypeError("'at' and 'params' cannot be applied to a SecondOrderModel: pass the System or Dae")
+            raise TypeError("'at' and 'params' cannot be applied to a SecondOrderModel: pass the System "
+                            "or Dae")
         return model
     if isinstance(model, str):
         from bscomp.systems import get
@@ -125,8 +126,8 @@ def _undamped(red: _Reduced, n=None, fmax=None, dense_limit=DENSE_LIMIT):
         try:
             lam, phi = sla.eigh(Kd, 0.5 * (Md + Md.T))
         except np.linalg.LinAlgError as exc:
-            raise SingularSystemError("the mass matrix is not positive definite after condensing the massless "
-                                      "coordinates") from exc
+            raise SingularSystemError("the mass matrix is not positive definite after condensing the "
+                                      "massless coordinates") from exc
         method = "dense eigh"
     else:
         sigma = -1e-6 * scale                                # all eigenvalues >= 0 > sigma: nearest = lowest
@@ -165,7 +166,7 @@ class _PoleGroups:
     """Poles of the modal state-space model, grouped per undamped mode, with SISO-ready residues."""
 
     poles: list            # per mode: array of poles [1/s]
-    vectors: list          # per mode: (right eigenvectors (2m, p), left-scaled rows (p, 2m)) or None (decoupled)
+    vectors: list          # per mode: (right eigenvectors (2m, p), scaled left rows (p, 2m)) or None
     A: np.ndarray
     decoupled: np.ndarray  # rigid modes with no damping: poles [0, 0], handled in closed form
 
@@ -310,7 +311,8 @@ class Modes:
         """Inertia (or mass) of the rigid-body mode reflected at ``coordinate``: ``J`` of Eq 4.2."""
         r = np.flatnonzero(self.rigid_body)
         if r.size != 1:
-            raise SingularSystemError(f"reflected inertia needs exactly one rigid-body mode, the model has {r.size}")
+            raise SingularSystemError(f"reflected inertia needs exactly one rigid-body mode, the model has "
+                                      f"{r.size}")
         return float(self.modal_mass(coordinate)[r[0]])
 
     def reflected_damping(self, coordinate: str) -> float:
@@ -330,7 +332,8 @@ class Modes:
             ptxt = ", ".join(_fmt_pole(x) for x in p if np.imag(x) >= 0 or np.isreal(x))
             if self.rigid_body[k]:
                 z = "-"
-                ptxt = f"rigid body; real poles {ptxt}" if len(p) else f"rigid body; B/J = {self.decay_rates[k]:.4g}"
+                ptxt = (f"rigid body; real poles {ptxt}" if len(p)
+                        else f"rigid body; B/J = {self.decay_rates[k]:.4g}")
             else:
                 z = f"{self.damping[k]:.4f}"
             lines.append(f"{k + 1:>3} {self.frequencies[k]:>11.3f} {z:>9} {mq[k]:>14.5g}  {ptxt}")
@@ -370,7 +373,8 @@ class Modes:
 
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["mode", "f_n_hz", "zeta", "rigid_body", "modal_mass"] + [f"phi[{c}]" for c in self.coordinates])
+            w.writerow(["mode", "f_n_hz", "zeta", "rigid_body", "modal_mass"]
+                       + [f"phi[{c}]" for c in self.coordinates])
             for k in range(len(self)):
                 w.writerow([k + 1, repr(float(self.frequencies[k])), repr(float(self.damping[k])),
                             int(self.rigid_body[k]), repr(float(self.modal_masses[k]))]
@@ -475,5 +479,5 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
                  poles=poles, decay_rates=decay, shapes=shapes, coordinates=list(so.coordinates),
                  units=list(so.units), rigid_body=rigid, modal_masses=modal_masses, inputs=list(so.inputs),
                  outputs=list(so.outputs), input_factors=b, output_factors=c, output_order=order,
-                 residues=residues, method=method, name=model if isinstance(model, str) else getattr(model, "name", ""),
-                 notes=notes)
+                 residues=residues, method=method,
+                 name=model if isinstance(model, str) else getattr(model, "name", ""), notes=notes)

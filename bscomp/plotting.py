@@ -69,7 +69,7 @@ def mode_shape_plot(result, path=None, modes=None, title=None):
     units = np.asarray(result.units)
     x = np.arange(len(result.coordinates))
     groups = list(dict.fromkeys(units))
-    for ax, k in zip(axes[:, 0], idx):
+    for ax, k in zip(axes[:, 0], idx, strict=True):
         phi = result.shapes[:, k]
         for g in groups:
             sel_g = units == g
@@ -133,7 +133,7 @@ def time_plot(t, signals, names, title="", path=None):
     plt = _plt()
     n = len(signals)
     fig, axes = plt.subplots(n, 1, sharex=True, figsize=(8, 1.8 + 1.6 * n), squeeze=False)
-    for ax, y, name in zip(axes[:, 0], signals, names):
+    for ax, y, name in zip(axes[:, 0], signals, names, strict=False):
         ax.plot(t, y)
         ax.set_ylabel(name, fontsize=8)
         ax.grid(True, alpha=0.3)

@@ -35,7 +35,8 @@ def build_system(build, overrides: dict | None = None):
         for k, v in (overrides or {}).items():
             system.set(k, v)
         return system
-    raise TypeError(f"build must be a system name, a .py path or a callable returning a System, got {build!r}")
+    raise TypeError(f"build must be a system name, a .py path or a callable returning a System, "
+                    f"got {build!r}")
 
 
 def position_parameter(system) -> str:
@@ -46,9 +47,9 @@ def position_parameter(system) -> str:
     """
     name = getattr(system, "position_parameter", None)
     if not name:
-        raise UnknownNameError(f"system '{getattr(system, 'name', system)}' declares no nut-position parameter: "
-                               "set system.position_parameter = '<component>.<parameter>' in its build function, "
-                               "or name the parameter explicitly")
+        raise UnknownNameError(f"system '{getattr(system, 'name', system)}' declares no nut-position "
+                               "parameter: set system.position_parameter = '<component>.<parameter>' in its "
+                               "build function, or name the parameter explicitly")
     return name
 
 
@@ -105,8 +106,9 @@ class PositionSweep:
         m = self.frequencies.shape[1]
         with open(path, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow([self.parameter] + [f"f{k + 1}_hz" for k in range(m)] + [f"zeta{k + 1}" for k in range(m)])
-            for p, f, z in zip(self.positions, self.frequencies, self.damping):
+            w.writerow([self.parameter] + [f"f{k + 1}_hz" for k in range(m)]
+                       + [f"zeta{k + 1}" for k in range(m)])
+            for p, f, z in zip(self.positions, self.frequencies, self.damping, strict=True):
                 w.writerow([repr(float(p))] + [repr(float(x)) for x in f] + [repr(float(x)) for x in z])
 
     def to_dict(self) -> dict:
@@ -134,16 +136,18 @@ class PositionSweep:
         from . import plotting
 
         if kind == "frequencies":
-            return plotting.frequency_position_plot(self.positions, self.frequencies, parameter=self.parameter,
-                                                    title=title or f"{self.name}: natural frequencies", path=path)
+            return plotting.frequency_position_plot(
+                self.positions, self.frequencies, parameter=self.parameter,
+                title=title or f"{self.name}: natural frequencies", path=path)
         if kind == "frf":
             if self.H is None:
                 raise ValueError("this sweep has no FRFs: pass freqs to position_sweep")
             j = 0 if output is None else self.outputs.index(output)
             i = 0 if input is None else self.inputs.index(input)
             labels = [f"{self.parameter} = {p:g}" for p in self.positions]
-            return plotting.frf_overlay_plot(self.freqs, self.H[:, :, j, i], labels=labels,
-                                             title=title or f"{self.inputs[i]} -> {self.outputs[j]}", path=path)
+            return plotting.frf_overlay_plot(
+                self.freqs, self.H[:, :, j, i], labels=labels,
+                title=title or f"{self.inputs[i]} -> {self.outputs[j]}", path=path)
         raise ValueError(f"kind must be 'frequencies' or 'frf', got {kind!r}")
 
 

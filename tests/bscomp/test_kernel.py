@@ -259,7 +259,9 @@ def test_insert_a_compliance_between_connected_ports():
     s = two_mass(k2=2.5e4)
     s.insert("joint", Spring(c=2.5e4), between=("m1.flange_b", "k2.flange_a"))
     # k2 in series with the joint: 1.25e4
-    np.testing.assert_allclose(freqs_of(second_order(s)), analytic_two_mass(2.0, 3.0, 1.0e4, 1.25e4), rtol=1e-9)
+    from bscomp.modal import modes  # the joint adds a massless node: modes() condenses it statically
+
+    np.testing.assert_allclose(modes(s).frequencies, analytic_two_mass(2.0, 3.0, 1.0e4, 1.25e4), rtol=1e-9)
     s.remove("joint")
     s.connect("m1.flange_b", "k2.flange_a")
     np.testing.assert_allclose(freqs_of(second_order(s)), analytic_two_mass(2.0, 3.0, 1.0e4, 2.5e4), rtol=1e-9)

@@ -1,0 +1,84 @@
+"""The command line: a thin layer over modes(), frf() and the demo."""
+
+import json
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from bscomp.cli import main
+
+SYSTEM_FILE = textwrap.dedent('''
+    from bscomp import System
+    from bscomp.components import Fixed, Force, Mass, Spring
+
+
+    def build():
+        s = System("osc")
+        s.add("wall", Fixed())
+        s.add("k", Spring(c=4.0e4))
+        s.add("m", Mass(m=1.0))
+        s.add("F", Force())
+        s.connect("wall.flange", "k.flange_a")
+        s.connect("k.flange_b", "m.flange_a")
+        s.connect("F.flange", "m.flange_b")
+        s.position_parameter = "k.c"
+        return s
+''')
+
+
+def test_modes_json_parses(capsys):
+    assert main(["modes", "small_drive", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert len(d["frequencies_hz"]) == 3 and d["frequencies_hz"][0] == 0.0 and d["rigid_body"][0] is True
+    assert 50 < d["frequencies_hz"][1] < 500
+
+
+def test_modes_table_set_and_reference(capsys):
+    assert main(["modes", "small_drive", "--set", "coupling.c=45940", "--reference", "rotor.phi"]) == 0
+    out = capsys.readouterr().out
+    assert "rigid body" in out and "m_q@rotor.phi" in out
+
+
+def test_frf_writes_csv_and_png(tmp_path, capsys):
+    csv, png = tmp_path / "f.csv", tmp_path / "f.png"
+    rc = main(["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.w", "--csv", str(csv),
+               "--png", str(png), "--n", "50"])
+    assert rc == 0 and csv.stat().st_size > 0 and png.stat().st_size > 1000
+    data = np.loadtxt(csv, delimiter=",", skiprows=1)
+    assert data.shape == (50, 5)
+
+
+def test_position_sets_declared_parameter(tmp_path, capsys):
+    path = tmp_path / "osc.py"
+    path.write_text(SYSTEM_FILE)
+    assert main(["modes", str(path), "--position", "1.6e5", "--json"]) == 0
+    f = json.loads(capsys.readouterr().out)["frequencies_hz"][0]
+    assert f == pytest.approx(np.sqrt(1.6e5) / (2 * np.pi), rel=1e-12)
+
+
+@pytest.mark.parametrize("argv", [
+    ["modes", "no_such_system"],
+    ["modes", "small_drive", "--position", "0.2"],              # small_drive declares no position parameter
+    ["modes", "small_drive", "--set", "coupling.c"],            # malformed --set
+    ["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.nope"],
+])
+def test_errors_exit_2_with_one_named_line(argv, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("bscomp: ") and "Error: " in err[0]
+
+
+def test_console_script_unknown_system_exit_code():
+    out = subprocess.run([sys.executable, "-m", "bscomp.cli", "modes", "nope"], capture_output=True,
+                         text=True)
+    assert out.returncode == 2 and "UnknownNameError" in out.stderr
+
+
+def test_demo_still_runs(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "J reflected at the motor" in out and "rigid body" in out
+    assert (tmp_path / "demo_bode.png").exists()
