@@ -35,7 +35,6 @@ What a component may contribute
 from __future__ import annotations
 
 import copy
-import math
 from dataclasses import dataclass
 from typing import Any
 

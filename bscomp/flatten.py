@@ -29,12 +29,13 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
-from .component import Component, Constraint, _Context, _PortBinding
+from .component import Constraint, _Context, _PortBinding
 from .dae import Dae, MechanicalInfo
 from .errors import (
     HighIndexError,
     ModelDefinitionError,
     OverdeterminedError,
+    ParameterError,
     UnconnectedPortError,
     UnderdeterminedError,
 )
@@ -145,8 +146,6 @@ def flatten(system: System, *, check: bool = True) -> Dae:
     for lf in leaves:
         for n, p in lf.comp.parameters().items():
             if lf.comp._values.get(n) is None:
-                raise_missing = p.validate(None, lf.comp) if False else None  # noqa: F841
-                from .errors import ParameterError
                 raise ParameterError(f"parameter {lf.path}.{n} [{p.unit}] has no value ({p.doc}); set it with "
                                      f"system.set('{lf.path}.{n}', value)")
 
@@ -837,5 +836,3 @@ def _count_error(n_eq, n_unk, origins, x_names, z_names, leaves):
         f"{(x_names + z_names)[:30]}. Components with variables: {detail}")
 
 
-# keep names used by type checkers
-_ = Component

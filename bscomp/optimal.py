@@ -251,7 +251,6 @@ class Ocp:
         xs = self._state_nominals()
         # velocity/position nominal values: propagate from a related bounded signal if none given
         us = np.array([self._nominal(n) for n in dae.u_names])
-        zs = np.ones(nz)
         Xs = opti.variable(nx, N + 1)
         Xcs = opti.variable(nx, N * d)
         Wcs = opti.variable(nx, N * d)   # state derivatives at collocation points (scaled by xs)
@@ -279,8 +278,7 @@ class Ocp:
         for j in range(1, d + 1):
             opti.subject_to(ca.vec(h * Wc[:, (j - 1)::d] - cols[j - 1]) == 0)
         Fm = dae.F.map(N * d)
-        Urep = ca.repmat(U, 1, 1)
-        Ucol = ca.horzcat(*[Urep[:, k] @ np.ones((1, d)) for k in range(N)])
+        Ucol = ca.horzcat(*[U[:, k] @ np.ones((1, d)) for k in range(N)])  # u held on each interval
         Pm = ca.repmat(ca.DM(self.p), 1, N * d)
         res = Fm(Wc, Xc, Zc if nz else ca.DM(0, N * d), Ucol, Pm)
         # residual scaling: row norms of the scaled Jacobian at the start (equations in N, N m, m/s...)
@@ -321,12 +319,6 @@ class Ocp:
                 i = all_y.index(n)
                 s = self._nominal(n)
                 expr = Yc[i, :] / s
-                s = 1.0 if False else s
-                if np.isfinite(lo):
-                    opti.subject_to(ca.vec(expr) >= lo / s)
-                if np.isfinite(hi):
-                    opti.subject_to(ca.vec(expr) <= hi / s)
-                continue
             if np.isfinite(lo):
                 opti.subject_to(ca.vec(expr) >= lo / s)
             if np.isfinite(hi):
@@ -395,17 +387,18 @@ class Ocp:
         Tv = float(sol.value(T)) if self.T_fixed is None else self.T_fixed
         t = np.linspace(0, Tv, N + 1)
         outputs = {}
-        if all_y or True:
-            names = list(dict.fromkeys(all_y + [n for n in dae.x_names[:0]]))
-            if names:
-                Ycv = np.atleast_2d(sol.value(Yc)).reshape(len(all_y), N * d)
-                for i, n in enumerate(all_y):
-                    outputs[n] = np.r_[self._y0(n, Xv[0], Uv[0]), Ycv[i, (d - 1)::d]]
+        if all_y:
+            Ycv = np.atleast_2d(sol.value(Yc)).reshape(len(all_y), N * d)
+            for i, n in enumerate(all_y):
+                outputs[n] = np.r_[self._y0(n, Xv[0], Uv[0]), Ycv[i, (d - 1)::d]]
         active = {}
         for n, (lo, hi) in self.bounds.items():
-            v = self[n] if False else (outputs.get(n) if n in outputs else
-                                       (Uv[:, dae.u_names.index(n)] if n in dae.u_names
-                                        else Xv[:, dae.x_names.index(n)]))
+            if n in outputs:
+                v = outputs[n]
+            elif n in dae.u_names:
+                v = Uv[:, dae.u_names.index(n)]
+            else:
+                v = Xv[:, dae.x_names.index(n)]
             span = max(abs(lo) if np.isfinite(lo) else 0, abs(hi) if np.isfinite(hi) else 0, 1e-300)
             act = np.zeros(len(v), bool)
             if np.isfinite(lo):

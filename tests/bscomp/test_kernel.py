@@ -22,7 +22,6 @@ from bscomp.components import (
     VelocitySensor,
 )
 from bscomp.partials import PartialCompliant
-from bscomp.ports import Flange
 
 
 def two_mass(m1=2.0, m2=3.0, k1=1.0e4, k2=2.5e4):
