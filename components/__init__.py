@@ -17,6 +17,7 @@ from .ideal_lead_screw import IdealLeadScrew
 from .inertia import Inertia
 from .linear_guide import LinearGuide
 from .mass import Mass
+from .moving_nut_joint import MovingNutJoint
 from .node_to_flange import NodeToFlange
 from .node_to_rot_flange import NodeToRotFlange
 from .position_sensor import PositionSensor
@@ -29,10 +30,24 @@ from .torsional_damper import TorsionalDamper
 from .torsional_spring import TorsionalSpring
 from .velocity_sensor import VelocitySensor
 
+# control (Chapter 4): continuous blocks live in the DAE, sampled blocks are run by a simulator
+from .current_amplifier import CurrentAmplifier  # noqa: E402
+from .digital_p_controller import DigitalPController  # noqa: E402
+from .notch_filter import NotchFilter  # noqa: E402
+from .pi_controller import PIController  # noqa: E402
+from .rst_controller import RSTController  # noqa: E402
+from .saturation import Saturation  # noqa: E402
+from .tachometer import Tachometer  # noqa: E402
+
 __all__ = [
+    "MovingNutJoint",
     "AccelerationSensor", "AngleSensor", "Damper", "Fixed", "FixedRotational", "Force", "Gain",
     "IdealLeadScrew", "Inertia", "Mass", "PositionSensor", "SpeedSensor", "Spring", "Torque",
     "TorsionalDamper", "TorsionalSpring", "VelocitySensor",
     "Ballscrew", "Bearing", "BoltedFastener", "Bushing", "Coupling", "FixedNode", "LinearGuide",
     "NodeToFlange", "NodeToRotFlange", "RigidBody", "ScrewNut",
+]
+__all__ += [
+    "CurrentAmplifier", "PIController", "Saturation", "Tachometer",
+    "DigitalPController", "NotchFilter", "RSTController",
 ]
