@@ -9,6 +9,7 @@ kind                 potentials                                   flows
 ``Flange``           ``s`` [m]                                    ``f`` [N]
 ``RotFlange``        ``phi`` [rad]                                ``tau`` [N.m]
 ``Node6``            ``u v w`` [m], ``tx ty tz`` [rad]            ``Fx Fy Fz`` [N], ``Mx My Mz`` [N.m]
+``Generalized``      ``q`` (modal/generalized coordinate)         ``Q`` (generalized force)
 ``RealInput``        ``u`` (causal signal, unit given per port)   --
 ``RealOutput``       ``y`` (causal signal, unit given per port)   --
 ===================  ===========================================  ==========================================
@@ -22,8 +23,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ["PortKind", "FLANGE", "ROT_FLANGE", "NODE6", "REAL_INPUT", "REAL_OUTPUT", "PortSpec",
-           "Flange", "RotFlange", "Node6", "RealInput", "RealOutput"]
+__all__ = ["PortKind", "FLANGE", "ROT_FLANGE", "NODE6", "GENERALIZED", "REAL_INPUT", "REAL_OUTPUT", "PortSpec",
+           "Flange", "RotFlange", "Node6", "Generalized", "RealInput", "RealOutput"]
 
 
 @dataclass(frozen=True)
@@ -47,6 +48,7 @@ NODE6 = PortKind(
     (("u", "m"), ("v", "m"), ("w", "m"), ("tx", "rad"), ("ty", "rad"), ("tz", "rad")),
     (("Fx", "N"), ("Fy", "N"), ("Fz", "N"), ("Mx", "N.m"), ("My", "N.m"), ("Mz", "N.m")),
 )
+GENERALIZED = PortKind("Generalized", (("q", "1"),), (("Q", "1"),))
 REAL_INPUT = PortKind("RealInput", (("u", ""),), (), signal="in")
 REAL_OUTPUT = PortKind("RealOutput", (("y", ""),), (), signal="out")
 
@@ -107,6 +109,11 @@ def RotFlange(doc: str = "", optional: bool = False) -> PortSpec:
 def Node6(doc: str = "", optional: bool = True) -> PortSpec:
     """6-DOF node: ``d = (u, v, w, tx, ty, tz)``, ``F = (Fx, Fy, Fz, Mx, My, Mz)``; z is the screw axis."""
     return PortSpec(NODE6, doc, optional)
+
+
+def Generalized(doc: str = "", optional: bool = True) -> PortSpec:
+    """Generalized (e.g. modal) coordinate ``q`` with generalized force ``Q``; units follow the model."""
+    return PortSpec(GENERALIZED, doc, optional)
 
 
 def RealInput(doc: str = "", unit: str = "", default: float | None = None) -> PortSpec:

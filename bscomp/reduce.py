@@ -68,7 +68,7 @@ import scipy.sparse as sp
 
 from .errors import SingularSystemError
 
-__all__ = ["ReducedModel", "ReducedPort", "cms_reduce"]
+__all__ = ["ReducedModel", "ReducedPort", "cms_reduce", "reduce_second_order"]
 
 _SYM_RTOL = 1e-9
 
@@ -531,3 +531,36 @@ def cms_reduce(
         mode_frequencies=np.concatenate([np.zeros(n_rb), f_el[:P]]), interface=interface, n_rigid=n_rb,
         T1=T1, T2=T2, T1v=T1v, G_ii=G_ii,
     )
+
+
+def reduce_second_order(model, boundary, n_modes: int | None = None, *, f_cut: float | None = None,
+                        interface: str = "free", rigid_body_modes: bool = True):
+    """CMS-reduce a :class:`bscomp.linear.SecondOrderModel` (inputs, outputs and damping included).
+
+    The reduced model has ``M_r = Ψ^T M Ψ`` etc. (Eq 5.14), inputs ``Ψ^T B`` and mode-displacement
+    outputs ``C Ψ`` (Eq 5.11); use :meth:`ReducedModel.recover` with ``method="MA"`` for loads on
+    interior DOF. Returns ``(SecondOrderModel, ReducedModel)``; put the first into a system with
+    :class:`~components.second_order_block.SecondOrderBlock`.
+
+    Parameters
+    ----------
+    model : SecondOrderModel
+    boundary : sequence of str
+        Coordinate names kept exactly (actuated DOF, joint DOF, anchors; Sec 5.3.2).
+    """
+    from .linear import SecondOrderModel
+
+    red = cms_reduce(model.M, model.K, list(boundary), n_modes, f_cut=f_cut, C=model.C, interface=interface,
+                     rigid_body_modes=rigid_body_modes, dof_names=list(model.coordinates))
+    Psi = sp.csr_matrix(red.Psi)
+
+    def out(A):
+        return sp.csr_matrix(sp.csr_matrix(A) @ Psi)
+
+    C = red.C if red.C is not None else np.zeros_like(red.M)
+    reduced = SecondOrderModel(
+        M=sp.csr_matrix(red.M), C=sp.csr_matrix(C), K=sp.csr_matrix(red.K), B=sp.csr_matrix(Psi.T @ model.B),
+        Cq=out(model.Cq), Cv=out(model.Cv), Ca=out(model.Ca), D=sp.csr_matrix(model.D),
+        coordinates=list(red.names), units=["" for _ in red.names], inputs=list(model.inputs),
+        outputs=list(model.outputs))
+    return reduced, red

@@ -17,6 +17,7 @@ from .ideal_lead_screw import IdealLeadScrew
 from .inertia import Inertia
 from .linear_guide import LinearGuide
 from .mass import Mass
+from .second_order_block import SecondOrderBlock
 from .moving_nut_joint import MovingNutJoint
 from .node_to_flange import NodeToFlange
 from .node_to_rot_flange import NodeToRotFlange
@@ -40,6 +41,7 @@ from .saturation import Saturation  # noqa: E402
 from .tachometer import Tachometer  # noqa: E402
 
 __all__ = [
+    "SecondOrderBlock",
     "MovingNutJoint",
     "AccelerationSensor", "AngleSensor", "Damper", "Fixed", "FixedRotational", "Force", "Gain",
     "IdealLeadScrew", "Inertia", "Mass", "PositionSensor", "SpeedSensor", "Spring", "Torque",
