@@ -54,7 +54,8 @@ class SecondOrderBlock(Component):
                 raise ModelDefinitionError(f"SecondOrderBlock: cannot expose '{coord}': coordinates are "
                                            f"{model.coordinates[:10]}...")
             if kind not in ("Flange", "RotFlange"):
-                raise ModelDefinitionError(f"SecondOrderBlock: expose kind must be 'Flange' or 'RotFlange', got {kind!r}")
+                raise ModelDefinitionError(
+                    f"SecondOrderBlock: expose kind must be 'Flange' or 'RotFlange', got {kind!r}")
             self.add_port(pname, Flange(f"= {coord}", optional=True) if kind == "Flange"
                           else RotFlange(f"= {coord}", optional=True))
             self.expose[pname] = (model.coordinates.index(coord), kind)
