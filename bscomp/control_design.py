@@ -98,8 +98,8 @@ def pi_gains(J: float, B: float, K_a: float, K_t: float, H_g: float, wn: float, 
     K = K_a * K_t * H_g
     K_v = (2 * zeta * wn * J - B) / K
     if K_v < 0:
-        raise ParameterError(f"2 zeta wn J = {2 * zeta * wn * J:g} < B = {B:g}: the plant alone is more damped than "
-                             "requested, K_v would be negative (Eq 4.12); raise zeta or wn")
+        raise ParameterError(f"2 zeta wn J = {2 * zeta * wn * J:g} < B = {B:g}: the plant alone is more "
+                             "damped than requested, K_v would be negative (Eq 4.12); raise zeta or wn")
     return PIGains(K_v=float(K_v), K_i=float(J * wn**2 / K))
 
 
@@ -298,8 +298,9 @@ def diophantine(a, b, c, deg_x: int, deg_y: int) -> tuple[np.ndarray, np.ndarray
     a, b, c = (np.trim_zeros(np.atleast_1d(np.asarray(p, float)), "f") for p in (a, b, c))
     n = c.size  # equations: coefficients of z^(n-1) .. z^0
     if deg_x + deg_y + 2 != n:
-        raise ParameterError(f"Diophantine a x + b y = c: deg x + deg y + 2 = {deg_x + deg_y + 2} unknowns but "
-                             f"deg c + 1 = {n} equations; choose deg x = deg c - deg a, deg y = deg a - 1 (Eq 4.28)")
+        raise ParameterError(f"Diophantine a x + b y = c: deg x + deg y + 2 = {deg_x + deg_y + 2} unknowns "
+                             f"but deg c + 1 = {n} equations; choose deg x = deg c - deg a, "
+                             "deg y = deg a - 1 (Eq 4.28)")
     cols = []
     for poly, deg in ((a, deg_x), (b, deg_y)):
         for k in range(deg + 1):  # column for the coefficient of z^(deg - k)
@@ -314,8 +315,8 @@ def diophantine(a, b, c, deg_x: int, deg_y: int) -> tuple[np.ndarray, np.ndarray
     scale[scale == 0] = 1.0
     Ms = M / scale
     if np.linalg.cond(Ms) > 1e13:
-        raise SingularSystemError("Diophantine equation is singular: A and B share a factor (a common pole/zero, "
-                                  "Sec 4.5: the plant must be reachable and observable)")
+        raise SingularSystemError("Diophantine equation is singular: A and B share a factor (a common "
+                                  "pole/zero, Sec 4.5: the plant must be reachable and observable)")
     sol = np.linalg.solve(Ms, c) / scale
     return sol[:deg_x + 1], sol[deg_x + 1:]
 
@@ -378,8 +379,8 @@ def _divide_exact(num, den, what):
     q, r = np.polydiv(num, np.asarray(den, float))
     rel = np.max(np.abs(r)) / np.max(np.abs(num)) if r.size else 0.0
     if rel > 1e-7:
-        raise ParameterError(f"{what} does not divide exactly (relative remainder {rel:.3g}): give the exact factor, "
-                             "e.g. from split_polynomial(B, near=[0.535])")
+        raise ParameterError(f"{what} does not divide exactly (relative remainder {rel:.3g}): give the exact "
+                             "factor, e.g. from split_polynomial(B, near=[0.535])")
     return q
 
 
@@ -451,8 +452,8 @@ def rst_design(A, B, A_c, A_o, B_plus=(1.0,), A_plus=(1.0,), R_d=(1.0,), S_d=(1.
     deg_s = a.size - 2
     deg_r = rhs.size - 1 - (a.size - 1)
     if deg_r < 0:
-        raise ParameterError(f"deg(A_c A_o) = {np.polymul(A_c, A_o).size - 1} is too low for deg A = {A.size - 1}: "
-                             f"Eq 4.27 asks deg A_cl = 2 deg A + deg R_d + deg S_d - 1")
+        raise ParameterError(f"deg(A_c A_o) = {np.polymul(A_c, A_o).size - 1} is too low for "
+                             f"deg A = {A.size - 1}: Eq 4.27 asks deg A_cl = 2 deg A + deg R_d + deg S_d - 1")
     R_star, S_star = diophantine(a, b, rhs, deg_r, deg_s)
     R = np.polymul(np.polymul(B_plus, R_d), R_star)
     S = np.polymul(np.polymul(A_plus, S_d), S_star)

@@ -434,7 +434,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
     if loop_eqs:
         loop_eqs = [_apply_stages(e, stages) for e in loop_eqs]
     kin = [dq_in[i] - qdr[j] for i, j in enumerate(inertial)]
-    Fsx = ca.vertcat(*(kin + [Rv[j] for j in range(nr)] + [eqs_s[j] for j in range(eqs_s.numel())] + loop_eqs))
+    Fsx = ca.SX(ca.vertcat(*(kin + [Rv[j] for j in range(nr)] + [eqs_s[j] for j in range(eqs_s.numel())] + loop_eqs)))
     origins = ([f"kinematics of {rnames[j]}" for j in inertial]
                + [f"force balance at {rnames[j]}" for j in range(nr)] + eq_origin
                + [f"algebraic loop through signal {sig_names[k]}" for k in sig_loop])
@@ -489,7 +489,10 @@ def _apply_system_damping(dae, damping):
                                   f"'{dae.name}'; without inertia: {names[:10]} (add masses or drop the option)")
     dae.check_index1()
     so = second_order(dae, inputs=[], outputs=[])
-    Cadd = sp.csc_matrix(damping.matrix(so.M, so.K))
+    if getattr(damping, "needs_coordinates", False):   # ratios assigned by mode character (names)
+        Cadd = sp.csc_matrix(damping.matrix(so.M, so.K, coordinates=list(so.coordinates)))
+    else:
+        Cadd = sp.csc_matrix(damping.matrix(so.M, so.K))
     m.C = (m.C + Cadd).tocsc()
     dae._cache.clear()
     dae.stats["system_damping"] = repr(damping)

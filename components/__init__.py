@@ -31,6 +31,12 @@ from .torsional_damper import TorsionalDamper
 from .torsional_spring import TorsionalSpring
 from .velocity_sensor import VelocitySensor
 
+# nonlinear (Sec 5.2.2): regularised friction and backlash
+from .backlash import Backlash  # noqa: E402
+from .coulomb_friction import CoulombFriction  # noqa: E402
+from .rotational_backlash import RotationalBacklash  # noqa: E402
+from .stribeck_friction import StribeckFriction  # noqa: E402
+
 # control (Chapter 4): continuous blocks live in the DAE, sampled blocks are run by a simulator
 from .current_amplifier import CurrentAmplifier  # noqa: E402
 from .digital_p_controller import DigitalPController  # noqa: E402
@@ -53,3 +59,4 @@ __all__ += [
     "CurrentAmplifier", "PIController", "Saturation", "Tachometer",
     "DigitalPController", "NotchFilter", "RSTController",
 ]
+__all__ += ["Backlash", "CoulombFriction", "RotationalBacklash", "StribeckFriction"]

@@ -1,0 +1,98 @@
+"""Translational backlash (dead zone) with elastic, damped contact (thesis Eq 5.8-5.9, Fig 5.5/5.6).
+
+The thesis models backlash as the classical dead zone of Fig 5.5: the output element is disengaged
+while the input moves inside a clearance of total width ``L`` (here ``b``), and is carried along once
+either side of the clearance is reached (Eq 5.8), the side distances ``L_lag``/``L_lead`` being updated
+by the rule (5.9). Fig 5.6 places that switch in a joint between two sub-models. In an acausal model
+the same switch is a force law across the joint, with the joint's stiffness ``c`` and damping ``d``
+acting only in contact (as Modelica's ``ElastoBacklash``). With ``delta = s_rel - s_rel0``:
+
+.. math::
+
+    e = \\begin{cases} \\delta - b/2 & \\delta > b/2 \\\\ 0 & |\\delta| \\le b/2 \\\\
+        \\delta + b/2 & \\delta < -b/2 \\end{cases}, \\qquad
+    f = \\begin{cases} \\max(c\\,e + d\\,e'(\\delta)\\,v_{rel},\\ 0) & \\delta > 0 \\\\
+        \\min(c\\,e + d\\,e'(\\delta)\\,v_{rel},\\ 0) & \\delta \\le 0 \\end{cases}
+
+i.e. ``f = c (|delta| - b/2) sign(delta)`` outside the gap, zero inside, and damping only while in
+contact; the clipping stops the damper from pulling the surfaces together as they separate. The rigid
+limit ``c -> inf`` is Eq (5.8)-(5.9): the positions ``L_lag``, ``L_lead`` of the thesis are
+``b/2 + delta`` and ``b/2 - delta``.
+
+Corner smoothing (optional): with ``eps > 0`` each corner of ``e(delta)`` is replaced over a width
+``eps`` by a parabola (``e`` and ``e'`` continuous; exact for ``|delta| >= (b + eps)/2`` and zero for
+``|delta| <= (b - eps)/2``), so contact stiffness and damping are switched in over ``eps`` instead of
+instantly. CasADi 3.8's ``idas`` has no working event location (casadi#4393); it steps through the
+kinks of ``eps = 0`` by error control. Loop width measured against ``b`` is in ``docs/nonlinear.md``.
+
+Sign convention (as :class:`~components.spring.Spring`): ``s_rel = flange_b.s - flange_a.s``; ``f > 0``
+for ``delta > b/2``, like a spring in tension pulling the flanges back together.
+"""
+
+import casadi as ca
+
+from bscomp.component import Parameter
+from bscomp.partials import PartialCompliant
+
+
+def dead_zone(delta, b, eps):
+    """Dead-zone penetration ``e(delta)`` and its slope ``e'(delta)`` (CasADi expressions).
+
+    ``b`` is the total clearance; ``eps >= 0`` the width of the parabolic corner blend (0: sharp).
+    """
+
+    def ramp(x):  # max(x, 0) with a parabolic corner of width eps
+        inner = (x + eps / 2) ** 2 / (2 * ca.fmax(eps, 1e-300))
+        value = ca.if_else(x >= eps / 2, x, ca.if_else(x <= -eps / 2, 0, inner))
+        slope = ca.if_else(x >= eps / 2, 1, ca.if_else(x <= -eps / 2, 0, (x + eps / 2) / ca.fmax(eps, 1e-300)))
+        return value, slope
+
+    up, dup = ramp(delta - b / 2)
+    dn, ddn = ramp(-delta - b / 2)
+    return up - dn, dup + ddn
+
+
+def contact_force(delta, v, b, c, d, eps):
+    """Backlash contact force: elastic + damped in contact, zero in the gap, never adhesive.
+
+    As Modelica's ``ElastoBacklash``, the damping part is bounded by the elastic part,
+    ``|d v| <= c |e|``, so the force is continuous when contact starts or ends.
+    """
+    e, _ = dead_zone(delta, b, eps)
+    f_c = c * e
+    raw = f_c + d * v
+    return ca.if_else(delta > 0, ca.fmin(ca.fmax(raw, 0), 2 * f_c), ca.fmax(ca.fmin(raw, 0), 2 * f_c))
+
+
+class Backlash(PartialCompliant):
+    """Translational backlash: clearance ``b`` with a spring-damper contact on either side.
+
+    # Parameters
+    - ``b`` [m]: total clearance (dead-zone width ``L`` of Eq 5.8; 0.001885 rad r_g = 3.0 um at the
+      test-bed table, Table 5.2)
+    - ``c`` [N/m]: contact stiffness (> 0)
+    - ``d`` [N.s/m]: contact damping, active only in contact (>= 0)
+    - ``s_rel0`` [m]: relative position of the gap centre
+    - ``eps`` [m]: width of the smoothed corners (0 = sharp dead zone)
+
+    # Connectors
+    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.partials.PartialCompliant`)
+
+    # Observables
+    - ``f`` [N], ``s_rel`` [m], ``v_rel`` [m/s], ``penetration`` [m] (``e``; 0 in the gap)
+    """
+
+    b = Parameter(unit="m", min=0.0, doc="total clearance (dead-zone width)")
+    c = Parameter(unit="N/m", positive=True, doc="contact stiffness")
+    d = Parameter(0.0, unit="N.s/m", min=0.0, doc="contact damping (only in contact)")
+    s_rel0 = Parameter(0.0, unit="m", doc="relative position of the gap centre")
+    eps = Parameter(0.0, unit="m", min=0.0, doc="width of the smoothed dead-zone corners (0: sharp)")
+
+    def equations(self):
+        delta = self.s_rel - self.s_rel0
+        return [self.f - contact_force(delta, self.v_rel, self.b, self.c, self.d, self.eps)]
+
+    def observables(self):
+        out = super().observables()
+        out["penetration"] = dead_zone(self.s_rel - self.s_rel0, self.b, self.eps)[0]
+        return out

@@ -1,0 +1,49 @@
+"""Digital notch filter ``G_N(z) = K_N (z^2 + n_1 z + n_2) / (z^2 + d_1 z + d_2)`` (Eq 4.18).
+
+Placed in the position loop after the P controller (Fig 4.14) to cancel the first (axial) mode: the
+numerator zeros sit on the mode's poles (Eq 4.20), the denominator has the same frequency with more
+damping (Eq 4.21) and ``K_N`` makes the static gain one (Eq 4.19). The coefficients come from
+:func:`bscomp.control_design.notch` (Table 4.3: n_1 = -1.9521, n_2 = 0.9745, d_1 = -1.8390,
+d_2 = 0.8600, K_N = 0.9402 at T_s = 200 us). A sampled block (see ``_sampled.py``).
+"""
+
+from bscomp.errors import ParameterError
+
+from ._sampled import SampledBlock
+
+
+class NotchFilter(SampledBlock):
+    """Second-order digital notch (Eq 4.18).
+
+    Parameters
+    ----------
+    n1, n2 : float
+        Numerator coefficients (Eq 4.20).
+    d1, d2 : float
+        Denominator coefficients (Eq 4.21); the poles must lie inside the unit circle.
+    K_N : float or None
+        Gain; ``None`` computes the unit-DC-gain value of Eq 4.19.
+    T_s : float
+        Sampling period [s].
+    """
+
+    def __init__(self, n1: float, n2: float, d1: float, d2: float, K_N: float | None = None,
+                 T_s: float = 2.0e-4):
+        if not (abs(d2) < 1 and abs(d1) < 1 + d2):  # Jury test for z^2 + d1 z + d2
+            raise ParameterError(f"NotchFilter: denominator z^2 + {d1:g} z + {d2:g} has poles on or outside "
+                                 "the unit circle (an unstable filter)")
+        if K_N is None:
+            if 1 + n1 + n2 == 0:
+                raise ParameterError("NotchFilter: numerator vanishes at z = 1, K_N of Eq 4.19 is undefined")
+            K_N = (1 + d1 + d2) / (1 + n1 + n2)
+        self.n1, self.n2, self.d1, self.d2, self.K_N = map(float, (n1, n2, d1, d2, K_N))
+        super().__init__([[self.K_N, self.K_N * self.n1, self.K_N * self.n2]], [1.0, self.d1, self.d2], T_s,
+                         inputs=["u"], output="y")
+
+    @classmethod
+    def design(cls, zeta_N: float, omega_N: float, zeta_D: float, T_s: float, omega_D: float | None = None):
+        """Notch from the mode to cancel and the damping of the new poles (Eq 4.19-4.21)."""
+        from bscomp.control_design import notch
+
+        c = notch(zeta_N, omega_N, zeta_D, T_s, omega_D=omega_D)
+        return cls(c.n1, c.n2, c.d1, c.d2, c.K_N, T_s)

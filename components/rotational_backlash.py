@@ -1,0 +1,51 @@
+"""Rotational backlash (dead zone) with elastic, damped contact (thesis Eq 5.8-5.9, Fig 5.5/5.6).
+
+The rotational twin of :class:`~components.backlash.Backlash`, with the same law and helpers: the
+thesis applies its backlash (``L = 0.001885 rad``, Table 5.2) to the torsional DOF of the screw-nut
+joint (Sec 5.3.1). With ``delta = phi_rel - phi_rel0``, ``e`` the dead-zone penetration outside the
+clearance ``b`` and ``e'`` its slope,
+
+.. math:: \\tau = \\max(c\\,e + d\\,e'\\,w_{rel}, 0)\\ (\\delta > 0), \\qquad
+          \\tau = \\min(c\\,e + d\\,e'\\,w_{rel}, 0)\\ (\\delta \\le 0),
+
+zero inside the gap; ``eps > 0`` smooths the corners over that width [rad]. See ``backlash.py`` and
+``docs/nonlinear.md`` for the regularisation and its measured error.
+"""
+
+from bscomp.component import Parameter
+from bscomp.partials import PartialRotCompliant
+
+from .backlash import contact_force, dead_zone
+
+
+class RotationalBacklash(PartialRotCompliant):
+    """Rotational backlash: clearance ``b`` with a torsional spring-damper contact on either side.
+
+    # Parameters
+    - ``b`` [rad]: total clearance (dead-zone width ``L``; Table 5.2: 0.001885 rad)
+    - ``c`` [N.m/rad]: contact stiffness (> 0)
+    - ``d`` [N.m.s/rad]: contact damping, active only in contact (>= 0)
+    - ``phi_rel0`` [rad]: relative angle of the gap centre
+    - ``eps`` [rad]: width of the smoothed corners (0 = sharp dead zone)
+
+    # Connectors
+    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.partials.PartialRotCompliant`)
+
+    # Observables
+    - ``tau`` [N.m], ``phi_rel`` [rad], ``w_rel`` [rad/s], ``penetration`` [rad]
+    """
+
+    b = Parameter(unit="rad", min=0.0, doc="total clearance (dead-zone width)")
+    c = Parameter(unit="N.m/rad", positive=True, doc="contact stiffness")
+    d = Parameter(0.0, unit="N.m.s/rad", min=0.0, doc="contact damping (only in contact)")
+    phi_rel0 = Parameter(0.0, unit="rad", doc="relative angle of the gap centre")
+    eps = Parameter(0.0, unit="rad", min=0.0, doc="width of the smoothed dead-zone corners (0: sharp)")
+
+    def equations(self):
+        delta = self.phi_rel - self.phi_rel0
+        return [self.tau - contact_force(delta, self.w_rel, self.b, self.c, self.d, self.eps)]
+
+    def observables(self):
+        out = super().observables()
+        out["penetration"] = dead_zone(self.phi_rel - self.phi_rel0, self.b, self.eps)[0]
+        return out

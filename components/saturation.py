@@ -1,0 +1,51 @@
+"""Signal limiter (saturation), ``y = min(max(u, y_min), y_max)``, hard or with rounded corners.
+
+Amplifier and actuator saturation limit the achievable gain K_p of the position loop (Sec 4.3.2: "the
+value of K_p is also limited by the saturation limits of the amplifier and actuator"); the thesis
+ignores them in its designs, this block lets a simulation include them.
+
+Linear analysis: the block is *exactly* ``y = u`` for ``y_min + delta <= u <= y_max - delta`` (the
+hard clip when ``delta = 0``; C1 quadratic corners of half-width ``delta`` otherwise, see
+``components/_limits.py``). :func:`bscomp.linearize` at an operating point inside the limits therefore
+gives gain 1 and the closed-loop analyses of Chapter 4 are unchanged; at a point beyond a limit the
+gain is 0 (the loop is open), as it should be. ``delta > 0`` removes the slope discontinuity, which helps
+variable-step integrators; the hard clip needs event handling for an accurate switch time.
+"""
+
+from bscomp.component import Component, Parameter
+from bscomp.errors import ParameterError
+from bscomp.ports import RealInput, RealOutput
+
+from ._limits import limit
+
+
+class Saturation(Component):
+    """Limiter.
+
+    # Parameters
+    - ``y_max`` [signal unit]: upper limit
+    - ``y_min`` [signal unit]: lower limit (default ``-y_max``), must be below ``y_max``
+    - ``delta`` [signal unit]: half-width of the rounded corners (0 = hard clip)
+
+    # Connectors
+    - ``u``: real input; ``y``: real output
+    """
+
+    u = RealInput("input signal")
+    y = RealOutput("limited output signal")
+    y_max = Parameter(1.0, unit="1", doc="upper limit")
+    y_min = Parameter(-1.0, unit="1", doc="lower limit")
+    delta = Parameter(0.0, unit="1", min=0.0, doc="half-width of the rounded corners (0 = hard clip)")
+
+    def __init__(self, y_max: float = 1.0, y_min: float | None = None, **params):
+        if y_min is None:
+            y_min = -y_max
+        if not y_min < y_max:
+            raise ParameterError(f"Saturation needs y_min < y_max, got y_min = {y_min!r}, y_max = {y_max!r}")
+        super().__init__(y_max=y_max, y_min=y_min, **params)
+        if 2 * self.delta > y_max - y_min:
+            raise ParameterError(f"Saturation corner half-width delta = {self.delta!r} is more than half the "
+                                 f"range [{y_min!r}, {y_max!r}]: no linear region would remain")
+
+    def equations(self):
+        return [self.y.y - limit(self.u.u, self.y_min, self.y_max, self.delta)]

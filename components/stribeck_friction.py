@@ -1,0 +1,97 @@
+"""Stribeck friction between two flanges (thesis Eq 5.6), regularised for IDAS.
+
+Thesis Eq (5.6) (after Armstrong-Hélouvry, ref [14]) gives the friction of a lubricated sliding
+interface over the static, boundary, partial-fluid and full-fluid regions of the Stribeck curve
+(Fig 5.3):
+
+.. math:: F_f^{\\pm}(v) = F_{stat}^{\\pm} e^{-|v|/V_1^{\\pm}} + F_{coul}^{\\pm}\\big(1 - e^{-|v|/V_2^{\\pm}}\\big)
+          + B^{\\pm} |v|,
+
+applied against the sliding direction, with the ``+`` or ``-`` constants by the sign of ``v``. ``V1``
+sets the drop from the static (breakaway) force, ``V2`` the rise to the Coulomb level; ``V1, V2 -> 0``
+gives Eq (5.7) (:class:`~components.coulomb_friction.CoulombFriction`). Like that class, the sign
+function is **regularised** because CasADi 3.8's ``idas`` ignores zero-crossing events (casadi#4393):
+
+.. math::
+
+    \\sigma = \\tanh(v/v_{reg}), \\quad w^{\\pm} = \\tfrac{1 \\pm \\sigma}{2}, \\quad
+    f = \\sigma \\sum_{\\pm} w^{\\pm}\\Big(F_{stat}^{\\pm} e^{-|v|/V_1^{\\pm}}
+        + F_{coul}^{\\pm}\\big(1 - e^{-|v|/V_2^{\\pm}}\\big)\\Big) + \\sum_{\\pm} w^{\\pm} B^{\\pm} v .
+
+For ``|v| >> v_reg`` it is Eq (5.6) exactly. The largest force the regularised law can resist, i.e. the
+effective breakaway force, is ``F_stat (1 - O(v_reg/V1))``: keep ``v_reg`` well below ``V1`` (10x or
+more). Below breakaway the interface creeps at about ``v_reg artanh(F/F_stat)`` instead of sticking
+exactly; measured errors are in ``docs/nonlinear.md``.
+
+Sign convention as :class:`~components.damper.Damper`: ``f`` has the sign of
+``v_rel = der(flange_b.s - flange_a.s)``, so the element dissipates ``f v_rel >= 0``. Connect
+``flange_a`` to a :class:`~components.fixed.Fixed` for friction to ground.
+"""
+
+import casadi as ca
+
+from bscomp.component import Parameter
+from bscomp.partials import PartialCompliant
+
+
+class StribeckFriction(PartialCompliant):
+    """Regularised Stribeck friction, Eq (5.6), with asymmetric ``+/-`` constants.
+
+    # Parameters
+    - ``F_s_pos``, ``F_s_neg`` [N]: static (breakaway) force magnitude ``F_stat^{+/-}``
+    - ``F_c_pos``, ``F_c_neg`` [N]: Coulomb force magnitude ``F_coul^{+/-}`` (Table 5.2: 2066 N)
+    - ``v1_pos``, ``v1_neg`` [m/s]: Stribeck velocity ``V1`` (decay of the static term)
+    - ``v2_pos``, ``v2_neg`` [m/s]: velocity ``V2`` of the rise to the Coulomb level
+    - ``d_pos``, ``d_neg`` [N.s/m]: viscous coefficient ``B`` (Table 5.2: 12673)
+    - ``v_reg`` [m/s]: regularisation velocity of ``tanh(v/v_reg)``; keep ``v_reg << v1``
+
+    No value of ``F_stat``, ``V1`` or ``V2`` is published for the test bed (the thesis uses Eq 5.7):
+    the velocity defaults are placeholders of typical lubricated-guideway magnitude, not data.
+
+    # Connectors
+    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.partials.PartialCompliant`)
+
+    # Observables
+    - ``f`` [N], ``s_rel`` [m], ``v_rel`` [m/s], ``power`` [W] (dissipated, ``f v_rel >= 0``)
+    """
+
+    F_s_pos = Parameter(unit="N", min=0.0, doc="static (breakaway) force magnitude, positive sliding")
+    F_s_neg = Parameter(unit="N", min=0.0, doc="static (breakaway) force magnitude, negative sliding")
+    F_c_pos = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude, positive sliding")
+    F_c_neg = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude, negative sliding")
+    v1_pos = Parameter(1.0e-3, unit="m/s", positive=True, doc="Stribeck velocity V1, positive sliding")
+    v1_neg = Parameter(1.0e-3, unit="m/s", positive=True, doc="Stribeck velocity V1, negative sliding")
+    v2_pos = Parameter(1.0e-3, unit="m/s", positive=True, doc="Coulomb rise velocity V2, positive sliding")
+    v2_neg = Parameter(1.0e-3, unit="m/s", positive=True, doc="Coulomb rise velocity V2, negative sliding")
+    d_pos = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B, positive sliding")
+    d_neg = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B, negative sliding")
+    v_reg = Parameter(1.0e-5, unit="m/s", positive=True, doc="regularisation velocity of tanh(v/v_reg)")
+
+    def __init__(self, F_s=None, F_c=None, v1=None, v2=None, d=None, **params):
+        """``F_s=``, ``F_c=``, ``v1=``, ``v2=``, ``d=`` set both directions at once (symmetric friction)."""
+        for short, value in (("F_s", F_s), ("F_c", F_c), ("v1", v1), ("v2", v2), ("d", d)):
+            if value is not None:
+                params.setdefault(f"{short}_pos", value)
+                params.setdefault(f"{short}_neg", value)
+        super().__init__(**params)
+
+    def friction_force(self, v):
+        """Regularised friction force [N] at sliding velocity ``v`` (CasADi or float)."""
+        sig = ca.tanh(v / self.v_reg)
+        av = ca.fabs(v)
+
+        def curve(F_s, F_c, v1, v2):
+            return F_s * ca.exp(-av / v1) + F_c * (1 - ca.exp(-av / v2))
+
+        wp, wn = 0.5 * (1 + sig), 0.5 * (1 - sig)
+        level = (wp * curve(self.F_s_pos, self.F_c_pos, self.v1_pos, self.v2_pos)
+                 + wn * curve(self.F_s_neg, self.F_c_neg, self.v1_neg, self.v2_neg))
+        return sig * level + (wp * self.d_pos + wn * self.d_neg) * v
+
+    def equations(self):
+        return [self.f - self.friction_force(self.v_rel)]
+
+    def observables(self):
+        out = super().observables()
+        out["power"] = self.f * self.v_rel
+        return out
