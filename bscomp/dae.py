@@ -249,7 +249,8 @@ class Dae:
         return p
 
     # ---- initial values -----------------------------------------------------------------------
-    def initialize(self, x0=None, u0=None, p=None, z_guess=None, tol=1e-10, max_iter=20):
+    def initialize(self, x0=None, u0=None, p=None, z_guess=None, tol=1e-10, max_iter=20, xd_guess=None,
+                   store=True):
         """Consistent initial values: given x0, solve ``F(xd, x0, z, u0, p) = 0`` for (xd, z) by Newton.
 
         Returns
@@ -260,7 +261,7 @@ class Dae:
         u0 = np.zeros(self.nu) if u0 is None else np.asarray(u0, float)
         p = self.p0 if p is None else np.asarray(p, float)
         z = (self.z_start if z_guess is None else np.asarray(z_guess, float)).copy()
-        xd = np.zeros(self.nx)
+        xd = np.zeros(self.nx) if xd_guess is None else np.asarray(xd_guess, float).copy()
         for it in range(max_iter):
             res, Jxd, _, Jz, _ = self.jacobians(xd, x0, z, u0, p)
             r = np.asarray(res, float).ravel()
@@ -278,7 +279,8 @@ class Dae:
             z = z + step[self.nx:]
             if np.linalg.norm(step, np.inf) < tol * (1 + np.linalg.norm(np.r_[xd, z], np.inf)):
                 break
-        self.x0, self.xd0, self.z0 = x0, xd, z
+        if store:
+            self.x0, self.xd0, self.z0 = x0, xd, z
         return xd, z
 
     def _singular_message(self, W):

@@ -11,19 +11,22 @@ acting only in contact (as Modelica's ``ElastoBacklash``). With ``delta = s_rel 
 
     e = \\begin{cases} \\delta - b/2 & \\delta > b/2 \\\\ 0 & |\\delta| \\le b/2 \\\\
         \\delta + b/2 & \\delta < -b/2 \\end{cases}, \\qquad
-    f = \\begin{cases} \\max(c\\,e + d\\,e'(\\delta)\\,v_{rel},\\ 0) & \\delta > 0 \\\\
-        \\min(c\\,e + d\\,e'(\\delta)\\,v_{rel},\\ 0) & \\delta \\le 0 \\end{cases}
+    f = \\begin{cases} \\min\\big(\\max(c\\,e + d\\,v_{rel},\\ 0),\\ 2c\\,e\\big) & \\delta > 0 \\\\
+        \\max\\big(\\min(c\\,e + d\\,v_{rel},\\ 0),\\ 2c\\,e\\big) & \\delta \\le 0 \\end{cases}
 
-i.e. ``f = c (|delta| - b/2) sign(delta)`` outside the gap, zero inside, and damping only while in
-contact; the clipping stops the damper from pulling the surfaces together as they separate. The rigid
-limit ``c -> inf`` is Eq (5.8)-(5.9): the positions ``L_lag``, ``L_lead`` of the thesis are
-``b/2 + delta`` and ``b/2 - delta``.
+i.e. ``f = c (|delta| - b/2) sign(delta)`` outside the gap and zero inside, with the damping force
+acting only in contact and bounded as in Modelica's ``ElastoBacklash``: never adhesive (the contact
+cannot pull) and never larger than the elastic force, so ``f`` is continuous when contact starts
+(an undamped jump ``d v`` at impact made IDAS fail). The rigid limit ``c -> inf`` is Eq (5.8)-(5.9):
+the side distances ``L_lag``, ``L_lead`` of the thesis are ``b/2 + delta`` and ``b/2 - delta``.
 
 Corner smoothing (optional): with ``eps > 0`` each corner of ``e(delta)`` is replaced over a width
 ``eps`` by a parabola (``e`` and ``e'`` continuous; exact for ``|delta| >= (b + eps)/2`` and zero for
-``|delta| <= (b - eps)/2``), so contact stiffness and damping are switched in over ``eps`` instead of
-instantly. CasADi 3.8's ``idas`` has no working event location (casadi#4393); it steps through the
-kinks of ``eps = 0`` by error control. Loop width measured against ``b`` is in ``docs/nonlinear.md``.
+``|delta| <= (b - eps)/2``), so the contact stiffness is switched in over ``eps``; the apparent
+clearance shrinks by up to ``eps``. CasADi 3.8's ``idas`` has no working event location (casadi#4393);
+with the default ``eps = 0`` it steps through the kinks by error control. That is robust in the tests
+(docs/nonlinear.md, with the measured loop width), but a very light body chattering on a stiff contact
+can still exhaust IDAS: then add contact damping, set ``eps`` ~ 1e-3 b, or refine ``t``.
 
 Sign convention (as :class:`~components.spring.Spring`): ``s_rel = flange_b.s - flange_a.s``; ``f > 0``
 for ``delta > b/2``, like a spring in tension pulling the flanges back together.
@@ -42,9 +45,9 @@ def dead_zone(delta, b, eps):
     """
 
     def ramp(x):  # max(x, 0) with a parabolic corner of width eps
-        inner = (x + eps / 2) ** 2 / (2 * ca.fmax(eps, 1e-300))
-        value = ca.if_else(x >= eps / 2, x, ca.if_else(x <= -eps / 2, 0, inner))
-        slope = ca.if_else(x >= eps / 2, 1, ca.if_else(x <= -eps / 2, 0, (x + eps / 2) / ca.fmax(eps, 1e-300)))
+        width = ca.fmax(eps, 1e-300)  # the blend branch is never selected when eps = 0
+        value = ca.if_else(x >= eps / 2, x, ca.if_else(x <= -eps / 2, 0, (x + eps / 2) ** 2 / (2 * width)))
+        slope = ca.if_else(x >= eps / 2, 1, ca.if_else(x <= -eps / 2, 0, (x + eps / 2) / width))
         return value, slope
 
     up, dup = ramp(delta - b / 2)

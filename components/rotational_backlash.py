@@ -5,10 +5,11 @@ thesis applies its backlash (``L = 0.001885 rad``, Table 5.2) to the torsional D
 joint (Sec 5.3.1). With ``delta = phi_rel - phi_rel0``, ``e`` the dead-zone penetration outside the
 clearance ``b`` and ``e'`` its slope,
 
-.. math:: \\tau = \\max(c\\,e + d\\,e'\\,w_{rel}, 0)\\ (\\delta > 0), \\qquad
-          \\tau = \\min(c\\,e + d\\,e'\\,w_{rel}, 0)\\ (\\delta \\le 0),
+.. math:: \\tau = \\min\\big(\\max(c\\,e + d\\,w_{rel}, 0), 2c\\,e\\big)\\ (\\delta > 0), \\qquad
+          \\tau = \\max\\big(\\min(c\\,e + d\\,w_{rel}, 0), 2c\\,e\\big)\\ (\\delta \\le 0),
 
-zero inside the gap; ``eps > 0`` smooths the corners over that width [rad]. See ``backlash.py`` and
+zero inside the gap (damping only in contact, never adhesive, bounded by the elastic torque);
+``eps > 0`` smooths the corners over that width [rad]. See ``backlash.py`` and
 ``docs/nonlinear.md`` for the regularisation and its measured error.
 """
 

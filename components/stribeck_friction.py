@@ -1,11 +1,13 @@
 """Stribeck friction between two flanges (thesis Eq 5.6), regularised for IDAS.
 
-Thesis Eq (5.6) (after Armstrong-Hélouvry, ref [14]) gives the friction of a lubricated sliding
+Thesis Eq (5.6) (its ref [14]) gives the friction of a lubricated sliding
 interface over the static, boundary, partial-fluid and full-fluid regions of the Stribeck curve
 (Fig 5.3):
 
-.. math:: F_f^{\\pm}(v) = F_{stat}^{\\pm} e^{-|v|/V_1^{\\pm}} + F_{coul}^{\\pm}\\big(1 - e^{-|v|/V_2^{\\pm}}\\big)
-          + B^{\\pm} |v|,
+.. math::
+
+    F_f^{\\pm}(v) = F_{stat}^{\\pm} e^{-|v|/V_1^{\\pm}}
+        + F_{coul}^{\\pm}\\big(1 - e^{-|v|/V_2^{\\pm}}\\big) + B^{\\pm} |v|,
 
 applied against the sliding direction, with the ``+`` or ``-`` constants by the sign of ``v``. ``V1``
 sets the drop from the static (breakaway) force, ``V2`` the rise to the Coulomb level; ``V1, V2 -> 0``
