@@ -1,0 +1,214 @@
+"""The model evaluated at the measurements, residuals, a scalar cost and MATLAB's fit %.
+
+Sign convention (as MATLAB's ``resid``): a residual is **measured minus model**, ``e = y - y_hat``.
+
+* FRF residuals per pair, stacked: :math:`\\log_{10}|H_m| - \\log_{10}|\\hat H|` and the wrapped phase
+  difference :math:`\\angle H_m - \\angle \\hat H` [rad], each multiplied by :math:`\\sqrt{\\gamma^2}`
+  (coherence) where it was measured, so the squared residual is coherence-weighted. One decade of
+  magnitude error (20 dB) weighs as much as one radian of phase.
+* Time residuals per channel: :math:`(y - \\hat y) / \\mathrm{rms}(y)`.
+* :func:`cost`: the mean over datasets of each dataset's mean squared residual, so an FRF of 400 points
+  and a time series of 4000 samples weigh alike.
+* :func:`fit_percent`: :math:`100\\,(1 - \\lVert y - \\hat y\\rVert / \\lVert y - \\bar y\\rVert)`
+  (MATLAB ``compare``'s NRMSE fit; complex data allowed).
+"""
+
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+
+from .measurements import FrfData, MeasurementFileError, TimeData
+
+__all__ = ["model_frf", "model_time", "frf_residuals", "time_residuals", "cost", "fit_percent",
+           "build_for", "frf_errors"]
+
+
+# ---- the model at the measurement's conditions ---------------------------------------------------------
+def build_for(system_or_build, conditions: dict | None = None, params: dict | None = None):
+    """The System a dataset is compared with.
+
+    Parameters
+    ----------
+    system_or_build : System, callable or str
+        A System is used as is (conditions ignored). A callable is called as ``build(**conditions)``
+        (conditions its signature does not accept are dropped unless it takes ``**kwargs``). A string is a
+        registered system name or ``.py`` path, built by :func:`bscomp.systems.get` with the conditions as
+        overrides (names without a dot are build keyword arguments, dotted names parameter values).
+    conditions : dict, optional
+        Operating conditions of the measurement (e.g. ``nut_position``).
+    params : dict, optional
+        Parameter overrides by dotted name, applied last.
+    """
+    from bscomp.system import System
+
+    conditions = dict(conditions or {})
+    if isinstance(system_or_build, System):
+        system = system_or_build
+    elif isinstance(system_or_build, str):
+        from bscomp.systems import get
+
+        system = get(system_or_build, conditions or None) if conditions else get(system_or_build)
+    elif callable(system_or_build):
+        try:
+            sig = inspect.signature(system_or_build)
+            if not any(p.kind == p.VAR_KEYWORD for p in sig.parameters.values()):
+                conditions = {k: v for k, v in conditions.items() if k in sig.parameters}
+        except (TypeError, ValueError):
+            pass
+        system = system_or_build(**conditions)
+    else:
+        raise TypeError(f"expected a System, a build callable or a system name, got {type(system_or_build).__name__}")
+    return system.with_parameters(params) if params else system
+
+
+def _dae(system):
+    from bscomp.flatten import flatten
+
+    return flatten(system)
+
+
+def _check_names(dae, data, inputs, outputs):
+    """Every measured channel must exist in the model; the error points at the file's column."""
+    for name in inputs:
+        if name not in dae.u_names:
+            key = ("column", name) if isinstance(data, TimeData) else None
+            ln, col = data.locations.get(key, (None, None)) if key else (None, None)
+            if isinstance(data, FrfData):
+                pair = next(p for p in data.H if p[0] == name)
+                ln, col = data.locations.get(("column", pair), (None, None))
+            raise MeasurementFileError(data.source, ln, col, f"unknown channel: {name!r} is not an input of the "
+                                       f"model '{dae.name}' (inputs: {dae.u_names})", name)
+    obs = set(dae.output_names())
+    for name in outputs:
+        if name not in obs:
+            ln, col = (None, None)
+            if isinstance(data, TimeData):
+                ln, col = data.locations.get(("column", name), (None, None))
+            else:
+                pair = next(p for p in data.H if p[1] == name)
+                ln, col = data.locations.get(("column", pair), (None, None))
+            close = [k for k in obs if k.split(".")[0] == name.split(".")[0]][:10]
+            raise MeasurementFileError(data.source, ln, col, f"unknown channel: {name!r} is not an output of the "
+                                       f"model '{dae.name}'" + (f" (outputs of that component: {close})" if close
+                                                                else ""), name)
+
+
+def model_frf(system_or_build, data: FrfData, params: dict | None = None) -> dict:
+    """The model's FRF at the measured frequencies and conditions, ``{(input, output): H}``.
+
+    Uses the sparse second-order form, or the linearized state space when the model has controller
+    states (:func:`bscomp.frf.frf`).
+    """
+    from bscomp.frf import frf
+
+    system = build_for(system_or_build, data.conditions, params)
+    dae = _dae(system)
+    ins, outs = data.inputs, data.outputs
+    _check_names(dae, data, ins, outs)
+    res = frf(dae, input=ins, output=outs, freqs=data.freqs)
+    return {(i, o): res.H[:, res.outputs.index(o), res.inputs.index(i)] for i, o in data.H}
+
+
+def simulate_for(system_or_build, data: TimeData, params: dict | None = None, extra=(), rtol=1e-7, atol=1e-10):
+    """Simulate with the measured inputs; record the measured outputs and ``extra`` observables.
+
+    Returns ``(SimulationResult, system)``. Inputs are held constant from each sample to the next
+    (zero-order hold, as a D/A converter does).
+    """
+    from bscomp.simulate import simulate
+
+    system = build_for(system_or_build, data.conditions, params)
+    dae = _dae(system)
+    _check_names(dae, data, list(data.inputs), list(data.outputs))
+    obs = set(dae.output_names())
+    names = list(data.outputs) + [n for n in dict.fromkeys(extra) if n in obs and n not in data.outputs]
+    res = simulate(dae, data.t, inputs=dict(data.inputs), outputs=names, rtol=rtol, atol=atol)
+    return res, system
+
+
+def model_time(system_or_build, data: TimeData, params: dict | None = None) -> dict:
+    """Simulated output channels ``{name: y_hat}`` for the measured inputs and conditions."""
+    res, _ = simulate_for(system_or_build, data, params)
+    return {n: np.asarray(res[n], float) for n in data.outputs}
+
+
+# ---- residuals ----------------------------------------------------------------------------------------
+def _log10abs(h):
+    a = np.abs(h)
+    tiny = 1e-300 if not np.any(a > 0) else 1e-12 * float(np.max(a))
+    return np.log10(np.maximum(a, tiny))
+
+
+def frf_errors(model_H: dict, data: FrfData) -> dict:
+    """Per pair: ``(log10-magnitude error, wrapped phase error [rad], weight)``, measured minus model."""
+    out = {}
+    for pair, hm in data.H.items():
+        if pair not in model_H:
+            raise KeyError(f"model FRF has no pair {pair}; pairs: {list(model_H)}")
+        h = np.asarray(model_H[pair], complex)
+        e_mag = _log10abs(hm) - _log10abs(h)
+        e_ph = np.angle(hm * np.conj(h)) if np.any(h != 0) else np.zeros(hm.size)
+        g = data.coherence.get(pair)
+        w = np.ones(hm.size) if g is None else np.sqrt(np.clip(g, 0.0, 1.0))
+        out[pair] = (e_mag, e_ph, w)
+    return out
+
+
+def frf_residuals(model_H: dict, data: FrfData) -> np.ndarray:
+    """Stacked, coherence-weighted residuals: per pair ``[w e_mag, w e_phase]`` (see module notes)."""
+    parts = []
+    for e_mag, e_ph, w in frf_errors(model_H, data).values():
+        parts += [w * e_mag, w * e_ph]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def _rms(y):
+    r = float(np.sqrt(np.mean(np.square(y)))) if len(y) else 0.0
+    return r if r > 0 else 1.0
+
+
+def time_residuals(model_y: dict, data: TimeData) -> np.ndarray:
+    """Stacked residuals per output channel, ``(y - y_hat) / rms(y)``."""
+    parts = []
+    for name, y in data.outputs.items():
+        if name not in model_y:
+            raise KeyError(f"model response has no channel {name!r}; channels: {list(model_y)}")
+        parts.append((y - np.asarray(model_y[name], float)) / _rms(y))
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def residuals(system_or_build, data, params: dict | None = None) -> np.ndarray:
+    """Residual vector of one dataset (FRF or time series)."""
+    if isinstance(data, FrfData):
+        return frf_residuals(model_frf(system_or_build, data, params), data)
+    if isinstance(data, TimeData):
+        return time_residuals(model_time(system_or_build, data, params), data)
+    raise TypeError(f"expected FrfData or TimeData, got {type(data).__name__}")
+
+
+def cost(system_or_build, datasets, params: dict | None = None) -> float:
+    """Mean over datasets of the mean squared residual (0 for a perfect model)."""
+    if isinstance(datasets, (FrfData, TimeData)):
+        datasets = [datasets]
+    datasets = list(datasets)
+    if not datasets:
+        raise ValueError("cost needs at least one dataset")
+    return float(np.mean([np.mean(np.square(residuals(system_or_build, d, params))) for d in datasets]))
+
+
+def fit_percent(model, measured) -> float:
+    """MATLAB ``compare`` fit: :math:`100 (1 - \\lVert y - \\hat y\\rVert / \\lVert y - \\bar y\\rVert)` [%].
+
+    100 is a perfect fit, 0 no better than the mean, negative worse. Works for complex FRFs.
+    """
+    y = np.asarray(measured)
+    yh = np.asarray(model)
+    if y.shape != yh.shape:
+        raise ValueError(f"model {yh.shape} and measured {y.shape} differ in shape")
+    den = np.linalg.norm(y - np.mean(y))
+    num = np.linalg.norm(y - yh)
+    if den == 0:
+        return 100.0 if num == 0 else -np.inf
+    return float(100.0 * (1.0 - num / den))

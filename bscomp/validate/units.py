@@ -1,0 +1,186 @@
+"""A small SI unit parser for measurement files: ``"um/(N m)"`` -> scale 1e-6 to SI, dimensions, and
+the SI spelling ``"m/(N m)"``.
+
+Grammar: products by ``*``, ``.``, ``·`` or a space, quotients by ``/`` (left to right, so
+``rad/s/(N m)`` is rad per second per newton-metre), parentheses, integer exponents written ``^2``,
+``**2`` or ``²``. Units: m, g, s, A, N, J, W, Pa, V, Hz, rad, deg, rev, rpm, min, h with the SI prefixes
+n, u/µ, m, c, k, M, G (``mm``, ``um``, ``kN``, ``mrad``...); ``1`` or ``-`` for dimensionless.
+
+The angle is kept as its own dimension (so ``deg`` converts to ``rad``) but :func:`same_dimension`
+ignores it, as SI does (``1/s`` and ``rad/s`` agree).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Unit", "parse_unit", "same_dimension", "UnitSyntaxError", "convention_units"]
+
+# dimension order: m, kg, s, A, rad
+_BASE = {
+    "m": (1.0, (1, 0, 0, 0, 0), "m"),
+    "g": (1e-3, (0, 1, 0, 0, 0), "kg"),
+    "s": (1.0, (0, 0, 1, 0, 0), "s"),
+    "A": (1.0, (0, 0, 0, 1, 0), "A"),
+    "N": (1.0, (1, 1, -2, 0, 0), "N"),
+    "J": (1.0, (2, 1, -2, 0, 0), "J"),
+    "W": (1.0, (2, 1, -3, 0, 0), "W"),
+    "Pa": (1.0, (-1, 1, -2, 0, 0), "Pa"),
+    "V": (1.0, (2, 1, -3, -1, 0), "V"),
+    "Hz": (1.0, (0, 0, -1, 0, 0), "Hz"),
+    "rad": (1.0, (0, 0, 0, 0, 1), "rad"),
+}
+_SPECIAL = {
+    "kg": (1.0, (0, 1, 0, 0, 0), "kg"),
+    "deg": (math.pi / 180, (0, 0, 0, 0, 1), "rad"),
+    "rev": (2 * math.pi, (0, 0, 0, 0, 1), "rad"),
+    "rpm": (2 * math.pi / 60, (0, 0, -1, 0, 1), "(rad/s)"),
+    "min": (60.0, (0, 0, 1, 0, 0), "s"),
+    "h": (3600.0, (0, 0, 1, 0, 0), "s"),
+    "Nm": (1.0, (2, 1, -2, 0, 0), "(N m)"),
+    "1": (1.0, (0, 0, 0, 0, 0), "1"),
+    "-": (1.0, (0, 0, 0, 0, 0), "1"),
+}
+_PREFIX = {"n": 1e-9, "u": 1e-6, "µ": 1e-6, "μ": 1e-6, "m": 1e-3, "c": 1e-2, "k": 1e3, "M": 1e6, "G": 1e9}
+_TOKEN = re.compile(r"\s*(?:(?P<num>[+-]?\d+)|(?P<word>[A-Za-zµμ]+|-)|(?P<op>\*\*|[*/·.()^])|(?P<sup>[⁻¹²³⁴]+))")
+_SUP = str.maketrans("⁻¹²³⁴", "-1234")
+
+
+class UnitSyntaxError(ValueError):
+    """A unit string that cannot be parsed; ``pos`` is the 0-based character offset of the problem."""
+
+    def __init__(self, msg, pos=0):
+        super().__init__(msg)
+        self.pos = pos
+
+
+@dataclass(frozen=True)
+class Unit:
+    """A parsed unit: multiply a value by :attr:`scale` to get SI; :attr:`si` is its SI spelling."""
+
+    text: str
+    scale: float
+    dims: tuple
+    si: str
+
+
+def _lookup(word, pos):
+    if word in _SPECIAL:
+        return _SPECIAL[word]
+    if word in _BASE:
+        return _BASE[word]
+    if len(word) > 1 and word[0] in _PREFIX and word[1:] in _BASE:
+        sc, d, si = _BASE[word[1:]]
+        return _PREFIX[word[0]] * sc, d, si
+    raise UnitSyntaxError(f"unknown unit '{word}' (known: {', '.join(sorted(set(_BASE) | set(_SPECIAL)))}, "
+                          "with prefixes n, u, m, c, k, M, G)", pos)
+
+
+def parse_unit(text: str) -> Unit:
+    """Parse a unit string; raises :class:`UnitSyntaxError` with the offending position."""
+    text = str(text).strip()
+    if not text:
+        raise UnitSyntaxError("empty unit (write 1 for a dimensionless quantity)", 0)
+    toks = []
+    pos = 0
+    while pos < len(text):
+        m = _TOKEN.match(text, pos)
+        if not m or m.end() == pos:
+            raise UnitSyntaxError(f"unexpected character {text[pos]!r} in unit '{text}'", pos)
+        kind = m.lastgroup
+        toks.append((kind, m.group(kind), m.start(kind)))
+        pos = m.end()
+    i = 0
+
+    def peek():
+        return toks[i] if i < len(toks) else (None, None, len(text))
+
+    def factor():
+        nonlocal i
+        kind, val, p = peek()
+        if kind == "word" or (kind == "num" and val == "1"):
+            i += 1
+            sc, d, si = _lookup(val, p)
+            node = (sc, np.array(d, float), si)
+        elif kind == "op" and val == "(":
+            i += 1
+            node = expr()
+            k2, v2, p2 = peek()
+            if v2 != ")":
+                raise UnitSyntaxError(f"missing ')' in unit '{text}'", p2)
+            i += 1
+            node = (node[0], node[1], f"({node[2]})")
+        else:
+            raise UnitSyntaxError(f"expected a unit name in '{text}'", p)
+        kind, val, p = peek()
+        exp = None
+        if kind == "op" and val in ("^", "**"):
+            i += 1
+            k2, v2, p2 = peek()
+            if k2 != "num":
+                raise UnitSyntaxError(f"expected an integer exponent after '{val}' in '{text}'", p2)
+            i += 1
+            exp = int(v2)
+        elif kind == "sup":
+            i += 1
+            exp = int(val.translate(_SUP))
+        elif kind == "num":
+            i += 1
+            exp = int(val)
+        if exp is not None:
+            node = (node[0] ** exp, node[1] * exp, f"{node[2]}^{exp}")
+        return node
+
+    def expr():
+        nonlocal i
+        sc, d, si = factor()
+        while True:
+            kind, val, p = peek()
+            if kind is None or (kind == "op" and val == ")"):
+                return sc, d, si
+            if kind == "op" and val == "/":
+                i += 1
+                s2, d2, si2 = factor()
+                sc, d, si = sc / s2, d - d2, f"{si}/{si2}"
+            else:
+                if kind == "op" and val in ("*", "·", "."):
+                    i += 1
+                s2, d2, si2 = factor()
+                sc, d, si = sc * s2, d + d2, f"{si} {si2}"
+
+    sc, d, si = expr()
+    if i != len(toks):
+        raise UnitSyntaxError(f"unexpected {toks[i][1]!r} in unit '{text}'", toks[i][2])
+    return Unit(text=text, scale=float(sc), dims=tuple(float(x) for x in d), si=si)
+
+
+def same_dimension(a: Unit, b: Unit) -> bool:
+    """Equal dimensions, ignoring the angle (SI treats rad as 1)."""
+    return np.allclose(a.dims[:4], b.dims[:4])
+
+
+#: units a channel named ``<component>.<suffix>`` must have, by Modelica naming convention
+convention_units = {
+    "s": ("m",), "v": ("m/s",), "a": ("m/s^2",), "f": ("N",),
+    "phi": ("rad",), "w": ("rad/s",), "tau": ("N m",),
+}
+
+
+def expected_dimension_ok(channel: str, unit: Unit) -> tuple[bool, str]:
+    """Whether ``unit`` fits the channel's name by the Modelica convention (``table.a`` -> m/s^2);
+    unknown suffixes pass. ``a`` accepts angular acceleration too (``rotor.a`` is rad/s^2)."""
+    suffix = channel.rsplit(".", 1)[-1]
+    allowed = list(convention_units.get(suffix, ()))
+    if not allowed:
+        return True, ""
+    if suffix == "a":
+        allowed.append("rad/s^2")
+    for a in allowed:
+        ua = parse_unit(a)
+        if same_dimension(ua, unit) and (ua.dims[4] == unit.dims[4] or unit.dims[4] == 0 or ua.dims[4] == 0):
+            return True, ""
+    return False, " or ".join(allowed)
