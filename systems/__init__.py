@@ -12,19 +12,52 @@ from pathlib import Path
 from bscomp.errors import UnknownNameError
 
 from .small_drive import small_drive  # noqa: E402
+from .validation_drive import validation_drive  # noqa: E402
 
 REGISTRY = {
     "small_drive": small_drive,
+    "validation_drive": validation_drive,
 }
 
-__all__ = ["small_drive", "get", "REGISTRY"]
+# ---- the thesis test bed (systems/testbed.py): one entry per verification step / model variant ------------
+from .testbed import (  # noqa: E402
+    testbed_appendix_c,
+    testbed_axial_torsional,
+    testbed_bellows,
+    testbed_free_screw,
+    testbed_full,
+    testbed_no_table,
+    testbed_screw_nut,
+    testbed_submodel1,
+)
+
+REGISTRY.update({
+    "testbed": testbed_full,                          # Sec 3.5.2.4 / Ch 4 (Table 4.1)
+    "testbed_free_screw": testbed_free_screw,         # Sec 3.5.2.1
+    "testbed_screw_nut": testbed_screw_nut,           # Sec 3.5.2.2 (Tables 3.2/3.3)
+    "testbed_no_table": testbed_no_table,             # Sec 3.5.2.3
+    "testbed_axial_torsional": testbed_axial_torsional,  # Ch 5 (Table 5.1 sub-models 1 + 2)
+    "testbed_submodel1": testbed_submodel1,           # Table 5.3
+    "testbed_bellows": testbed_bellows,               # Sec 4.4.1 (Table 4.2)
+    "testbed_appendix_c": testbed_appendix_c,         # App C (Table C.1)
+})
+
+__all__ = ["small_drive", "validation_drive", "get", "REGISTRY"]  # test-bed builders: bscomp.systems.testbed
 
 
 def get(name_or_path: str, overrides: dict | None = None):
     """Build a system from a registered name or a ``.py`` file defining ``build()`` (or one function
-    returning a System), then apply parameter overrides by dotted name."""
+    returning a System), then apply parameter overrides by dotted name.
+
+    An override whose key has no dot (e.g. ``{"nut_position": 0.43}``) is a keyword argument of the build
+    function (structural choices fixed at construction, such as the test bed's nut position); dotted keys
+    (``"coupling.k_T"``) are parameter overrides applied with ``System.set``.
+    """
+    overrides = dict(overrides or {})
+    build_kwargs = {k: v for k, v in overrides.items() if "." not in k}
+    overrides = {k: v for k, v in overrides.items() if "." in k}
     if name_or_path in REGISTRY:
-        system = REGISTRY[name_or_path]()
+        system = _call_build(REGISTRY[name_or_path], name_or_path, build_kwargs)
     elif name_or_path.endswith(".py") and Path(name_or_path).is_file():
         spec = importlib.util.spec_from_file_location("bscomp_user_system", name_or_path)
         mod = importlib.util.module_from_spec(spec)
@@ -32,10 +65,29 @@ def get(name_or_path: str, overrides: dict | None = None):
         build = getattr(mod, "build", None)
         if build is None:
             raise UnknownNameError(f"system file {name_or_path} must define build() returning a bscomp.System")
-        system = build()
+        system = _call_build(build, name_or_path, build_kwargs)
     else:
         raise UnknownNameError(f"unknown system '{name_or_path}': use one of {sorted(REGISTRY)} or a path to a .py "
                                "file that defines build()")
-    for k, v in (overrides or {}).items():
+    for k, v in overrides.items():
         system.set(k, v)
     return system
+
+
+def _call_build(build, name: str, kwargs: dict):
+    """Call a build function with keyword arguments, naming the bad key if it does not take one."""
+    import inspect
+
+    if kwargs:
+        sig = inspect.signature(build)
+        takes_any = any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values())
+        bad = [k for k in kwargs if k not in sig.parameters and not takes_any]
+        if bad:
+            raise UnknownNameError(f"'{bad[0]}' is neither a parameter ('component.parameter') nor a build "
+                                   f"argument of system '{name}' (build arguments: {sorted(sig.parameters)})")
+    try:
+        return build(**kwargs)
+    except TypeError as exc:
+        if kwargs and "unexpected keyword argument" in str(exc):
+            raise UnknownNameError(f"system '{name}': {exc}") from exc
+        raise

@@ -1,0 +1,468 @@
+"""The thesis test bed: x-axis ballscrew feed drive of the Fadal VMC 2216 (thesis Sec 3.5, Ch 4, Ch 5).
+
+Composed only from components; every number comes from ``systems/data/fadal_vmc2216_x.toml`` (loaded
+with :func:`bscomp.systems._params.load_parameters`), whose entries cite the thesis table or equation.
+
+Layout (thesis Sec 3.5.1, Fig 3.3), axial coordinate ``x`` = screw axis ``z`` of the FE model, ``x = 0``
+at the free end of section A, increasing towards section F (toml ``[meta].coordinate``)::
+
+    x=0    b2 (deep-groove, radial)        nut (P)                     b1 (angular-contact pair)   x=0.9205
+     |A|B|--------------- C (thread, 39 elements) ---------------|D|E|F|--coupling--rotor <- motor.tau
+                                          |
+                                        table (250 kg, z only; rigid box way), Fd.f
+
+* ``screw``: :class:`Ballscrew`, Timoshenko FE of Table B.1 (47 elements, stiffness from the root
+  diameter, mass from the equivalent diameter of Eq 3.1; E, rho, nu, k^s from Sec B.1 / Eq A.6).
+* ``b1``: angular-contact pair, ``k_axial`` 2.70e8, ``k_radial`` 1.9e8 N/m (Table 3.1, Sec B.5),
+  grounded (rigid housing, Sec 3.5.2.3); ``b2``: floating deep-groove bearing, radial 4e7 N/m.
+* ``sn``: :class:`ScrewNut`, rigid-ballscrew K_SN (Eq 3.35; Table 3.1 / B.3: 100 balls, 20.7 N/um,
+  alpha 4.55 deg, beta 50 deg, +-1800 deg) between the screw point ``screw.nut`` and the nut.
+* ``nut``: :class:`RigidBody` (1.49 kg, Table 3.1). Bolted to the table, which the rigid box way lets
+  move only along z (Sec 3.5.1): the nut keeps only ``w``. This is what closes the loop of the rank-5
+  K_SN: with the nut's rotation held, the free helical relative motion of the interface becomes the
+  drive's single rigid-body mode (screw turns, table advances ``r_g`` per radian). In the free-free
+  tests (Sec 3.5.2.2) the nut keeps all six DOF.
+* ``table``: :class:`Mass` 250 kg (Table 3.1) on the nut's ``w``; disturbance force input ``Fd.f``.
+* ``B``: rigid-body viscous damping B = 0.0321 kg m^2/s at the motor shaft (Sec 4.2.1, Eq 4.2), used once:
+  ``viscous="guide"`` puts the same damping on the table instead (12 673 N s/m, Table 5.2).
+* ``coupling``: :class:`Coupling`, k_T 3938 N m/rad (Sec B.4; bellows 45 940, Sec 4.4.1), jaws J1/J2;
+  ``rotor``: :class:`Inertia` 5.98e-3 kg m^2 (Table 3.1), torque input ``motor.tau`` (Eq 4.1: the
+  amplifier is a gain, so the mechanical input is the torque).
+* Damping: :class:`DriveModalDamping`, 6 % (mode 1), 10 % (mode 2), 6 % (others) (Tables 4.1/4.2, toml
+  ``[damping]``), rigid-body mode undamped (Sec 5.2.2.1).
+
+Choices where the thesis is silent (toml notes starting with CHOICE; see ``docs/testbed-sensitivity.md``
+for how the results move with each): the motor at the F end, the angular-contact pair acting at the
+middle node of section E (x = 875.5 mm), the deep-groove bearing at the middle of section B (a screw point
+at x = 33.5 mm; its radial stiffness reaches B's two nodes through the shape functions of Eq 3.27), the
+coupling's screw-side jaw J2 on the end node of F, J1 on the motor shaft (rigid, sharing the rotor DOF),
+the table travel 22 in centred on the thread (L/C/R = 153.1/432.5/711.9 mm) and the free-free nut
+positions 1/2/3 = 92.5/432.5/772.5 mm.
+
+Build with :func:`testbed` or by name through :func:`bscomp.systems.get`, e.g.
+``get("testbed", {"nut_position": 0.43})``: a key without a dot is a build argument (the nut position
+is fixed when the screw's point ports are made), a dotted key a parameter override.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bscomp import System
+from bscomp.components import (
+    Ballscrew,
+    Bearing,
+    Bushing,
+    Coupling,
+    Damper,
+    Fixed,
+    FixedRotational,
+    Force,
+    Inertia,
+    LinearGuide,
+    Mass,
+    NodeToFlange,
+    NodeToRotFlange,
+    RigidBody,
+    ScrewNut,
+    Torque,
+    TorsionalDamper,
+)
+from bscomp.components._beam_fe import Section
+from bscomp.damping import modal_damping_matrix
+from bscomp.errors import ModelDefinitionError
+
+from ._params import get_value, load_parameters
+
+__all__ = [
+    "testbed", "testbed_free_screw", "testbed_screw_nut", "testbed_no_table", "testbed_full",
+    "testbed_axial_torsional", "testbed_submodel1", "testbed_bellows", "testbed_appendix_c",
+    "VARIANTS", "nut_positions", "thesis_parameters", "DriveModalDamping", "drive_fraction",
+]
+
+#: Verification steps of thesis Sec 3.5.2 and the models of Ch 4/5 and App C.
+VARIANTS = ("free_screw", "screw_nut", "no_table", "full", "axial_torsional", "submodel1", "appendix_c")
+
+_PARAMS_CACHE: dict = {}
+
+
+def thesis_parameters(name: str = "fadal_vmc2216_x") -> dict:
+    """The parsed parameter file (cached; treat as read-only)."""
+    if name not in _PARAMS_CACHE:
+        _PARAMS_CACHE[name] = load_parameters(name)
+    return _PARAMS_CACHE[name]
+
+
+def nut_positions(params: str = "fadal_vmc2216_x") -> dict:
+    """Named nut-centre positions x [m]: ``L``, ``C``, ``R`` (Tables 4.1/4.2) and ``1``, ``2``, ``3``
+    (free-free tests, Tables 3.2/3.3). All CHOICE entries of the toml ``[table]`` group."""
+    p = thesis_parameters(params)
+    ff = get_value(p, "table.free_free_positions")
+    return {"L": get_value(p, "table.nut_position_L"), "C": get_value(p, "table.nut_position_C"),
+            "R": get_value(p, "table.nut_position_R"), "1": ff[0], "2": ff[1], "3": ff[2]}
+
+
+def _sections(p, root_diameter):
+    """Table B.1 sections A..F from the toml (section C: stiffness from the root, mass from d_e, Eq 3.1)."""
+    out = []
+    for name in "ABCDEF":
+        g = f"screw.sections.{name}"
+        d_out = get_value(p, f"{g}.outer_diameter")
+        d_mass = None
+        if name == "C":
+            d_out = get_value(p, "screw.root_diameter") if root_diameter is None else float(root_diameter)
+            d_mass = get_value(p, "screw.equivalent_diameter")
+        out.append(Section(get_value(p, f"{g}.length"), d_out, get_value(p, f"{g}.inner_diameter"),
+                           int(get_value(p, f"{g}.n_elements")), d_mass, name))
+    return out
+
+
+def _position(value, named: dict) -> float:
+    if isinstance(value, str):
+        if value not in named:
+            raise ModelDefinitionError(f"testbed: unknown named nut position {value!r}; use a number [m] or "
+                                       f"one of {sorted(named)}")
+        return float(named[value])
+    return float(value)
+
+
+#: Coordinate fields of the drive (axial and torsional motion): the rest is bending/radial.
+DRIVE_FIELDS = ("w", "tz", "phi", "s")
+
+
+def drive_fraction(shapes, M, coordinates) -> np.ndarray:
+    """Share of each mode's kinetic energy ``phi^T M phi`` in the axial/torsional coordinates."""
+    drive = np.array([c.rsplit(".", 1)[-1] in DRIVE_FIELDS for c in coordinates])
+    M = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
+    Md = np.where(np.outer(drive, drive), M, 0.0)
+    total = np.einsum("ik,ij,jk->k", shapes, M, shapes)
+    return np.einsum("ik,ij,jk->k", shapes, Md, shapes) / np.where(total > 0, total, 1.0)
+
+
+class DriveModalDamping:
+    """Modal damping (Eq A.10-A.15) with the ratios of Tables 4.1/4.2 given by mode *character*.
+
+    Tables 4.1/4.2 damp the first and second modes seen from the motor -- the axial screw-nut mode
+    (6 %) and the coupling torsion mode (10 %). In the 6-DOF model screw bending modes can fall between
+    them (e.g. at the L position), so ascending order (:class:`bscomp.damping.ModalDamping`) would give
+    10 % to a bending mode. Here ``zeta1``/``zeta2`` go to the first two elastic modes whose kinetic
+    energy is mostly axial/torsional (:func:`drive_fraction` > 0.5), ``zeta_other`` to every other
+    elastic mode; the rigid-body mode gets none (Sec 5.2.2.1). Without coordinate names (older
+    kernels) it falls back to ascending order.
+    """
+
+    needs_coordinates = True
+
+    def __init__(self, zeta1: float, zeta2: float, zeta_other: float):
+        self.zeta = (float(zeta1), float(zeta2), float(zeta_other))
+
+    def matrix(self, M, K, coordinates=None):
+        import scipy.linalg as sla
+
+        Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
+        Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
+        lam, phi = sla.eigh(Kd, Md)
+        rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
+        z = np.full(lam.size, self.zeta[2])
+        el = np.flatnonzero(~rigid)
+        if coordinates is None:
+            drive = el[:2]
+        else:
+            drive = el[drive_fraction(phi[:, el], Md, coordinates) > 0.5][:2]
+        z[drive] = self.zeta[: drive.size]
+        return modal_damping_matrix(Md, Kd, z, n_rigid=int(rigid.sum()))
+
+    def __repr__(self):
+        return "DriveModalDamping(zeta1={}, zeta2={}, zeta_other={})".format(*self.zeta)
+
+
+def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str = "jaw",
+            motor_end: str | None = None, b1_position: float | None = None, b2_position: float | None = None,
+            coupling_position: float | None = None, root_diameter: float | None = None,
+            jaw1: str = "motor", ksn: str = "full", pitch: float | None = None, damping: bool = True,
+            viscous: str = "motor",
+            params: str = "fadal_vmc2216_x") -> System:
+    """Build the test bed (or one of its verification steps) as a :class:`bscomp.System`.
+
+    Parameters
+    ----------
+    variant : str
+        ``"free_screw"`` (Sec 3.5.2.1: the free-free screw), ``"screw_nut"`` (Sec 3.5.2.2: free-free
+        screw with the free 6-DOF nut), ``"no_table"`` (Sec 3.5.2.3: screw, bearings and nut on the
+        frame, no table, coupling or rotor), ``"full"`` (Sec 3.5.2.4 / Ch 4), ``"axial_torsional"``
+        (Ch 5: the full drive with the axial and torsional DOF only, sub-models 1 + 2 of Table 5.1),
+        ``"submodel1"`` (Table 5.1/5.3: screw, bearings, coupling, rotor; axial + torsional) or
+        ``"appendix_c"`` (App C: table+nut one rigid body on four roller slides, Table C.1).
+    nut_position : float or str
+        Nut centre x [m], or a named position ``"L"``, ``"C"``, ``"R"`` (Tables 4.1/4.2) or ``"1"``,
+        ``"2"``, ``"3"`` (Tables 3.2/3.3), see :func:`nut_positions`. Ignored without a nut.
+    dofs : tuple of str, optional
+        FE fields per screw node; default all six (``("w", "tz")`` for the Ch 5 variants).
+    coupling : {"jaw", "bellows"}
+        Jaw coupling k_T = 3938 N m/rad (Sec B.4) or the bellows coupling 45 940 N m/rad (Sec 4.4.1).
+    motor_end : {"F", "A"}, optional
+        Screw end at the motor (toml CHOICE "F"). ``"A"`` mirrors the support layout: coupling at
+        x = 0, thrust pair and floating bearing at the mirrored distances from the ends.
+    b1_position, b2_position, coupling_position : float, optional
+        x [m] of the angular-contact pair, the deep-groove bearing and the screw-side jaw
+        (toml CHOICEs 0.8755 / 0.0335 / 0.9205, for ``motor_end="F"``).
+    root_diameter : float, optional
+        Stiffness diameter of the thread (default Table B.1's 35.5 mm; Table 3.1 prints 40 mm).
+    jaw1 : {"motor", "screw"}
+        Where J1 sits: on the motor shaft (toml CHOICE) or with J2 on the screw side (sensitivity only).
+    ksn : {"full", "axial_torsional"}
+        Interface matrix: the full K_SN of Eq 3.35/3.45, or only its direct terms plus the axial-torsional
+        coupling (Eq 3.46, Case A of App C; built as a :class:`Bushing` with the same 6x6 block).
+    pitch : float, optional
+        Lead [m] of the interface for the App C pitch study (default Sec B.1's 10 mm); alpha follows
+        Eq 3.6 with d_p = 40 mm when given.
+    damping : bool
+        Attach the modal damping of the toml ``[damping]`` group (drive variants only) as
+        :class:`DriveModalDamping`: 6 % / 10 % on the first / second axial-torsional mode, 6 % on all
+        others, none on the rigid-body mode.
+    viscous : {"motor", "guide", "none"}
+        Where the rigid-body viscous damping acts: ``"motor"`` = B = 0.0321 kg m^2/s on the rotor (Sec
+        4.2.1, Eq 4.2: it damps the rigid-body mode and leaves the elastic modes at their Table 4.1
+        ratios), ``"guide"`` = 12 673 N s/m on the table (Table 5.2; the same B seen from the table,
+        which also adds ~3.4 % to the 120 Hz mode), or ``"none"``.
+    params : str
+        Parameter set name or path (default the thesis test bed).
+
+    Returns
+    -------
+    System
+        With ``position_parameter = "nut_position"`` where a nut exists, ``sources`` citing the thesis,
+        and ``build_args`` (the resolved choices).
+    """
+    if variant not in VARIANTS:
+        raise ModelDefinitionError(f"testbed: unknown variant {variant!r}; use one of {VARIANTS}")
+    if coupling not in ("jaw", "bellows"):
+        raise ModelDefinitionError(f"testbed: coupling must be 'jaw' or 'bellows', got {coupling!r}")
+    if ksn not in ("full", "axial_torsional"):
+        raise ModelDefinitionError(f"testbed: ksn must be 'full' or 'axial_torsional', got {ksn!r}")
+    if jaw1 not in ("motor", "screw"):
+        raise ModelDefinitionError(f"testbed: jaw1 must be 'motor' or 'screw', got {jaw1!r}")
+    if viscous not in ("motor", "guide", "none"):
+        raise ModelDefinitionError(f"testbed: viscous must be 'motor', 'guide' or 'none', got {viscous!r}")
+    p = thesis_parameters(params)
+    v = lambda key: get_value(p, key)  # noqa: E731
+    motor_end = v("screw.motor_end") if motor_end is None else motor_end
+    if motor_end not in ("F", "A"):
+        raise ModelDefinitionError(f"testbed: motor_end must be 'F' or 'A', got {motor_end!r}")
+    if dofs is None:
+        dofs = ("w", "tz") if variant in ("axial_torsional", "submodel1") else ("u", "v", "w", "tx", "ty", "tz")
+    dofs = tuple(dofs)
+
+    sections = _sections(p, root_diameter)
+    length = sum(s.length for s in sections)                  # 0.9205 m (Table B.1)
+    # supports, in the toml's x (defaults are for the motor at F; "A" mirrors them)
+    x_b1 = v("bearings.b1_position") if b1_position is None else float(b1_position)
+    x_b2 = v("bearings.b2_position") if b2_position is None else float(b2_position)
+    x_cp = v("coupling.attach_position") if coupling_position is None else float(coupling_position)
+    if motor_end == "A":
+        x_b1 = length - x_b1 if b1_position is None else x_b1
+        x_b2 = length - x_b2 if b2_position is None else x_b2
+        x_cp = length - x_cp if coupling_position is None else x_cp
+    has_nut = variant not in ("free_screw", "submodel1")
+    has_drive = variant in ("full", "axial_torsional", "submodel1", "appendix_c")
+    has_bearings = variant not in ("free_screw", "screw_nut")
+    x_nut = _position(nut_position, nut_positions(params)) if has_nut else None
+
+    points = {}
+    if has_nut:
+        points["nut"] = x_nut
+    if has_bearings:
+        points["b1"], points["b2"] = x_b1, x_b2
+    if has_drive:
+        points["coupling"] = x_cp
+
+    names = {"full": "testbed", "free_screw": "testbed_free_screw", "screw_nut": "testbed_screw_nut",
+             "no_table": "testbed_no_table", "axial_torsional": "testbed_axial_torsional",
+             "submodel1": "testbed_submodel1", "appendix_c": "testbed_appendix_c"}
+    s = System(names[variant] + ("_bellows" if coupling == "bellows" else ""))
+    s.description = {
+        "free_screw": "free-free ballscrew (thesis Sec 3.5.2.1)",
+        "screw_nut": "free-free ballscrew with the nut (Sec 3.5.2.2, Tables 3.2/3.3)",
+        "no_table": "screw, bearings and nut on the frame; no table, coupling, rotor (Sec 3.5.2.3)",
+        "full": "Fadal VMC 2216 x-axis test bed, full 6-DOF FE model (Sec 3.5.2.4, Ch 4)",
+        "axial_torsional": "test bed, axial + torsional DOF only (Ch 5, sub-models 1 + 2 of Table 5.1)",
+        "submodel1": "sub-model 1 of Table 5.1: screw, bearings, coupling, rotor (axial + torsional)",
+        "appendix_c": "App C: table+nut rigid body on four roller slides (Table C.1)",
+    }[variant] + (f", {coupling} coupling" if has_drive else "")
+    src = {}
+
+    # ---- screw (Table B.1, Sec B.1, Eq 3.1, Eq A.6)
+    s.add("screw", Ballscrew(sections, dofs=dofs, points=points, E=v("screw.material.youngs_modulus"),
+                             rho=v("screw.material.density"), nu=v("screw.material.poissons_ratio"),
+                             kappa=v("screw.material.shear_factor")))
+    src.update({"screw": "Table B.1; Sec B.1 (E, rho, nu); Eq 3.1 (d_e); Eq A.6 (k^s)",
+                "screw.nut": f"nut centre x = {x_nut} m (toml table.nut_position_*, CHOICE)" if has_nut else ""})
+
+    # ---- bearings (Table 3.1, Sec B.5): rigid housings (Sec 3.5.2.3)
+    if has_bearings:
+        s.add("b1", Bearing(k_axial=v("bearings.b1_k_axial"), k_radial=v("bearings.b1_k_radial"),
+                            grounded=True))
+        s.add("b2", Bearing(k_axial=v("bearings.b2_k_axial"), k_radial=v("bearings.b2_k_radial"),
+                            grounded=True))
+        s.connect("screw.b1", "b1.node_a")
+        s.connect("screw.b2", "b2.node_a")
+        src.update({"b1": f"Table 3.1, Sec B.5; acts at x = {x_b1} m (CHOICE)",
+                    "b2": f"Table 3.1, Sec B.5; acts at x = {x_b2} m (CHOICE)"})
+
+    # ---- screw-nut interface (Eq 3.35, Table 3.1, Table B.3, Sec B.6) and nut (Table 3.1, Sec B.2)
+    if has_nut:
+        lead = v("screw.lead") if pitch is None else float(pitch)
+        alpha = v("screw_nut.alpha") if pitch is None else math.atan(lead / (math.pi * v("screw.pitch_diameter")))
+        phi_half = v("nut.length") / (2.0 * lead) * 2.0 * math.pi          # Eq B.2
+        sn = ScrewNut.thesis(k_ball=v("screw_nut.k_ball"), n_ball=v("screw_nut.N_ball"), alpha=alpha,
+                             beta=v("screw_nut.beta"), R=v("screw_nut.R"),
+                             phi_start=v("screw_nut.phi_start") if pitch is None else -phi_half,
+                             phi_end=v("screw_nut.phi_end") if pitch is None else phi_half)
+        if ksn == "full":
+            s.add("sn", sn)
+            s.connect("screw.nut", "sn.screw")
+            nut_port = "sn.nut"
+        else:                                   # Eq 3.46: direct terms + axial-torsional coupling only
+            A = sn.stiffness_matrix()[:6, :6]
+            keep = np.diag(np.diag(A))
+            keep[2, 5] = keep[5, 2] = A[2, 5]
+            s.add("sn", Bushing(K=keep))
+            s.connect("screw.nut", "sn.node_a")
+            nut_port = "sn.node_b"
+        src["sn"] = "Eq 3.35 (rigid-ballscrew); Table 3.1; Table B.3; Eq B.2" + (
+            "" if ksn == "full" else "; Eq 3.46 terms only (App C Case A)")
+        m_nut, I_nut = v("nut.mass"), [v("nut.Ixx"), v("nut.Iyy"), v("nut.Izz")]
+        if variant in ("screw_nut", "no_table"):
+            s.add("nut", RigidBody(m=m_nut, I=I_nut))                          # free 6-DOF nut
+            s.connect(nut_port, "nut.com")
+            src["nut"] = "Table 3.1, Sec B.2 (6x6 inertia at the interface node, Sec B.6)"
+        elif variant == "appendix_c":
+            _appendix_c_table(s, v, nut_port)
+            src["table"] = "Table C.1 (table+nut one rigid body, four roller slides)"
+        else:
+            s.add("nut", RigidBody(m=m_nut, I=I_nut, dofs=("w",)))             # bolted to the table
+            s.connect(nut_port, "nut.com")
+            s.add("table_joint", NodeToFlange())
+            s.add("table", Mass(m=v("table.mass")))
+            s.add("Fd", Force())
+            s.connect("nut.com", "table_joint.node")
+            s.connect("table_joint.flange", "table.flange_a")
+            s.connect("Fd.flange", "table.flange_a")
+            src.update({"nut": "Table 3.1 (mass); moves with the table along z only (Sec 3.5.1)",
+                        "table": "Table 3.1, Sec B.3", "Fd": "disturbance force F_d on the table (Fig 4.1)"})
+            if viscous == "guide":
+                s.add("guide", Damper(d=v("guideways.viscous_coefficient")))
+                s.add("frame", Fixed())
+                s.connect("table.flange_b", "guide.flange_a")
+                s.connect("guide.flange_b", "frame.flange")
+                src["guide"] = "Table 5.2 (B = 12673 N s/m = 0.0321 kg m^2/s of Sec 4.2.1 seen from the table)"
+
+    # ---- coupling (Sec B.4 / Sec 4.4.1) and rotor (Table 3.1, Sec B.3); torque input (Eq 4.1)
+    if has_drive:
+        k_T = v("coupling.kT") if coupling == "jaw" else v("coupling.bellows_kT")
+        J1, J2 = v("coupling.J1"), v("coupling.J2")
+        s.add("motor", Torque())
+        if jaw1 == "screw":                     # sensitivity only: both jaws on the screw side
+            J1, J2 = 0.0, J1 + J2
+        s.add("rotor", Inertia(J=v("rotor.Izz")))
+        s.add("coupling", Coupling(k_T=k_T, J1=J1, J2=J2))
+        s.add("screw_end", NodeToRotFlange())
+        s.connect("motor.flange", "rotor.flange_a")
+        s.connect("rotor.flange_b", "coupling.flange_a")
+        s.connect("coupling.flange_b", "screw_end.flange")
+        s.connect("screw_end.node", "screw.coupling")
+        if viscous == "motor" and variant != "submodel1":
+            s.add("B", TorsionalDamper(d=v("control.B")))
+            s.add("frame_rot", FixedRotational())
+            s.connect("rotor.flange_a", "B.flange_a")
+            s.connect("B.flange_b", "frame_rot.flange")
+            src["B"] = "Sec 4.2.1 (Eq 4.2): B = 0.0321 kg m^2/s at the motor shaft (= Table 5.2 x r_g^2)"
+        src.update({"coupling": ("Sec B.4 (k_T = 3938, Eq B.1)" if coupling == "jaw" else "Sec 4.4.1 (bellows "
+                                 "k_T = 45940)") + f"; J1, J2 Table 3.1; J2 at x = {x_cp} m (CHOICE)",
+                    "rotor": "Table 3.1, Sec B.3", "motor": "torque input tau = K_a K_t u (Eq 4.1)"})
+        if damping and variant != "appendix_c":
+            s.damping = DriveModalDamping(v("damping.zeta_mode1"), v("damping.zeta_mode2"), v("damping.zeta_other"))
+            src["damping"] = "Tables 4.1/4.2 (6 %, 10 %); others 6 % (CHOICE); rigid mode undamped (Sec 5.2.2.1)"
+
+    s.sources = {k: t for k, t in src.items() if t}
+    if has_nut:
+        s.position_parameter = "nut_position"
+    s.build_args = dict(variant=variant, nut_position=x_nut, dofs=dofs, coupling=coupling, motor_end=motor_end,
+                        b1_position=x_b1 if has_bearings else None, b2_position=x_b2 if has_bearings else None,
+                        coupling_position=x_cp if has_drive else None, root_diameter=sections[2].d_out,
+                        jaw1=jaw1, ksn=ksn, pitch=pitch, viscous=viscous, params=params)
+    return s
+
+
+def _appendix_c_table(s: System, v, nut_port: str) -> None:
+    """App C: table and nut lumped into one rigid body (Table C.1) on four roller slides.
+
+    The table geometry (Fig C.1) is missing from the text; the box that has Table C.1's inertias
+    (I_xx, I_yy, I_zz = 24.2, 21.0, 3.7 kg m^2 with m = 250 + 1.49 kg) is 0.109 m high (x, vertical),
+    0.406 m wide (y, lateral) and 0.995 m long (z). CHOICE: the slides sit at the four bottom corners of
+    that box, the box's bottom face 50 mm above the screw axis, the nut centre under the COM.
+    """
+    m = v("table.mass") + v("nut.mass")
+    Ixx, Iyy, Izz = v("guideways.appC_table_inertia")
+    s2 = 12.0 / m
+    a2, b2, c2 = ((Iyy + Izz - Ixx) * s2 / 2.0, (Ixx + Izz - Iyy) * s2 / 2.0, (Ixx + Iyy - Izz) * s2 / 2.0)
+    h, w, ln = math.sqrt(a2), math.sqrt(b2), math.sqrt(c2)       # x (vertical), y (lateral), z (feed)
+    gap = 0.05
+    com_x = gap + h / 2.0                                        # COM above the screw axis
+    pts = {"P": [-com_x, 0.0, 0.0]}
+    corners = {}
+    for i, (sy, sz) in enumerate(((1, 1), (-1, 1), (1, -1), (-1, -1))):
+        corners[f"s{i}"] = [-h / 2.0, sy * w / 2.0, sz * ln / 2.0]
+    pts.update(corners)
+    s.add("table", RigidBody(m=m, I=[Ixx, Iyy, Izz], points=pts))
+    s.add("guide", LinearGuide(slides=list(corners), vertical="x", k_vertical=v("guideways.appC_k_vertical"),
+                               k_lateral=v("guideways.appC_k_lateral")))
+    s.connect(nut_port, "table.P")
+    for c in corners:
+        s.connect(f"table.{c}", f"guide.{c}")
+    s.table_box = dict(height=h, width=w, length=ln, com_above_axis=com_x)
+
+
+# ---- registered builders (bscomp.systems.REGISTRY) --------------------------------------------------------
+def testbed_full(**kw) -> System:
+    """Full 6-DOF test bed with the jaw coupling (Sec 3.5.2.4, Table 4.1)."""
+    return testbed("full", **kw)
+
+
+def testbed_free_screw(**kw) -> System:
+    """Free-free ballscrew (Sec 3.5.2.1)."""
+    return testbed("free_screw", **kw)
+
+
+def testbed_screw_nut(**kw) -> System:
+    """Free-free ballscrew + nut (Sec 3.5.2.2, Tables 3.2/3.3); default nut position 2."""
+    kw.setdefault("nut_position", "2")
+    return testbed("screw_nut", **kw)
+
+
+def testbed_no_table(**kw) -> System:
+    """Screw, bearings and nut on the frame (Sec 3.5.2.3)."""
+    return testbed("no_table", **kw)
+
+
+def testbed_axial_torsional(**kw) -> System:
+    """Axial + torsional model of Ch 5 (sub-models 1 + 2 of Table 5.1)."""
+    return testbed("axial_torsional", **kw)
+
+
+def testbed_submodel1(**kw) -> System:
+    """Sub-model 1 of Table 5.1 (Table 5.3 frequencies)."""
+    return testbed("submodel1", **kw)
+
+
+def testbed_bellows(**kw) -> System:
+    """Full test bed with the bellows coupling of Sec 4.4.1 (Table 4.2)."""
+    kw.setdefault("coupling", "bellows")
+    return testbed("full", **kw)
+
+
+def testbed_appendix_c(**kw) -> System:
+    """App C set-up: table+nut rigid body on roller slides (Table C.1)."""
+    return testbed("appendix_c", **kw)
