@@ -200,22 +200,76 @@ class SecondOrderModel:
     def n(self):
         return self.M.shape[0]
 
-    def frf(self, freqs_hz):
-        """Frequency response ``H[k, i, j]`` (freq, output, input) by sparse solves; no dense inverse.
+    def frf(self, freqs_hz, method: str = "auto"):
+        """Frequency response ``H[k, i, j]`` (freq, output, input); no dense inverse.
 
-        .. math:: H(j\\omega) = (C_q + j\\omega C_v - \\omega^2 C_a)
-                  (K + j\\omega C - \\omega^2 M)^{-1} B + D
+        .. math:: H(j\omega) = (C_q + j\omega C_v - \omega^2 C_a)
+                  (K + j\omega C - \omega^2 M)^{-1} B + D
+
+        Parameters
+        ----------
+        method : {"auto", "modal", "direct"}
+            ``"modal"``: one eigen-decomposition of the first-order form ``(q, q')`` (any viscous
+            damping, non-proportional included), then the exact partial-fraction sum per frequency:
+            cheap for many frequencies. ``"direct"``: one sparse LU per frequency (large models, or a
+            singular mass matrix). ``"auto"``: modal up to 1500 coordinates with a non-singular M.
         """
         f = np.atleast_1d(np.asarray(freqs_hz, float))
+        if method not in ("auto", "modal", "direct"):
+            raise ValueError(f"frf method must be 'auto', 'modal' or 'direct', got {method!r}")
+        if method != "direct" and self.n <= 1500:
+            dec = self._modal_decomposition()
+            if dec is not None:
+                return self._frf_modal(f, dec)
+            if method == "modal":
+                raise SingularSystemError("frf(method='modal') needs a non-singular mass matrix")
         H = np.zeros((len(f), len(self.outputs), len(self.inputs)), complex)
         M, C, K = (sp.csc_matrix(m, dtype=complex) for m in (self.M, self.C, self.K))
         B = self.B.toarray() if sp.issparse(self.B) else np.asarray(self.B)
+        D = np.asarray(self.D.toarray() if sp.issparse(self.D) else self.D)
         for k, fk in enumerate(f):
             w = 2 * np.pi * fk
             Z = (K + 1j * w * C - w * w * M).tocsc()
             X = spla.splu(Z).solve(B.astype(complex)) if B.size else np.zeros((self.n, 0), complex)
             Y = (self.Cq + 1j * w * self.Cv - w * w * self.Ca) @ X
-            H[k] = np.asarray(Y) + np.asarray(self.D.toarray() if sp.issparse(self.D) else self.D)
+            H[k] = np.asarray(Y) + D
+        return H
+
+    def _modal_decomposition(self):
+        """Eigen-decomposition of ``A = [[0, I], [-M^-1 K, -M^-1 C]]`` (cached), or None if M is singular."""
+        cache = self.__dict__.setdefault("_cache", {})
+        if "modal" in cache:
+            return cache["modal"]
+        import scipy.linalg as sla
+
+        n = self.n
+        M = self.M.toarray() if sp.issparse(self.M) else np.asarray(self.M)
+        try:
+            cho = sla.cho_factor(M)
+        except np.linalg.LinAlgError:
+            cache["modal"] = None
+            return None
+        K = self.K.toarray() if sp.issparse(self.K) else np.asarray(self.K)
+        C = self.C.toarray() if sp.issparse(self.C) else np.asarray(self.C)
+        B = self.B.toarray() if sp.issparse(self.B) else np.asarray(self.B)
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-sla.cho_solve(cho, K), -sla.cho_solve(cho, C)]])
+        lam, V = sla.eig(A)
+        if np.linalg.cond(V) > 1e12:  # defective (repeated rigid-body poles): use the direct solve
+            cache["modal"] = None
+            return None
+        W = np.linalg.solve(V, np.vstack([np.zeros((n, B.shape[1])), sla.cho_solve(cho, B)]))
+        dense = [m.toarray() if sp.issparse(m) else np.asarray(m) for m in (self.Cq, self.Cv, self.Ca)]
+        cache["modal"] = (lam, W, dense[0] @ V[:n], dense[1] @ V[n:], dense[2] @ V[n:])
+        return cache["modal"]
+
+    def _frf_modal(self, f, dec):
+        lam, W, CqV, CvV, CaV = dec
+        D = np.asarray(self.D.toarray() if sp.issparse(self.D) else self.D)
+        H = np.zeros((len(f), len(self.outputs), len(self.inputs)), complex)
+        for k, fk in enumerate(f):
+            s = 2j * np.pi * fk
+            G = W / (s - lam)[:, None]
+            H[k] = (CqV + CvV + s * CaV) @ G + D  # y = Cq q + Cv v + Ca s v, x = (q, v)
         return H
 
     def to_statespace(self):

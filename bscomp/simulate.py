@@ -203,7 +203,7 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         xs[dae.x_names.index(k)] = float(v)
     U = _input_matrix(dae, t, inputs, [a for c in controllers for a in c.actuate])
     opts = {"reltol": rtol, "abstol": atol, "max_order": float(max_order), "max_num_steps": max_num_steps,
-            "disable_internal_warnings": True}
+            "disable_internal_warnings": True, "suppress_algebraic": True}
     outputs = list(outputs or [])
     meas_names = [m for c in controllers for m in c.measure]
     yfun = dae.output_function(outputs) if outputs else None
