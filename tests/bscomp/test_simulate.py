@@ -19,9 +19,10 @@ def test_step_response_agrees_with_linear_model():
     r = simulate(s, t, inputs={"motor.tau": 1.0}, outputs=["rotor.w", "table.s", "table.a"], rtol=1e-8, atol=1e-12)
     lin = bscomp.linearize(s, inputs=["motor.tau"], outputs=["rotor.w", "table.s", "table.a"])
     ref = control.forced_response(lin, T=t, U=np.ones_like(t)).outputs
-    for i, n in enumerate(["rotor.w", "table.s", "table.a"]):
-        err = np.max(np.abs(r[n] - ref[i])) / np.max(np.abs(ref[i]))
-        assert err < 1e-4, (n, err)
+    # accelerations are algebraic unknowns outside the IDAS error test (suppress_algebraic): 5e-4
+    for i, (n, tol) in enumerate([("rotor.w", 1e-4), ("table.s", 1e-4), ("table.a", 5e-4)]):
+        err = float(np.max(np.abs(r[n] - ref[i])) / np.max(np.abs(ref[i])))
+        assert err < tol, (n, err)
 
 
 def oscillator():
@@ -67,3 +68,15 @@ def test_bad_input_names_and_shapes():
         simulate(oscillator(), t, inputs={"F.f": np.ones(3)})
     with pytest.raises(bscomp.UnknownNameError, match="not a state"):
         simulate(oscillator(), t, x0={"m.q": 1.0})
+
+
+def test_lti_method_matches_idas_on_a_linear_drive():
+    s = small_drive()
+    t = np.arange(0, 0.2 + 1e-12, 2e-4)
+    sq = lambda tt: 1.0 if (tt * 10.0) % 1.0 < 0.5 else -1.0  # noqa: E731
+    kw = dict(inputs={"motor.tau": sq}, outputs=["rotor.w", "table.s", "table.a"])
+    r_idas = simulate(s, t, rtol=1e-9, atol=1e-13, **kw)
+    r_lti = simulate(s, t, method="lti", **kw)
+    for n in ("rotor.w", "table.s", "table.a"):
+        err = np.max(np.abs(r_lti[n] - r_idas[n])) / np.max(np.abs(r_idas[n]))
+        assert err < 1e-4, (n, err)
