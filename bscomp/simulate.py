@@ -234,6 +234,7 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
     ctrl_u = [None for _ in controllers]
     n_calls = 0
     n_retries = 0
+    u_prev = U[:, 0]
     k = 0
     # uniform stretches of the grid are integrated in chunks with one reusable integrator
     h_all = np.diff(t)
@@ -256,13 +257,14 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         h = h_all[k]
         n = 1
         if not controllers:
-            while (k + n < nt - 1 and n < 64 and abs(h_all[k + n] - h) < 1e-9 * h
+            while (k + n < nt - 1 and n < 500 and abs(h_all[k + n] - h) < 1e-9 * h
                    and np.array_equal(U[:, k + n], U[:, k])):
                 n += 1
         I = _integrator(dae, h, n, opts, cache)
         # consistent restart by our own Newton on the index-1 Jacobian (the inputs may have jumped)
-        if n_calls or not np.array_equal(u_k, U[:, 0]):
+        if not np.array_equal(u_k, u_prev):
             w_cur, z_cur = dae.initialize(x_cur, u_k, p, z_guess=z_cur, xd_guess=w_cur, store=False)
+        u_prev = u_k
         try:
             try:
                 r = I(x0=x_cur, z0=np.concatenate([w_cur, z_cur]), p=np.concatenate([u_k, p]))
