@@ -98,7 +98,8 @@ def _scipy(so, t):
         t0, t1 = switches[k], switches[k + 1]
         u = torque(0.5 * (t0 + t1))
         sel = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
-        sol = solve_ivp(lambda _, y, u=u: As @ y + B[:, 0] * u, (t0, t1), x, method="BDF", t_eval=t[sel],
+        sol = solve_ivp(lambda _, y, u=u: As @ y + B[:, 0] * u, (t0, t1), x, method="BDF",
+                        t_eval=np.clip(t[sel], t0, t1),
                         rtol=1e-6, atol=1e-9, jac=As)
         X = sol.y
         xd = A @ X + B * u

@@ -249,6 +249,13 @@ class Ocp:
         tau, C = _radau(d)
         opti = ca.Opti()
         xs = self._state_nominals()
+        if self.warm is None:
+            guess = np.abs(self._rest_guess(dae.x_start.copy()))
+            unset = [i for i, n in enumerate(dae.x_names) if not n.startswith("der(") and n not in self.scale
+                     and n not in self.bounds and n not in self.x_final and n not in self.x_init]
+            for i in unset:
+                if guess[i] > 0:
+                    xs[i] = guess[i]
         # velocity/position nominal values: propagate from a related bounded signal if none given
         us = np.array([self._nominal(n) for n in dae.u_names])
         Xs = opti.variable(nx, N + 1)
@@ -359,9 +366,7 @@ class Ocp:
             if self.T_fixed is None:
                 opti.set_initial(T, self.warm.T)
         else:
-            xf = x0.copy()
-            for k, v in self.x_final.items():
-                xf[dae.x_names.index(k)] = v
+            xf = self._rest_guess(x0)
             lin = np.linspace(0, 1, N + 1)[None, :]
             guess = (x0 / xs)[:, None] * (1 - lin) + (xf / xs)[:, None] * lin
             opti.set_initial(Xs, guess)
@@ -410,6 +415,36 @@ class Ocp:
                          u_names=list(dae.u_names), active=active,
                          stats={"return_status": stats.get("return_status"), "iter_count": stats.get("iter_count"),
                                 "t_wall_total": stats.get("t_wall_total")}, dae=dae, p=self.p)
+
+    def _rest_guess(self, x0):
+        """Final-state guess: the least-strain static configuration that meets the final values
+        (``min ½ dqᵀ K dq`` subject to the given coordinates), so an elastic drive is guessed to move
+        along its rigid-body mode instead of stretching its stiffest joint."""
+        dae = self.dae
+        xf = x0.copy()
+        for k, v in self.x_final.items():
+            xf[dae.x_names.index(k)] = v
+        m = dae.mech
+        pos = [m.q_in_x[j] for j in sorted(m.q_in_x)]
+        fixed = [i for i in pos if dae.x_names[i] in self.x_final]
+        free = [i for i in pos if i not in fixed]
+        if not fixed or not free:
+            return xf
+        xd, z = dae.initialize(x0, np.zeros(dae.nu), self.p, store=False)
+        _, _, Jx, _, _ = dae.jacobians(xd, x0, z, np.zeros(dae.nu), self.p)
+        Jx = np.asarray(ca.DM(Jx))
+        rows = [m.balance_rows[j] for j in sorted(m.q_in_x)]
+        K = Jx[np.ix_(rows, pos)]
+        K = 0.5 * (K + K.T)
+        fi = [pos.index(i) for i in fixed]
+        fr = [pos.index(i) for i in free]
+        d_fixed = xf[fixed] - x0[fixed]
+        try:
+            d_free = np.linalg.lstsq(K[np.ix_(fr, fr)], -K[np.ix_(fr, fi)] @ d_fixed, rcond=None)[0]
+        except np.linalg.LinAlgError:
+            return xf
+        xf[free] = x0[free] + d_free
+        return xf
 
     def _state_nominals(self):
         """Nominal magnitudes of the states: given scales, bounds, boundary values; a velocity without

@@ -31,8 +31,9 @@ __all__ = ["FrfData", "TimeData", "MeasurementFileError", "load", "load_all", "r
 
 def __getattr__(name):  # the diagnose engineer's modules, imported on first use
     if name in ("diagnose", "Diagnosis"):
-        from . import diagnose as _d
+        import importlib
 
+        _d = importlib.import_module(".diagnose", __name__)  # the submodule, not this attribute
         value = getattr(_d, name)
         globals()[name] = value
         return value
