@@ -40,6 +40,39 @@ def _demo(args) -> int:
               labels=["motor.tau -> rotor.w [rad/s/(N m)]", "motor.tau -> table.a [m/s^2/(N m)]"],
               title="small_drive: open-loop FRF", path=png)
     print(f"  Bode plot written to {png}")
+    if args.no_validation:
+        return 0
+    return _demo_validation(out)
+
+
+def _demo_validation(out: Path) -> int:
+    """The headline story on the bundled (synthetic) measurements: compare, diagnose, add, compare."""
+    from importlib import resources
+
+    from .systems import get
+    from .validate.compare import compare
+    from .validate.diagnose import diagnose
+    from .validate.measurements import load_all
+    from .validate.report import write_report
+
+    data_dir = resources.files("bscomp.systems") / "data" / "validation"
+    files = [str(data_dir / "frf.csv"), str(data_dir / "time.csv")]
+    datasets = load_all(files)
+    nominal = get("validation_drive")
+    print("\nbscomp demo, part 2: model vs measurements (bundled synthetic test-bed data, "
+          "systems/data/validation/README.md)")
+    comp = compare(nominal, datasets)
+    print("  " + comp.summary().replace("\n", "\n  "))
+    print("  diagnosing: re-calibrate uncertain parameters, then rank candidate effects (a few minutes)...",
+          flush=True)
+    diag = diagnose(nominal, datasets, verbose=True)
+    print("  " + diag.table().replace("\n", "\n  "))
+    if diag.accepted:
+        print("  lines to add to the system file:\n    " + diag.code().replace("\n", "\n    "))
+    rep = out / "validation"
+    path = write_report([comp, diag], rep, title="bscomp demo: the nominal drive meets the measurements")
+    diag.to_json(rep / "diagnosis.json")
+    print(f"  report written to {path}")
     return 0
 
 
@@ -179,7 +212,9 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="bscomp",
                                      description="Ballscrew feed drives as acausal components.")
     sub = parser.add_subparsers(dest="cmd", required=True)
-    p = sub.add_parser("demo", help="build a small drive, print its modes, write a Bode plot")
+    p = sub.add_parser("demo", help="modes and Bode plot of a small drive, then the validation story on "
+                                    "bundled data (compare, diagnose, report)")
+    p.add_argument("--no-validation", action="store_true", help="only the modes and Bode plot (seconds)")
     p.add_argument("--out", default="out", help="folder for figures (default: out)")
     p.set_defaults(func=_demo)
 

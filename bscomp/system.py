@@ -112,6 +112,39 @@ class System:
         self._connections = [(x, y) for x, y in self._connections
                              if x.split(".")[0] != name and y.split(".")[0] != name]
 
+    def replace(self, name: str, component) -> None:
+        """Put ``component`` in place of component ``name``, keeping its connections (same port names)."""
+        old = self._components.get(name)
+        if old is None:
+            raise UnknownNameError(f"system '{self.name}' has no component '{name}'")
+        missing = [p for a, b in self._connections for p in (a, b)
+                   if p.split(".")[0] == name and p.split(".", 1)[1].split(".")[0] not in component.ports()]
+        if missing:
+            raise UnknownNameError(f"cannot replace '{name}': the new {type(component).__name__} lacks ports used by "
+                                   f"connections {missing}")
+        old._parent = None
+        old._name = None
+        component._name = name
+        component._parent = self
+        self._components[name] = component
+
+    def linear_equivalent(self) -> "System":
+        """A copy in which every component that defines ``linear_equivalent()`` (friction, backlash) is
+        replaced by its small-signal equivalent (removed when it returns None): what a measured FRF of a
+        drive with friction and backlash is compared with."""
+        new = self.copy()
+        for path, comp in list(new.leaves()):
+            f = getattr(comp, "linear_equivalent", None)
+            if f is None:
+                continue
+            owner = new.component(path.rpartition(".")[0]) if "." in path else new
+            rep = f()
+            if rep is None:
+                owner.remove(path.rpartition(".")[2])
+            else:
+                owner.replace(path.rpartition(".")[2], rep)
+        return new
+
     def expose(self, outer: str, inner) -> None:
         """Make an inner port reachable as ``outer`` when this system is used as a component."""
         ni = self._port_name(inner)

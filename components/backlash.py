@@ -91,6 +91,12 @@ class Backlash(PartialCompliant):
     s_rel0 = Parameter(0.0, unit="m", doc="relative position of the gap centre")
     eps = Parameter(0.0, unit="m", min=0.0, doc="width of the smoothed dead-zone corners (0: sharp)")
 
+    def linear_equivalent(self):
+        """Small-signal equivalent for FRFs: the contact in engagement (spring ``c``, damper ``d``)."""
+        from .spring import Spring
+
+        return Spring(c=self.c)
+
     def equations(self):
         delta = self.s_rel - self.s_rel0
         return [self.f - contact_force(delta, self.v_rel, self.b, self.c, self.d, self.eps)]

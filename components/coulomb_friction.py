@@ -72,6 +72,14 @@ class CoulombFriction(PartialCompliant):
         wp, wn = 0.5 * (1 + sig), 0.5 * (1 - sig)
         return sig * (wp * self.F_c_pos + wn * self.F_c_neg) + (wp * self.d_pos + wn * self.d_neg) * v
 
+    def linear_equivalent(self):
+        """Small-signal equivalent for FRFs: the viscous part only (Coulomb friction has no tangent at
+        sliding; at rest its regularised slope F_c/v_reg is not what a swept-sine test sees)."""
+        from .damper import Damper
+
+        d = 0.5 * (self.d_pos + self.d_neg)
+        return Damper(d=d) if d > 0 else None
+
     def equations(self):
         return [self.f - self.friction_force(self.v_rel)]
 

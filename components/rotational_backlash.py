@@ -42,6 +42,12 @@ class RotationalBacklash(PartialRotCompliant):
     phi_rel0 = Parameter(0.0, unit="rad", doc="relative angle of the gap centre")
     eps = Parameter(0.0, unit="rad", min=0.0, doc="width of the smoothed dead-zone corners (0: sharp)")
 
+    def linear_equivalent(self):
+        """Small-signal equivalent for FRFs: the contact in engagement (torsional spring ``c``)."""
+        from .torsional_spring import TorsionalSpring
+
+        return TorsionalSpring(c=self.c)
+
     def equations(self):
         delta = self.phi_rel - self.phi_rel0
         return [self.tau - contact_force(delta, self.w_rel, self.b, self.c, self.d, self.eps)]

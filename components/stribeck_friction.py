@@ -90,6 +90,13 @@ class StribeckFriction(PartialCompliant):
                  + wn * curve(self.F_s_neg, self.F_c_neg, self.v1_neg, self.v2_neg))
         return sig * level + (wp * self.d_pos + wn * self.d_neg) * v
 
+    def linear_equivalent(self):
+        """Small-signal equivalent for FRFs: the viscous part only (see CoulombFriction)."""
+        from .damper import Damper
+
+        d = 0.5 * (self.d_pos + self.d_neg)
+        return Damper(d=d) if d > 0 else None
+
     def equations(self):
         return [self.f - self.friction_force(self.v_rel)]
 

@@ -99,11 +99,12 @@ def model_frf(system_or_build, data: FrfData, params: dict | None = None) -> dic
     """The model's FRF at the measured frequencies and conditions, ``{(input, output): H}``.
 
     Uses the sparse second-order form, or the linearized state space when the model has controller
-    states (:func:`bscomp.frf.frf`).
+    states (:func:`bscomp.frf.frf`), of the system's small-signal equivalent
+    (:meth:`bscomp.System.linear_equivalent`: friction reduced to its viscous part, backlash engaged).
     """
     from bscomp.frf import frf
 
-    system = build_for(system_or_build, data.conditions, params)
+    system = build_for(system_or_build, data.conditions, params).linear_equivalent()
     dae = _dae(system)
     ins, outs = data.inputs, data.outputs
     _check_names(dae, data, ins, outs)

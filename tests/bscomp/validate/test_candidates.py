@@ -125,3 +125,23 @@ def test_parameter_scale_and_unknown_parameter():
     assert abs(s.get("coupling.c") / (1.1 * validation_drive().get("coupling.c")) - 1) < 1e-12
     with pytest.raises(UnknownNameError):
         NutTableJoint().apply(validation_drive(), q=1.0)
+
+
+def test_compare_on_the_updated_system_shows_the_drop():
+    """Adding the effects a diagnosis reports (bundled data: joint + friction) makes compare's error fall:
+    the FRF is taken on the small-signal equivalent (friction viscous part only, backlash engaged)."""
+    from bscomp.systems import get
+    from bscomp.validate.candidates import GuidewayFriction, NutTableJoint
+    from bscomp.validate.measurements import load_all
+    from bscomp.validate.residuals import cost
+
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[3] / "systems" / "data" / "validation"
+    data = load_all([str(root / "frf.csv"), str(root / "time.csv")])
+    nominal = get("validation_drive")
+    s = nominal.with_parameters({"table.m": 264.3, "coupling.c": 3677.5, "guide.d": 12908.0})
+    s = NutTableJoint().apply(GuidewayFriction().apply(s, F_c=2059.0), k=2.975e8, d=2158.0)
+    before, after = cost(nominal, data), cost(s, data)
+    assert before > 0.5
+    assert after < 0.01 * before
