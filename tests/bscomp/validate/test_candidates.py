@@ -130,12 +130,12 @@ def test_parameter_scale_and_unknown_parameter():
 def test_compare_on_the_updated_system_shows_the_drop():
     """Adding the effects a diagnosis reports (bundled data: joint + friction) makes compare's error fall:
     the FRF is taken on the small-signal equivalent (friction viscous part only, backlash engaged)."""
+    from pathlib import Path
+
     from bscomp.systems import get
     from bscomp.validate.candidates import GuidewayFriction, NutTableJoint
     from bscomp.validate.measurements import load_all
     from bscomp.validate.residuals import cost
-
-    from pathlib import Path
 
     root = Path(__file__).resolve().parents[3] / "systems" / "data" / "validation"
     data = load_all([str(root / "frf.csv"), str(root / "time.csv")])
