@@ -219,3 +219,15 @@ def test_result_outputs(tmp_path, rigid):
     assert data["metrics"]["gm_db"] == pytest.approx(r.metrics["gm_db"])
     r.plot(tmp_path / "r.png")
     assert (tmp_path / "r.png").stat().st_size > 1000
+
+
+def test_rigid_design_on_our_own_testbed_at_C_collapses_like_the_thesis():
+    """P-PI at K_p = 7000 on bscomp's full test bed at C: margins near the thesis's 3.12 dB / 65.3 deg."""
+    from bscomp.closed_loop import modal_plant
+    from bscomp.systems.testbed_analysis import drive_parameters
+
+    d = drive_parameters(variant="full", nut_position="C")
+    modes = [(d[f"f{i}"], d[f"zeta{i}"], d[f"Rw{i}"], d[f"Rm{i}"]) for i in (1, 2)]
+    r = p_pi_loop(modal_plant(d["J"], d["B"], d["r_g"], modes), K_A, K_T, H_G, 18.217, 4081.2, K_p=7000.0, Ts=TS)
+    assert r.metrics["gm_db"] == pytest.approx(3.12, abs=1.0)
+    assert r.metrics["pm_deg"] == pytest.approx(65.3, abs=3.0)
