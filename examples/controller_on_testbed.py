@@ -41,8 +41,10 @@ def main(out_dir="out/controller_on_testbed"):
                      f"{r.metrics['pm_deg']:.1f} |")
         th = thesis_modal_plant("4.1", pos)
         rt = p_pi_loop(th, *vel, K_p=7000.0, Ts=Ts)
-        lines.append(f"| {pos} | thesis Table 4.1 values | | | {rt.metrics['gm_db']:.2f} | {rt.metrics['pm_deg']:.1f} |")
-    lines.append(f"\nThesis (Sec 4.3.2, flexible model at C): GM {THESIS_MARGINS_C[0]} dB, PM {THESIS_MARGINS_C[1]} deg.")
+        m = rt.metrics
+        lines.append(f"| {pos} | thesis Table 4.1 values | | | {m['gm_db']:.2f} | {m['pm_deg']:.1f} |")
+    gm, pm = THESIS_MARGINS_C
+    lines.append(f"\nThesis (Sec 4.3.2, flexible model at C): GM {gm} dB, PM {pm} deg.")
     # Table 4.4: ZOH-discretised G_e G_m at C (bellows coupling in the thesis: Table 4.2 plant)
     d = drive_parameters(variant="full", nut_position="C", coupling="bellows")
     modes = [(d["f1"], d["zeta1"], d["Rw1"], d["Rm1"])]
