@@ -13,11 +13,9 @@ import math
 import sys
 import time
 
-import numpy as np
-
 import bscomp
 from bscomp import System
-from bscomp.components import Inertia, SecondOrderBlock, Torque, TorsionalDamper, FixedRotational
+from bscomp.components import FixedRotational, Inertia, SecondOrderBlock, Torque, TorsionalDamper
 from bscomp.optimal import Ocp
 from bscomp.reduce import reduce_second_order
 from bscomp.systems.testbed import testbed_axial_torsional

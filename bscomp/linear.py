@@ -201,7 +201,7 @@ class SecondOrderModel:
         return self.M.shape[0]
 
     def frf(self, freqs_hz, method: str = "auto"):
-        """Frequency response ``H[k, i, j]`` (freq, output, input); no dense inverse.
+        r"""Frequency response ``H[k, i, j]`` (freq, output, input); no dense inverse.
 
         .. math:: H(j\omega) = (C_q + j\omega C_v - \omega^2 C_a)
                   (K + j\omega C - \omega^2 M)^{-1} B + D

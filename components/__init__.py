@@ -2,12 +2,20 @@
 
 from .acceleration_sensor import AccelerationSensor
 from .angle_sensor import AngleSensor
+
+# nonlinear (Sec 5.2.2): regularised friction and backlash
+from .backlash import Backlash  # noqa: E402
 from .ballscrew import Ballscrew
 from .bearing import Bearing
 from .bolted_fastener import BoltedFastener
 from .bushing import Bushing
+from .coulomb_friction import CoulombFriction  # noqa: E402
 from .coupling import Coupling
+
+# control (Chapter 4): continuous blocks live in the DAE, sampled blocks are run by a simulator
+from .current_amplifier import CurrentAmplifier  # noqa: E402
 from .damper import Damper
+from .digital_p_controller import DigitalPController  # noqa: E402
 from .fixed import Fixed
 from .fixed_node import FixedNode
 from .fixed_rotational import FixedRotational
@@ -17,34 +25,26 @@ from .ideal_lead_screw import IdealLeadScrew
 from .inertia import Inertia
 from .linear_guide import LinearGuide
 from .mass import Mass
-from .second_order_block import SecondOrderBlock
 from .moving_nut_joint import MovingNutJoint
 from .node_to_flange import NodeToFlange
 from .node_to_rot_flange import NodeToRotFlange
+from .notch_filter import NotchFilter  # noqa: E402
+from .pi_controller import PIController  # noqa: E402
 from .position_sensor import PositionSensor
 from .rigid_body import RigidBody
+from .rotational_backlash import RotationalBacklash  # noqa: E402
+from .rst_controller import RSTController  # noqa: E402
+from .saturation import Saturation  # noqa: E402
 from .screw_nut import ScrewNut
+from .second_order_block import SecondOrderBlock
 from .speed_sensor import SpeedSensor
 from .spring import Spring
+from .stribeck_friction import StribeckFriction  # noqa: E402
+from .tachometer import Tachometer  # noqa: E402
 from .torque import Torque
 from .torsional_damper import TorsionalDamper
 from .torsional_spring import TorsionalSpring
 from .velocity_sensor import VelocitySensor
-
-# nonlinear (Sec 5.2.2): regularised friction and backlash
-from .backlash import Backlash  # noqa: E402
-from .coulomb_friction import CoulombFriction  # noqa: E402
-from .rotational_backlash import RotationalBacklash  # noqa: E402
-from .stribeck_friction import StribeckFriction  # noqa: E402
-
-# control (Chapter 4): continuous blocks live in the DAE, sampled blocks are run by a simulator
-from .current_amplifier import CurrentAmplifier  # noqa: E402
-from .digital_p_controller import DigitalPController  # noqa: E402
-from .notch_filter import NotchFilter  # noqa: E402
-from .pi_controller import PIController  # noqa: E402
-from .rst_controller import RSTController  # noqa: E402
-from .saturation import Saturation  # noqa: E402
-from .tachometer import Tachometer  # noqa: E402
 
 __all__ = [
     "SecondOrderBlock",

@@ -7,14 +7,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from bscomp.components import Fixed, Force, Mass, Spring
-from bscomp.systems import small_drive
 
 from bscomp import System, linearize, second_order
+from bscomp.components import Fixed, Force, Mass, Spring
 from bscomp.damping import modal_damping_matrix
 from bscomp.errors import UnknownNameError
 from bscomp.frf import Frf, _statespace_frf, frf, transfer_function
 from bscomp.modal import modes
+from bscomp.systems import small_drive
 
 
 def oscillator(k=2.0e5, m=4.0):

@@ -7,14 +7,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from bscomp.components import Fixed, Force, Mass, Spring
-from bscomp.systems import small_drive
 
 from bscomp import System, second_order
+from bscomp.components import Fixed, Force, Mass, Spring
 from bscomp.damping import modal_damping_matrix
 from bscomp.errors import UnknownNameError
 from bscomp.linear import SecondOrderModel
 from bscomp.modal import Modes, modes
+from bscomp.systems import small_drive
 
 
 def chain2(m1=2.0, m2=3.0, k1=1.0e4, k2=2.5e4):

@@ -6,9 +6,9 @@ import textwrap
 
 import numpy as np
 import pytest
-from bscomp.components import Fixed, Force, Mass, Spring
 
 from bscomp import System
+from bscomp.components import Fixed, Force, Mass, Spring
 from bscomp.errors import UnknownNameError
 from bscomp.frf import frf
 from bscomp.sweep import PositionSweep, build_system, position_sweep

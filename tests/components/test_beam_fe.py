@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg as sla
+from scipy.optimize import brentq
+
 from bscomp.components._beam_fe import (
     STEEL_E,
     STEEL_NU,
@@ -19,7 +21,6 @@ from bscomp.components._beam_fe import (
     timoshenko_element,
     timoshenko_element_quadrature,
 )
-from scipy.optimize import brentq
 
 E, RHO, NU = STEEL_E, STEEL_RHO, STEEL_NU
 G = E / (2 * (1 + NU))

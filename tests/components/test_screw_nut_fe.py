@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from bscomp.components._screw_nut_fe import (
     axial_stiffness_from_k_ball,
     azimuth_range,

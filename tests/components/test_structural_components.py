@@ -8,6 +8,8 @@ import math
 import numpy as np
 import pytest
 import scipy.linalg as sla
+
+from bscomp import ModelDefinitionError, OverdeterminedError, ParameterError, System, flatten, second_order
 from bscomp.components import (
     Ballscrew,
     Bearing,
@@ -24,8 +26,6 @@ from bscomp.components import (
 )
 from bscomp.components._beam_fe import Section
 from bscomp.components._node_dofs import t_point_com
-
-from bscomp import ModelDefinitionError, OverdeterminedError, ParameterError, System, flatten, second_order
 from bscomp.damping import modal_damping_matrix
 
 E, RHO, NU = 210e9, 7800.0, 0.27

@@ -3,6 +3,7 @@
 import math
 
 import pytest
+
 from bscomp.systems._params import DATA_DIR, flatten, get_value, load_parameters
 
 
