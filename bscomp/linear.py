@@ -91,9 +91,13 @@ def _jac(dae: Dae, op: OperatingPoint):
 def _output_jac(dae: Dae, names, op: OperatingPoint):
     import casadi as ca
 
-    y = dae.output_expr(names)
-    f = ca.Function("gj", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
-                    [ca.jacobian(y, dae.xds), ca.jacobian(y, dae.xs), ca.jacobian(y, dae.zs), ca.jacobian(y, dae.us)])
+    key = ("output_jacobian", tuple(names))
+    f = dae._cache.get(key)
+    if f is None:  # built once per (Dae, outputs), reused by every linearization
+        y = dae.output_expr(names)
+        f = dae._cache[key] = ca.Function(
+            "gj", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
+            [ca.jacobian(y, dae.xds), ca.jacobian(y, dae.xs), ca.jacobian(y, dae.zs), ca.jacobian(y, dae.us)])
     return [_sp(m) for m in f(op.xd, op.x, op.z, op.u, op.p)]
 
 
