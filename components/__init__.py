@@ -36,6 +36,7 @@ from .rotational_backlash import RotationalBacklash  # noqa: E402
 from .rst_controller import RSTController  # noqa: E402
 from .saturation import Saturation  # noqa: E402
 from .screw_nut import ScrewNut
+from .screw_nut_shape_function import ScrewNutShapeFunction
 from .second_order_block import SecondOrderBlock
 from .speed_sensor import SpeedSensor
 from .spring import Spring
@@ -47,6 +48,7 @@ from .torsional_spring import TorsionalSpring
 from .velocity_sensor import VelocitySensor
 
 __all__ = [
+    "ScrewNutShapeFunction",
     "SecondOrderBlock",
     "MovingNutJoint",
     "AccelerationSensor", "AngleSensor", "Damper", "Fixed", "FixedRotational", "Force", "Gain",
