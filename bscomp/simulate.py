@@ -225,7 +225,7 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
     Uh = np.zeros((nt, dae.nu))
     xd, z = dae.initialize(xs, U[:, 0], p, store=False)
     X[0], XD[0], Z[0], Uh[0] = xs, xd, z, U[:, 0]
-    cache = {}
+    cache = dae._cache.setdefault("idas_integrators", {})  # reused across simulate() calls on this Dae
     if progress is None:
         progress = nt > 200 and sys.stderr.isatty()
     t_wall = time.perf_counter()
@@ -333,7 +333,7 @@ def _simulate_lti(dae, t, U, xs, p, outputs, controllers):
     Zx, Zu = sol[nx:, :nx], sol[nx:, nx:]
     # affine model in deviations: x' = xd0 + A dx + B du
     h_all = np.diff(t)
-    cache = {}
+    cache = {}  # per call: the discretisation depends on this call's linearization point
 
     def disc(h):
         key = round(h, 15)
