@@ -73,7 +73,10 @@ class _UnionFind:
 def _eliminate_explicit(eqs, unknowns, pvals):
     """Solve equations that are affine in one unknown with a constant (or parameter) coefficient.
 
-    Returns (solutions {index: expr}, remaining equations, indices of equations used).
+    Returns (solutions {index: expr}, remaining equations, indices of equations used). Which equation
+    depends on which unknown is tracked structurally (Jacobian sparsity, updated on substitution), so a
+    solution is substituted only where it occurs: a component with hundreds of port flows over one big
+    expression graph costs one pass per solved flow, not one per (flow, equation) pair.
     """
     solved = {}
     remaining = list(eqs)
@@ -81,17 +84,24 @@ def _eliminate_explicit(eqs, unknowns, pvals):
     if not unknowns or not eqs:
         return solved, remaining, used
     usyms = list(unknowns)
+    U = ca.vertcat(*usyms)
+    pattern = ca.jacobian_sparsity(ca.vertcat(*remaining), U)
+    deps = [set() for _ in remaining]
+    for r, c in zip(*pattern.get_triplet(), strict=True):
+        deps[r].add(c)
+    sdeps = {}
     progress = True
     while progress:
         progress = False
         for k, eq in enumerate(remaining):
             if k in used:
                 continue
-            for i, u in enumerate(usyms):
-                if i in solved or not ca.depends_on(eq, u):
+            for i in sorted(deps[k]):
+                if i in solved:
                     continue
+                u = usyms[i]
                 coef = ca.jacobian(eq, u)
-                if ca.depends_on(coef, ca.vertcat(*usyms)) or ca.depends_on(coef, pvals[2]):
+                if ca.depends_on(coef, U) or ca.depends_on(coef, pvals[2]):
                     continue
                 if coef.is_constant():
                     c = float(ca.evalf(coef))
@@ -103,12 +113,16 @@ def _eliminate_explicit(eqs, unknowns, pvals):
                 expr = -rest / coef
                 solved[i] = expr
                 used.add(k)
+                edeps = deps[k] - {i}
+                sdeps[i] = edeps
                 for j in range(len(remaining)):
-                    if j not in used:
+                    if j not in used and i in deps[j]:
                         remaining[j] = ca.substitute(remaining[j], u, expr)
+                        deps[j] = (deps[j] - {i}) | edeps
                 for j in list(solved):
-                    if j != i:
+                    if j != i and i in sdeps[j]:
                         solved[j] = ca.substitute(solved[j], u, expr)
+                        sdeps[j] = (sdeps[j] - {i}) | edeps
                 progress = True
                 break
     return solved, remaining, used

@@ -26,6 +26,7 @@ from .inertia import Inertia
 from .linear_guide import LinearGuide
 from .mass import Mass
 from .moving_nut_joint import MovingNutJoint
+from .moving_screw_nut import MovingScrewNut
 from .node_to_flange import NodeToFlange
 from .node_to_rot_flange import NodeToRotFlange
 from .notch_filter import NotchFilter  # noqa: E402
@@ -51,6 +52,7 @@ __all__ = [
     "ScrewNutShapeFunction",
     "SecondOrderBlock",
     "MovingNutJoint",
+    "MovingScrewNut",
     "AccelerationSensor", "AngleSensor", "Damper", "Fixed", "FixedRotational", "Force", "Gain",
     "IdealLeadScrew", "Inertia", "Mass", "PositionSensor", "SpeedSensor", "Spring", "Torque",
     "TorsionalDamper", "TorsionalSpring", "VelocitySensor",

@@ -1,0 +1,147 @@
+"""6-DOF screw-nut interface whose contact point P moves with the nut (thesis Sec 5.2.2.3 with Eq 3.35).
+
+The rigid-ballscrew interface (:class:`~components.screw_nut.ScrewNut`, Eq 3.35) couples the six DOF of
+the screw point P to the six of the nut through the 12x12 stiffness ``K_SN``. Frozen, P is a fixed
+point port of the :class:`~components.ballscrew.Ballscrew` (shape functions baked into a constraint).
+Here P sits at the nut's *current* axial position ``z = z0 + nut.w`` and is reached through the
+Timoshenko shape functions of the element that contains it (Eq 3.27 / A.7, cubic in ξ for bending,
+linear for the axial and torsional fields):
+
+.. math::
+    d_P(z) = \\sum_e \\chi_e(z)\\, N_e(\\xi_e(z))\\, d_e, \\qquad
+    V = \\tfrac12 \\begin{bmatrix} d_P \\\\ d_N \\end{bmatrix}^T K_{SN}
+        \\begin{bmatrix} d_P \\\\ d_N \\end{bmatrix},
+    \\qquad f = \\frac{\\partial V}{\\partial q} + \\Big(\\frac{\\partial e}{\\partial q}\\Big)^T C\\, \\dot e
+
+(``χ_e`` the indicator of element e, ``e = [d_P; d_N]``). Port forces are gradients of V (virtual work),
+so the joint is conservative for C = 0 and forces reach the screw nodes as ``N(z)^T F_P``.
+
+Two uses:
+
+* **position as a parameter**: linearized at ``nut.w = 0`` it equals the frozen joint at ``z0`` (the
+  ``∂N/∂z`` terms multiply the interface deflection, zero at rest), and ``z0`` is an ordinary
+  (non-structural) parameter: one flattening serves every nut position, which is what makes
+  :func:`bscomp.sweep.position_sweep` fast;
+* **moving nut in the time domain**: the nut travels along the screw and the modes change continuously.
+
+The axial + torsional special case is :class:`~components.moving_nut_joint.MovingNutJoint`.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from bscomp.component import Component, Parameter
+from bscomp.errors import ModelDefinitionError
+from bscomp.ports import Node6
+
+from ._beam_fe import _shape_and_derivs
+from ._node_dofs import DOF_NAMES
+
+_FLOWS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+
+
+def element_polynomials(beam) -> np.ndarray:
+    """Coefficients ``A[e, k]`` (6x12) with ``N_e(ξ) = Σ_k A[e, k] ξ^k`` (k = 0..3) for every element.
+
+    The Timoshenko shape functions of Eq A.7 are cubic in ξ, so four samples determine them exactly.
+    """
+    xi = np.array([0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0])
+    V = np.vander(xi, 4, increasing=True)                      # (4 samples, 4 powers)
+    Vinv = np.linalg.inv(V)
+    out = np.empty((len(beam.elem_L), 4, 6, 12))
+    for e, (L, pxz, pyz) in enumerate(zip(beam.elem_L, beam.elem_phi_xz, beam.elem_phi_yz, strict=True)):
+        N = _shape_and_derivs(xi, L, pxz, pyz)[0]               # (4, 6, 12)
+        out[e] = np.einsum("ks,sij->kij", Vinv, N)
+    return out
+
+
+class MovingScrewNut(Component):
+    """Screw-nut interface (12x12 ``K_SN``, Eq 3.35) attached at the nut's current position (Sec 5.2.2.3).
+
+    Parameters
+    ----------
+    screw : Ballscrew
+        The screw it attaches to (mesh and shape functions at its current parameter values).
+    K : (12, 12) array_like
+        Interface stiffness, screw point P dofs first then nut dofs (``ScrewNut.stiffness_matrix()``).
+    C : (12, 12) array_like, optional
+        Interface damping on the same deflections (default none).
+    **params
+        ``z0`` [m].
+
+    # Parameters
+    - ``z0`` [m]: position of P along the screw axis when ``nut.w = 0`` (the nut position)
+
+    # Connectors
+    - ``n0 ... n<N>``: Node6, connect to the screw's nodes of the same name
+    - ``nut``: Node6, the nut node at P
+    """
+
+    nut = Node6("nut node at P", optional=False)
+    z0 = Parameter(unit="m", doc="nut position along the screw at nut.w = 0")
+
+    def __init__(self, screw, K, C=None, **params):
+        super().__init__(**params)
+        beam = screw.beam_model()
+        self.z_nodes = np.asarray(beam.z_nodes, float)
+        self.K = np.asarray(K, float)
+        self.C = None if C is None else np.asarray(C, float)
+        for name, A in (("K", self.K), ("C", self.C)):
+            if A is None:
+                continue
+            if A.shape != (12, 12) or not np.allclose(A, A.T, rtol=1e-10, atol=1e-12 * np.abs(A).max()):
+                raise ModelDefinitionError(f"MovingScrewNut: {name} must be a symmetric 12x12 matrix "
+                                           f"(screw point P dofs, then nut dofs), got shape {A.shape}")
+        if not self.z_nodes[0] <= self._values["z0"] <= self.z_nodes[-1]:
+            raise ModelDefinitionError(f"MovingScrewNut: z0 = {self._values['z0']} m is outside the screw "
+                                       f"[{self.z_nodes[0]}, {self.z_nodes[-1]}] m")
+        self.poly = element_polynomials(beam)
+        for i, z in enumerate(self.z_nodes):
+            self.add_port(f"n{i}", Node6(f"screw node {i} at z = {z:.6g} m"))
+
+    @classmethod
+    def from_screw_nut(cls, screw, screw_nut, z0: float, C=None) -> "MovingScrewNut":
+        """The interface of a :class:`~components.screw_nut.ScrewNut` (its K_SN at current values)."""
+        return cls(screw, screw_nut.stiffness_matrix(), C=C, z0=z0)
+
+    def template_key(self):
+        c = None if self.C is None else self.C.tobytes()
+        return (tuple(self.z_nodes), self.K.tobytes(), c, self.poly.tobytes())
+
+    def position(self):
+        """Current position of P along the screw [m]."""
+        return self.z0 + self.nut.w
+
+    def point_displacement(self, z, nodes):
+        """``d_P(z)`` (6 symbols) from the nodal potentials through the element shape functions."""
+        zn = self.z_nodes
+        zc = ca.fmin(ca.fmax(z, zn[0]), zn[-1])
+        dP = ca.SX.zeros(6)
+        for e in range(len(zn) - 1):
+            L = zn[e + 1] - zn[e]
+            xi = (zc - zn[e]) / L
+            d_e = ca.vertcat(*[getattr(nodes[e], d) for d in DOF_NAMES],
+                             *[getattr(nodes[e + 1], d) for d in DOF_NAMES])
+            powers = [1.0, xi, xi * xi, xi * xi * xi]
+            Ne = sum(p * ca.DM(self.poly[e, k]) for k, p in enumerate(powers))
+            inside = ca.logic_and(zc >= zn[e], zc < zn[e + 1]) if e < len(zn) - 2 else zc >= zn[e]
+            dP += ca.if_else(inside, ca.mtimes(Ne, d_e), ca.SX.zeros(6))
+        return dP
+
+    def equations(self):
+        nodes = [getattr(self, f"n{i}") for i in range(len(self.z_nodes))]
+        d_N = ca.vertcat(*[getattr(self.nut, d) for d in DOF_NAMES])
+        e = ca.vertcat(self.point_displacement(self.position(), nodes), d_N)
+        q = ca.vertcat(*[getattr(p, d) for p in nodes + [self.nut] for d in DOF_NAMES])
+        f = ca.gradient(0.5 * ca.mtimes([e.T, ca.DM(self.K), e]), q)
+        if self.C is not None:
+            f += ca.mtimes(ca.jacobian(e, q).T, ca.mtimes(ca.DM(self.C), self.der(e)))
+        eqs = []
+        for k, p in enumerate(nodes + [self.nut]):
+            eqs += [getattr(p, fl) - f[6 * k + j] for j, fl in enumerate(_FLOWS)]
+        return eqs
+
+    def observables(self):
+        return {"z": self.position()}
