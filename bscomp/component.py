@@ -297,6 +297,17 @@ class Component:
         """Linear structural block (numeric), or None."""
         return None
 
+    def tangent(self) -> LinearStructure | None:
+        """Optional: this component's exact linearization at rest (every port potential and rate zero) at
+        the current parameter values, as a numeric block over its port potentials.
+
+        A component whose equations are costly to re-linearize but whose tangent is cheap (e.g. a joint
+        attached through position-dependent shape functions) provides it, and
+        :func:`bscomp.sweep.position_sweep` then updates one linearization per parameter value instead
+        of re-evaluating the whole model (checked against a full linearization once per sweep).
+        """
+        return None
+
     def observables(self) -> dict:
         """Named expressions available as outputs (``"a"`` -> ``component.a``)."""
         return {}

@@ -45,6 +45,8 @@ class MechanicalInfo:
         Rows of F holding the projected force balances ``T^T Q = 0``.
     M, C, K : sparse matrices
         Projected structural blocks (the scalar-equation part is added by differentiation).
+    port_coordinates : dict
+        ``"component.port.potential"`` -> index into ``full_coordinate_names`` (row of ``T``).
     """
 
     coordinate_names: list
@@ -66,6 +68,7 @@ class MechanicalInfo:
     K: Any
     Kt0: Any
     has_internal_states: bool = False
+    port_coordinates: dict = field(default_factory=dict)
 
 
 @dataclass

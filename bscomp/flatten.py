@@ -90,6 +90,35 @@ def _eliminate_explicit(eqs, unknowns, pvals):
     for r, c in zip(*pattern.get_triplet(), strict=True):
         deps[r].add(c)
     sdeps = {}
+    # batch: an unknown that occurs in one equation only, with a constant non-zero coefficient, is
+    # solved from it without touching any other equation (typically a port flow: ``p.f - f(q) = 0``);
+    # all such solutions cost one Jacobian and one substitution pass over the shared graph
+    occurs = {}
+    for k, dk in enumerate(deps):
+        for i in dk:
+            occurs.setdefault(i, []).append(k)
+    J = ca.jacobian(ca.vertcat(*remaining), U)
+    batch = {}
+    for k, dk in enumerate(deps):
+        for i in sorted(dk):
+            if len(occurs[i]) != 1 or i in batch.values():
+                continue
+            coef = J[k, i]
+            if not coef.is_constant():
+                continue
+            c = float(ca.evalf(coef))
+            if c != 0.0 and np.isfinite(c):
+                batch[k] = i
+            break
+    if batch:
+        ks = sorted(batch)
+        rest = ca.substitute(ca.vertcat(*[remaining[k] for k in ks]), ca.vertcat(*[usyms[batch[k]] for k in ks]),
+                             ca.SX.zeros(len(ks)))
+        for r, k in enumerate(ks):
+            i = batch[k]
+            solved[i] = -rest[r] / float(ca.evalf(J[k, i]))
+            used.add(k)
+            sdeps[i] = deps[k] - {i}
     progress = True
     while progress:
         progress = False
@@ -194,6 +223,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
     # physical coordinates and signal sets
     coord_of = {}          # root key -> coordinate index
     coord_names, coord_units = [], []
+    port_coord = {}                        # "path.port.potential" -> full coordinate index
     named = set()                          # coordinates named after a body (``mass.s``)
     sig_of = {}            # root key -> signal index
     sig_names, sig_units, sig_out_owner, sig_inputs = [], [], {}, defaultdict(list)
@@ -221,6 +251,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
                         coord_units.append(unit)
                     alias = getattr(lf.comp, "coordinate_names", {}).get(f"{pname}.{pot}")
                     c = coord_of[root]
+                    port_coord[f"{lf.path}.{pname}.{pot}"] = c
                     if alias and c not in named:
                         named.add(c)
                         coord_names[c] = f"{lf.path}.{alias}"
@@ -474,7 +505,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
         full_coordinate_names=coord_names, T=Tcsr, t0=t0, inertial=inertial, damped=damped, static=static,
         q_in_x=sel.q_in_x, q_in_z=sel.q_in_z, v_in_x=sel.v_in_x, v_in_xd=sel.v_in_xd, a_in_xd=sel.a_in_xd,
         balance_rows=list(range(ni, ni + nr)), M=Mr, C=Cr, K=Kr, Kt0=Kt0,
-        has_internal_states=bool(xint))
+        has_internal_states=bool(xint), port_coordinates=port_coord)
 
     dae = Dae(
         name=system.name, xs=xs, xds=xds, zs=zs, us=us, ps=p_all, F_sx=Fsx, mech=mech,
@@ -510,6 +541,10 @@ def _apply_system_damping(dae, damping):
     m.C = (m.C + Cadd).tocsc()
     dae._cache.clear()
     dae.stats["system_damping"] = repr(damping)
+    # what the damping was computed from: second_order re-derives it when parameters or the operating
+    # point change M or K (modal damping follows the modes), see linear._refresh_system_damping
+    dae.system_damping = damping
+    dae.system_damping_basis = (so.M, so.K, Cadd)
 
 
 def _apply_stages(e, stages):

@@ -47,8 +47,13 @@ class OperatingPoint:
     p: np.ndarray
 
 
-def resolve_model(model, params: dict | None = None) -> Dae:
-    """A Dae from a System or Dae, with parameter overrides applied (re-flattening if structural)."""
+def resolve_model(model, params: dict | None = None, *, damping_refreshed: bool = False) -> Dae:
+    """A Dae from a System or Dae, with parameter overrides applied (re-flattening if structural).
+
+    A Dae with a system-level damping (modal/Rayleigh, computed from the modes at flattening) is also
+    re-flattened when the overrides change its parameter values, since its damping matrix follows the
+    modes; callers that re-derive the damping themselves (``second_order``) pass ``damping_refreshed``.
+    """
     from .flatten import flatten
     from .system import System
 
@@ -57,10 +62,13 @@ def resolve_model(model, params: dict | None = None) -> Dae:
         return flatten(model.with_parameters(params) if params else model)
     if isinstance(model, Dae):
         structural = [k for k in params if k in model.structural_parameters]
-        if structural:
+        stale = (not damping_refreshed and getattr(model, "system_damping", None) is not None and params
+                 and not np.array_equal(model.parameter_vector(params), model.parameter_vector({})))
+        if structural or stale:
             if model.system is None:
-                raise UnknownNameError(f"parameters {structural} are structural and the Dae has no system to "
-                                       "re-flatten; pass the System instead")
+                why = (f"parameters {structural} are structural" if structural else
+                       "its system damping depends on the parameters")
+                raise UnknownNameError(f"{why} and the Dae has no system to re-flatten; pass the System instead")
             return flatten(model.system.with_parameters(params))
         return model
     raise TypeError(f"expected a System or Dae, got {type(model).__name__}")
@@ -299,6 +307,32 @@ class SecondOrderModel:
                           inputs=control_labels(self.inputs), outputs=control_labels(self.outputs))
 
 
+def _close(A, B) -> bool:
+    scale = max(abs(B).max(), 1e-300) if B.nnz else 1.0
+    D = (A - B).tocsr()
+    return D.nnz == 0 or abs(D).max() <= 1e-12 * scale
+
+
+def _refresh_system_damping(dae, M, K, C):
+    """Replace the system damping computed at flattening by the one of this linearization's (M, K).
+
+    Modal damping (Eq A.10-A.15) is defined on the modes, so when parameters (e.g. the nut position of a
+    :class:`~components.moving_screw_nut.MovingScrewNut`) or the operating point change M or K it is
+    re-derived here, exactly as flattening at those values would.
+    """
+    damping = getattr(dae, "system_damping", None)
+    if damping is None:
+        return C
+    M0, K0, Cadd0 = dae.system_damping_basis
+    if _close(M, M0) and _close(K, K0):
+        return C
+    if getattr(damping, "needs_coordinates", False):
+        Cadd = damping.matrix(M, K, coordinates=list(dae.mech.coordinate_names))
+    else:
+        Cadd = damping.matrix(M, K)
+    return sp.csr_matrix(C - Cadd0 + sp.csr_matrix(Cadd))
+
+
 def second_order(model, inputs=None, outputs=None, at: dict | None = None, params: dict | None = None,
                  _op: OperatingPoint | None = None) -> SecondOrderModel:
     """Second-order form of a mechanical system, linearized at ``at`` (see :class:`SecondOrderModel`).
@@ -309,7 +343,7 @@ def second_order(model, inputs=None, outputs=None, at: dict | None = None, param
         If the model has internal differential states (controllers, electrical dynamics...): use
         :func:`linearize` for the first-order form.
     """
-    dae = resolve_model(model, params)
+    dae = resolve_model(model, params, damping_refreshed=True)
     m = dae.mech
     if m.has_internal_states:
         raise NotLinearError(f"'{dae.name}' has internal differential states (not only mechanical coordinates); "
@@ -370,6 +404,7 @@ def second_order(model, inputs=None, outputs=None, at: dict | None = None, param
         def ysub(Yx, Gx_):
             return sp.csr_matrix(Yx - Yw @ lu.solve(sp.csc_matrix(Gx_).toarray()))
         Cq, Cv, Ca, Dy = ysub(Cq, Gq), ysub(Cv, Gv), ysub(Ca, Ga), ysub(Dy, Gu)
+    Cv_ = _refresh_system_damping(dae, sp.csr_matrix(Ma), sp.csr_matrix(Kq), sp.csr_matrix(Cv_))
     return SecondOrderModel(
         M=sp.csr_matrix(Ma), C=sp.csr_matrix(Cv_), K=sp.csr_matrix(Kq), B=-sp.csr_matrix(Bu),
         Cq=sp.csr_matrix(Cq), Cv=sp.csr_matrix(Cv), Ca=sp.csr_matrix(Ca), D=sp.csr_matrix(Dy),

@@ -72,6 +72,176 @@ def _analyse(build, overrides, inputs, outputs, freqs, n_modes, at):
     return out
 
 
+def _tangent_component(system, parameter):
+    """The component owning ``parameter`` if it is non-structural and the component has a tangent."""
+    if "." not in parameter:
+        return None
+    path, pname = parameter.rsplit(".", 1)
+    try:
+        comp = system.component(path)
+    except Exception:
+        return None
+    if not hasattr(comp, "_values") or pname not in comp._values or comp.tangent() is None:
+        return None
+    return path, pname, comp
+
+
+class _TangentUpdate:
+    """Linearizations at many values of one component parameter from one flattening.
+
+    ``K(x) = K(x0) + P^T (K_t(x) - K_t(x0)) P`` (same for C; M unchanged), with ``K_t`` the component's
+    exact tangent (:meth:`bscomp.Component.tangent`) over its port potentials and ``P`` the rows of the
+    constraint map ``q = T q_r`` for those potentials. A system damping (modal, Eq A.10-A.15) is
+    re-derived from the modes at every value, as flattening there would.
+    """
+
+    def __init__(self, system, parameter, path, pname, comp, inputs, outputs):
+        import scipy.sparse as sp
+
+        from .flatten import flatten
+        from .linear import second_order
+
+        self.system, self.parameter, self.path, self.pname, self.comp = system, parameter, path, pname, comp
+        self.dae = flatten(system)
+        self.so0 = second_order(self.dae, inputs=inputs, outputs=outputs)
+        self.inputs, self.outputs = inputs, outputs
+        m = self.dae.mech
+        t0 = comp.tangent()
+        rows = [m.port_coordinates[f"{path}.{d}"] for d in t0.dofs]
+        self.P = sp.csr_matrix(m.T)[rows]
+        if np.any(np.asarray(m.t0)[rows] != 0.0):
+            raise ValueError(f"{path}: its ports are offset by constraints; the tangent update needs rest")
+        self.Kt0 = sp.csr_matrix(t0.K)
+        self.Ct0 = None if t0.C is None else sp.csr_matrix(t0.C)
+        self.x0 = float(comp._values[pname])
+        damping = getattr(self.dae, "system_damping", None)
+        self.damping = damping
+        C = self.so0.C
+        if damping is not None:
+            C = C - sp.csr_matrix(self.dae.system_damping_basis[2])
+        self.C_struct0 = sp.csr_matrix(C)
+
+    def matrices(self, x):
+        """(M, K, C_struct) at parameter value x (C_struct without the system damping)."""
+        import scipy.sparse as sp
+
+        old = self.comp._values[self.pname]
+        try:
+            self.comp._values[self.pname] = float(x)
+            t = self.comp.tangent()
+        finally:
+            self.comp._values[self.pname] = old
+        P = self.P
+        K = self.so0.K + P.T @ (sp.csr_matrix(t.K) - self.Kt0) @ P
+        C = self.C_struct0
+        if t.C is not None or self.Ct0 is not None:
+            Ct = sp.csr_matrix(t.C) if t.C is not None else sp.csr_matrix(self.Kt0.shape)
+            C0 = self.Ct0 if self.Ct0 is not None else sp.csr_matrix(self.Kt0.shape)
+            C = C + P.T @ (Ct - C0) @ P
+        return self.so0.M, sp.csr_matrix(K), sp.csr_matrix(C)
+
+    def modal(self, x):
+        """Mass-normalised modes and modal damping at x: (lam, phi, c_modal, C_struct)."""
+        import scipy.linalg as sla
+
+        M, K, Cs = self.matrices(x)
+        Md, Kd = M.toarray(), K.toarray()
+        lam, phi = sla.eigh(Kd, Md, driver="gvd")
+        c = np.zeros(lam.size)
+        if self.damping is not None:
+            coords = list(self.dae.mech.coordinate_names)
+            if hasattr(self.damping, "modal_ratios"):
+                zeta = self.damping.modal_ratios(lam, phi, Md, coords)
+                c = 2.0 * zeta * np.sqrt(np.clip(lam, 0.0, None))
+            else:
+                if getattr(self.damping, "needs_coordinates", False):
+                    Cadd = self.damping.matrix(M, K, coordinates=coords)
+                else:
+                    Cadd = self.damping.matrix(M, K)
+                Cm = phi.T @ np.asarray(Cadd.toarray() if hasattr(Cadd, "toarray") else Cadd) @ phi
+                off = Cm - np.diag(np.diag(Cm))
+                if np.abs(off).max() > 1e-8 * max(np.abs(np.diag(Cm)).max(), 1e-300):
+                    return None
+                c = np.diag(Cm).copy()
+        return lam, phi, c, Cs
+
+    def second_order(self, x):
+        """Full linearization at x through the Dae (reference for the update)."""
+        from .linear import second_order
+
+        return second_order(self.dae, inputs=self.inputs, outputs=self.outputs, params={self.parameter: float(x)})
+
+
+def modal_lowrank_frf(lam, phi, c_modal, C_struct, B, Cq, Cv, Ca, D, freqs):
+    """Exact FRF ``(Cq + jw Cv - w^2 Ca) (K - w^2 M + jw C)^{-1} B + D`` from mass-normalised modes.
+
+    ``C = M phi diag(c_modal) phi^T M + C_struct`` (proportional modal damping plus discrete dampers):
+    the modal part is diagonal, and the discrete dampers, which act on the few coordinates ``S`` where
+    ``C_struct`` is non-zero, enter by the Woodbury identity
+    ``(Dg + U^T W U)^{-1} = Dg^{-1} - Dg^{-1} U^T (I + W U Dg^{-1} U^T)^{-1} W U Dg^{-1}``
+    with ``U = phi[S]`` and ``W = jw C_struct[S, S]``. Cost per frequency O(m (r + n_in + n_out)) for m
+    modes and r damped coordinates. Returns H of shape (nf, n_out, n_in), or None if r > 40.
+    """
+    import scipy.sparse as sp
+
+    w = 2.0 * np.pi * np.asarray(freqs, float)
+    Cs = sp.csr_matrix(C_struct)
+    S = np.unique(np.concatenate([Cs.nonzero()[0], Cs.nonzero()[1]])) if Cs.nnz else np.zeros(0, int)
+    if S.size > 40:
+        return None
+    Dg = lam[None, :] - w[:, None] ** 2 + 1j * w[:, None] * c_modal[None, :]           # (nf, m)
+    Di = 1.0 / Dg
+    b = phi.T @ np.asarray(B.toarray() if hasattr(B, "toarray") else B)                  # (m, ni)
+
+    def rowmap(A):
+        A = np.asarray(A.toarray() if hasattr(A, "toarray") else A)
+        return A @ phi                                                                    # (no, m)
+
+    a = rowmap(Cq)[None].astype(complex)                                                 # (nf|1, no, m)
+    if sp.csr_matrix(Cv).nnz:
+        a = a + 1j * w[:, None, None] * rowmap(Cv)[None]
+    if sp.csr_matrix(Ca).nnz:
+        a = a - (w ** 2)[:, None, None] * rowmap(Ca)[None]
+    aD = a * Di[:, None, :]                                                               # a Dg^-1
+    H = aD @ b                                                                            # (nf, no, ni)
+    if S.size:
+        U = phi[S]                                                                        # (r, m)
+        W = 1j * w[:, None, None] * Cs[S][:, S].toarray()[None]                           # (nf, r, r)
+        UD = U[None] * Di[:, None, :]                                                     # U Dg^-1
+        G = UD @ U.T                                                                      # U Dg^-1 U^T
+        inner = np.linalg.solve(np.eye(S.size)[None] + W @ G, W @ (UD @ b))               # (nf, r, ni)
+        H = H - (aD @ U.T) @ inner
+    Dd = np.asarray(D.toarray() if hasattr(D, "toarray") else D)
+    return H + Dd[None]
+
+
+def _fast_sweep(upd, positions, freqs, n_modes, progress):
+    """Frequencies, modal damping and FRFs at every position by the tangent update (one eigh each)."""
+    so = upd.so0
+    F, Z, H = [], [], []
+    for k, x in enumerate(positions):
+        mod = upd.modal(x)
+        if mod is None:
+            return None
+        lam, phi, c, Cs = mod
+        el = lam > 1e-9 * np.max(np.abs(lam))
+        wn = np.sqrt(lam[el])
+        zeta = (c[el] + np.sum(phi[:, el] * (Cs @ phi[:, el]), axis=0)) / (2.0 * wn)
+        f, z = wn / (2.0 * np.pi), zeta
+        if n_modes is not None:
+            f, z = f[:n_modes], z[:n_modes]
+        F.append(f)
+        Z.append(z)
+        if freqs is not None:
+            h = modal_lowrank_frf(lam, phi, c, Cs, so.B, so.Cq, so.Cv, so.Ca, so.D, freqs)
+            if h is None:
+                return None
+            H.append(h)
+        if progress is not None:
+            progress(k + 1, len(positions))
+    return F, Z, H
+
+
 @dataclass
 class PositionSweep:
     """Elastic natural frequencies (and FRFs) against position (result of :func:`position_sweep`).
@@ -153,7 +323,8 @@ class PositionSweep:
 
 def position_sweep(build, positions, parameter: str | None = None, freqs=None, inputs=None, outputs=None,
                    n_modes: int | None = None, overrides: dict | None = None, at: dict | None = None,
-                   workers: int | None = None, executor=None) -> PositionSweep:
+                   workers: int | None = None, executor=None, method: str = "auto",
+                   progress: bool | None = None) -> PositionSweep:
     """Modes (and FRFs) of a drive at several nut positions.
 
     Parameters
@@ -178,15 +349,45 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
         ``> 1``: run the positions on a ``ProcessPoolExecutor`` with that many processes.
     executor : concurrent.futures.Executor, optional
         Use this executor instead (its ``submit`` is used), e.g. a Dask client's executor.
+    method : {"auto", "tangent", "rebuild"}
+        ``"rebuild"``: rebuild, flatten and analyse the system at every position (any parameter, any
+        system; parallel with ``workers``). ``"tangent"``: flatten once and update the linearization by
+        the exact tangent of the component that owns a non-structural position parameter (e.g.
+        ``sn.z0`` of :class:`~components.moving_screw_nut.MovingScrewNut`, ``testbed`` with
+        ``nut_joint="moving"``), then one symmetric eigen-decomposition per position gives the modes
+        and the exact FRF (:func:`modal_lowrank_frf`); the update is checked against a full
+        linearization at the position farthest from the nominal one (relative 1e-8 on K and C).
+        Reported frequencies are the undamped natural frequencies and damping the modal ratios
+        (diagonal of the modal damping; the ``rebuild`` path reports damped eigenvalues, which differ
+        by O(zeta^2)). ``"auto"``: ``tangent`` when possible (no ``at``, no executor), else ``rebuild``.
+    progress : bool, optional
+        Print progress to stderr (default: when more than 20 positions).
 
     Returns
     -------
     PositionSweep
     """
     positions = np.atleast_1d(np.asarray(positions, float))
+    if method not in ("auto", "tangent", "rebuild"):
+        raise ValueError(f"position_sweep: method must be 'auto', 'tangent' or 'rebuild', got {method!r}")
+    base = build_system(build, overrides)
     if parameter is None:
-        parameter = position_parameter(build_system(build, overrides))
+        parameter = position_parameter(base)
     freqs = None if freqs is None else np.atleast_1d(np.asarray(freqs, float))
+    name = build if isinstance(build, str) else getattr(build, "__name__", "")
+    if method != "rebuild" and at is None and executor is None:
+        owner = _tangent_component(base, parameter)
+        if owner is None and method == "tangent":
+            raise ValueError(f"position_sweep(method='tangent'): '{parameter}' is not a non-structural "
+                             "parameter of a component with a tangent() (e.g. MovingScrewNut's z0); use "
+                             "method='rebuild'")
+        if owner is not None:
+            res = _tangent_sweep(base, parameter, owner, positions, freqs, inputs, outputs, n_modes, progress, name)
+            if res is not None:
+                return res
+            if method == "tangent":
+                raise ValueError("position_sweep(method='tangent'): the damping is not modal plus a few discrete "
+                                 "dampers, so the one-eigh FRF does not apply; use method='rebuild'")
     tasks = [(build, {**(overrides or {}), parameter: float(x)}, inputs, outputs, freqs, n_modes, at)
              for x in positions]
     if executor is not None:
@@ -211,6 +412,59 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
         F[k, : r["frequencies"].size] = r["frequencies"]
         Z[k, : r["damping"].size] = r["damping"]
     H = np.stack([r["H"] for r in results]) if freqs is not None else None
-    name = build if isinstance(build, str) else getattr(build, "__name__", "")
     return PositionSweep(parameter=parameter, positions=positions, frequencies=F, damping=Z, freqs=freqs, H=H,
                          inputs=list(results[0]["inputs"]), outputs=list(results[0]["outputs"]), name=name)
+
+
+def _tangent_sweep(system, parameter, owner, positions, freqs, inputs, outputs, n_modes, progress, name):
+    """position_sweep by the tangent update; None when the damping does not allow the one-eigh FRF."""
+    import sys
+
+    import scipy.sparse as sp
+
+    from .errors import BscompError
+
+    path, pname, comp = owner
+    upd = _TangentUpdate(system, parameter, path, pname, comp, inputs, outputs)
+    # check the update against a full linearization at the farthest position
+    xc = float(positions[np.argmax(np.abs(positions - upd.x0))])
+    M, K, Cs = upd.matrices(xc)
+    ref = upd.second_order(xc)
+    mod = upd.modal(xc)
+    if mod is None:
+        return None
+    lam, phi, c, _ = mod
+    Cm = np.diag(c) + phi.T @ (Cs @ phi)            # modal damping + discrete dampers, modal coordinates
+    Cm_ref = phi.T @ (ref.C @ phi)
+    for label, A, R in (("K", K, ref.K), ("M", M, ref.M), ("C", sp.csr_matrix(Cm), sp.csr_matrix(Cm_ref))):
+        D = (A - R).tocsr()
+        err = abs(D).max() if D.nnz else 0.0
+        if err > 1e-8 * max(abs(R).max(), 1e-300):
+            raise BscompError(f"position_sweep: the tangent of '{path}' does not reproduce the linearization at "
+                              f"{parameter} = {xc} ({label} differs by {err:.3g}); its tangent() is wrong -- use "
+                              "method='rebuild' and report the component")
+    show = (positions.size > 20) if progress is None else progress
+    last = [0.0]
+
+    def bar(k, n):
+        import time
+
+        now = time.perf_counter()
+        if show and (k == n or now - last[0] > 0.5):
+            last[0] = now
+            sys.stderr.write(f"\r  position sweep {k}/{n} [{'#' * (30 * k // n):30s}]" + ("\n" if k == n else ""))
+
+    out = _fast_sweep(upd, positions, freqs, n_modes, bar)
+    if out is None:
+        return None
+    F_list, Z_list, H_list = out
+    m = max(f.size for f in F_list)
+    F = np.full((positions.size, m), np.nan)
+    Z = np.full((positions.size, m), np.nan)
+    for k, (f, z) in enumerate(zip(F_list, Z_list, strict=True)):
+        F[k, : f.size] = f
+        Z[k, : z.size] = z
+    so = upd.so0
+    return PositionSweep(parameter=parameter, positions=positions, frequencies=F, damping=Z, freqs=freqs,
+                         H=np.stack(H_list) if freqs is not None else None, inputs=list(so.inputs),
+                         outputs=list(so.outputs), name=name)

@@ -31,8 +31,9 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
+import scipy.sparse as sp
 
-from bscomp.component import Component, Parameter
+from bscomp.component import Component, LinearStructure, Parameter
 from bscomp.errors import ModelDefinitionError
 from bscomp.ports import Node6
 
@@ -115,20 +116,42 @@ class MovingScrewNut(Component):
         return self.z0 + self.nut.w
 
     def point_displacement(self, z, nodes):
-        """``d_P(z)`` (6 symbols) from the nodal potentials through the element shape functions."""
+        """``d_P(z) = A(z) d`` (6 symbols) through the element shape functions.
+
+        Built column block by column block: node n's 6x6 block of ``A(z)`` is ``N_{n-1}(ξ)[:, 6:]`` inside
+        element n-1, ``N_n(ξ)[:, :6]`` inside element n and zero elsewhere, so each entry is a cheap
+        function of z alone (two cubic branches) and Jacobians stay small expressions.
+        """
         zn = self.z_nodes
+        ne = len(zn) - 1
         zc = ca.fmin(ca.fmax(z, zn[0]), zn[-1])
-        dP = ca.SX.zeros(6)
-        for e in range(len(zn) - 1):
-            L = zn[e + 1] - zn[e]
-            xi = (zc - zn[e]) / L
-            d_e = ca.vertcat(*[getattr(nodes[e], d) for d in DOF_NAMES],
-                             *[getattr(nodes[e + 1], d) for d in DOF_NAMES])
-            powers = [1.0, xi, xi * xi, xi * xi * xi]
-            Ne = sum(p * ca.DM(self.poly[e, k]) for k, p in enumerate(powers))
-            inside = ca.logic_and(zc >= zn[e], zc < zn[e + 1]) if e < len(zn) - 2 else zc >= zn[e]
-            dP += ca.if_else(inside, ca.mtimes(Ne, d_e), ca.SX.zeros(6))
-        return dP
+        inside, powers = [], []
+        for e in range(ne):
+            xi = (zc - zn[e]) / (zn[e + 1] - zn[e])
+            inside.append(ca.logic_and(zc >= zn[e], zc < zn[e + 1]) if e < ne - 1 else zc >= zn[e])
+            powers.append((xi, xi * xi, xi * xi * xi))
+
+        def poly(e, r, c):
+            a = self.poly[e, :, r, c]
+            if not np.any(a):
+                return None
+            xi, xi2, xi3 = powers[e]
+            return a[0] + a[1] * xi + a[2] * xi2 + a[3] * xi3
+
+        dP = [ca.SX(0)] * 6
+        for n, node in enumerate(nodes):
+            for c, dof in enumerate(DOF_NAMES):
+                d = getattr(node, dof)
+                for r in range(6):
+                    left = poly(n - 1, r, c + 6) if n > 0 else None        # node n = 2nd node of element n-1
+                    right = poly(n, r, c) if n < ne else None             # node n = 1st node of element n
+                    if left is None and right is None:
+                        continue
+                    a = ca.if_else(inside[n], right, 0.0) if right is not None else ca.SX(0)
+                    if left is not None:
+                        a = ca.if_else(inside[n - 1], left, a)
+                    dP[r] = dP[r] + a * d
+        return ca.vertcat(*dP)
 
     def equations(self):
         nodes = [getattr(self, f"n{i}") for i in range(len(self.z_nodes))]
@@ -142,6 +165,24 @@ class MovingScrewNut(Component):
         for k, p in enumerate(nodes + [self.nut]):
             eqs += [getattr(p, fl) - f[6 * k + j] for j, fl in enumerate(_FLOWS)]
         return eqs
+
+    def tangent(self):
+        """Exact linearization at rest at the current ``z0``: ``A^T K_SN A`` (and ``A^T C A``) with
+        ``A = [N(z0) 0; 0 I]`` mapping the screw nodes and the nut to the interface deflection (the
+        ``∂N/∂z`` terms multiply the deflection, zero at rest)."""
+        z0 = float(self._values["z0"])
+        n_s = 6 * len(self.z_nodes)
+        e = int(np.clip(np.searchsorted(self.z_nodes, z0, side="right") - 1, 0, len(self.z_nodes) - 2))
+        xi = (z0 - self.z_nodes[e]) / (self.z_nodes[e + 1] - self.z_nodes[e])
+        Ne = np.einsum("k,kij->ij", xi ** np.arange(4), self.poly[e])
+        A = sp.lil_matrix((12, n_s + 6))
+        A[:6, 6 * e:6 * e + 12] = Ne
+        A[6:, n_s:] = np.eye(6)
+        A = A.tocsr()
+        dofs = [f"n{i}.{d}" for i in range(len(self.z_nodes)) for d in DOF_NAMES] + [f"nut.{d}" for d in DOF_NAMES]
+        K = (A.T @ sp.csr_matrix(self.K) @ A).tocsr()
+        C = None if self.C is None else (A.T @ sp.csr_matrix(self.C) @ A).tocsr()
+        return LinearStructure(dofs=dofs, K=K, C=C)
 
     def observables(self):
         return {"z": self.position()}

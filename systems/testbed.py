@@ -63,6 +63,7 @@ from bscomp.components import (
     Inertia,
     LinearGuide,
     Mass,
+    MovingScrewNut,
     NodeToFlange,
     NodeToRotFlange,
     RigidBody,
@@ -137,8 +138,8 @@ def drive_fraction(shapes, M, coordinates) -> np.ndarray:
     drive = np.array([c.rsplit(".", 1)[-1] in DRIVE_FIELDS for c in coordinates])
     M = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
     Md = np.where(np.outer(drive, drive), M, 0.0)
-    total = np.einsum("ik,ij,jk->k", shapes, M, shapes)
-    return np.einsum("ik,ij,jk->k", shapes, Md, shapes) / np.where(total > 0, total, 1.0)
+    total = np.sum(shapes * (M @ shapes), axis=0)
+    return np.sum(shapes * (Md @ shapes), axis=0) / np.where(total > 0, total, 1.0)
 
 
 class DriveModalDamping:
@@ -158,6 +159,19 @@ class DriveModalDamping:
     def __init__(self, zeta1: float, zeta2: float, zeta_other: float):
         self.zeta = (float(zeta1), float(zeta2), float(zeta_other))
 
+    def modal_ratios(self, lam, phi, M, coordinates=None) -> np.ndarray:
+        """Damping ratio of each mode of ``K phi = M phi lam`` (ascending, mass-normalised); 0 for rigid."""
+        rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
+        z = np.full(lam.size, self.zeta[2])
+        el = np.flatnonzero(~rigid)
+        if coordinates is None:
+            drive = el[:2]
+        else:
+            drive = el[drive_fraction(phi[:, el], M, coordinates) > 0.5][:2]
+        z[drive] = self.zeta[: drive.size]
+        z[rigid] = 0.0
+        return z
+
     def matrix(self, M, K, coordinates=None):
         import scipy.linalg as sla
 
@@ -165,13 +179,7 @@ class DriveModalDamping:
         Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
         lam, phi = sla.eigh(Kd, Md)
         rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
-        z = np.full(lam.size, self.zeta[2])
-        el = np.flatnonzero(~rigid)
-        if coordinates is None:
-            drive = el[:2]
-        else:
-            drive = el[drive_fraction(phi[:, el], Md, coordinates) > 0.5][:2]
-        z[drive] = self.zeta[: drive.size]
+        z = self.modal_ratios(lam, phi, Md, coordinates)
         return modal_damping_matrix(Md, Kd, z, n_rigid=int(rigid.sum()))
 
     def __repr__(self):
@@ -182,7 +190,7 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
             motor_end: str | None = None, b1_position: float | None = None, b2_position: float | None = None,
             coupling_position: float | None = None, root_diameter: float | None = None,
             jaw1: str = "motor", ksn: str = "full", pitch: float | None = None, damping: bool = True,
-            viscous: str = "motor",
+            viscous: str = "motor", nut_joint: str = "point",
             params: str = "fadal_vmc2216_x") -> System:
     """Build the test bed (or one of its verification steps) as a :class:`bscomp.System`.
 
@@ -227,13 +235,22 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
         4.2.1, Eq 4.2: it damps the rigid-body mode and leaves the elastic modes at their Table 4.1
         ratios), ``"guide"`` = 12 673 N s/m on the table (Table 5.2; the same B seen from the table,
         which also adds ~3.4 % to the 120 Hz mode), or ``"none"``.
+    nut_joint : {"point", "moving"}
+        How the interface reaches the screw: ``"point"`` = a point port of the screw at the nut position
+        (shape-function constraint, re-made for every position) or ``"moving"`` = a
+        :class:`MovingScrewNut` attached to every screw node at the nut's current position
+        ``sn.z0 + nut.w`` (Sec 5.2.2.3). Linearized at rest both give the same matrices (to round-off,
+        tests/systems/test_testbed_moving.py); with ``"moving"`` the position is the ordinary parameter
+        ``sn.z0``, so one flattening serves every position (fast sweeps) and the nut can travel in time
+        simulations. Needs ``ksn="full"``.
     params : str
         Parameter set name or path (default the thesis test bed).
 
     Returns
     -------
     System
-        With ``position_parameter = "nut_position"`` where a nut exists, ``sources`` citing the thesis,
+        With ``position_parameter = "nut_position"`` (``"sn.z0"`` for ``nut_joint="moving"``) where a nut
+        exists, ``sources`` citing the thesis,
         and ``build_args`` (the resolved choices).
     """
     if variant not in VARIANTS:
@@ -242,6 +259,11 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
         raise ModelDefinitionError(f"testbed: coupling must be 'jaw' or 'bellows', got {coupling!r}")
     if ksn not in ("full", "axial_torsional"):
         raise ModelDefinitionError(f"testbed: ksn must be 'full' or 'axial_torsional', got {ksn!r}")
+    if nut_joint not in ("point", "moving"):
+        raise ModelDefinitionError(f"testbed: nut_joint must be 'point' or 'moving', got {nut_joint!r}")
+    if nut_joint == "moving" and ksn != "full":
+        raise ModelDefinitionError("testbed: nut_joint='moving' needs ksn='full' (the moving joint carries the "
+                                   "whole 12x12 K_SN)")
     if jaw1 not in ("motor", "screw"):
         raise ModelDefinitionError(f"testbed: jaw1 must be 'motor' or 'screw', got {jaw1!r}")
     if viscous not in ("motor", "guide", "none"):
@@ -271,7 +293,7 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
     x_nut = _position(nut_position, nut_positions(params)) if has_nut else None
 
     points = {}
-    if has_nut:
+    if has_nut and nut_joint == "point":
         points["nut"] = x_nut
     if has_bearings:
         points["b1"], points["b2"] = x_b1, x_b2
@@ -320,7 +342,13 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
                              beta=v("screw_nut.beta"), R=v("screw_nut.R"),
                              phi_start=v("screw_nut.phi_start") if pitch is None else -phi_half,
                              phi_end=v("screw_nut.phi_end") if pitch is None else phi_half)
-        if ksn == "full":
+        if nut_joint == "moving":
+            screw = s.component("screw")
+            s.add("sn", MovingScrewNut.from_screw_nut(screw, sn, z0=x_nut))
+            for i in range(screw.n_nodes):
+                s.connect(f"screw.n{i}", f"sn.n{i}")
+            nut_port = "sn.nut"
+        elif ksn == "full":
             s.add("sn", sn)
             s.connect("screw.nut", "sn.screw")
             nut_port = "sn.nut"
@@ -388,11 +416,11 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
 
     s.sources = {k: t for k, t in src.items() if t}
     if has_nut:
-        s.position_parameter = "nut_position"
+        s.position_parameter = "nut_position" if nut_joint == "point" else "sn.z0"
     s.build_args = dict(variant=variant, nut_position=x_nut, dofs=dofs, coupling=coupling, motor_end=motor_end,
                         b1_position=x_b1 if has_bearings else None, b2_position=x_b2 if has_bearings else None,
                         coupling_position=x_cp if has_drive else None, root_diameter=sections[2].d_out,
-                        jaw1=jaw1, ksn=ksn, pitch=pitch, viscous=viscous, params=params)
+                        jaw1=jaw1, ksn=ksn, pitch=pitch, viscous=viscous, nut_joint=nut_joint, params=params)
     return s
 
 
