@@ -4,8 +4,10 @@ The problem is stated on the model's names (states, inputs, observables) and tra
 collocation (Radau IIA, degree ``d``) of the implicit DAE ``F(x', x, z, u, p) = 0``: on interval k with
 length h, the state polynomial through ``x_k, x_k1..x_kd`` gives ``x'(t_kj)`` and the residual is
 imposed at every collocation point; inputs are piecewise constant (what a sampled drive applies).
-Variables are scaled by nominal magnitudes (from bounds, boundary values or given ``scale``), so µm and
-kN live in one problem. The transcription is chosen apart from the model: the Dae is not touched.
+Variables are scaled by nominal magnitudes (given ``scale``, bounds, boundary values, else the largest
+value along a reference motion of the linearized model, see :meth:`Ocp.reference`), so µm and kN live
+in one problem; the reference motion is also the cold-start guess. The transcription is chosen apart
+from the model: the Dae is not touched.
 
 >>> ocp = Ocp(system, N=100)
 >>> ocp.bound("motor.tau", -8, 8); ocp.bound("table.v", -1, 1)
@@ -59,6 +61,8 @@ class OcpResult:
     stats: dict = field(default_factory=dict)
     dae: Any = None
     p: Any = None
+    xd: Any = None
+    z: Any = None
 
     def __getitem__(self, name):
         if name in self.outputs:
@@ -67,6 +71,14 @@ class OcpResult:
             return self.x[:, self.x_names.index(name)]
         if name in self.u_names:
             return self.u[:, self.u_names.index(name)]
+        if self.dae is not None and self.xd is not None and name in self.dae.observables:
+            # any other observable, from the solution at the grid points (input of the interval ending there)
+            n = len(self.t)
+            uk = np.vstack([self.u[:1], self.u])
+            y = self.dae.output_function([name]).map(n)(self.xd.T, self.x.T, self.z.T, uk.T,
+                                                        np.tile(np.asarray(self.p)[:, None], (1, n)))
+            self.outputs[name] = np.asarray(y).ravel()
+            return self.outputs[name]
         raise UnknownNameError(f"no signal '{name}' in this OCP result")
 
     def input_function(self, name) -> Callable:
@@ -81,20 +93,22 @@ class OcpResult:
 
     def resimulate(self, model=None, outputs=None, n_per_interval=10, **kw):
         """Run the optimal input through :func:`bscomp.simulate.simulate` on the same model (default)
-        or another one (e.g. the full model); returns (SimulationResult, max relative deviation of the
-        recorded outputs from the OCP prediction)."""
+        or another one (e.g. the full model); returns (SimulationResult, deviation per name). The
+        deviation of a recorded output or state is ``max_t |sim(t) - ocp(t)| / max_t |ocp(t)|``, the OCP
+        values interpolated linearly between its grid points; states are recorded by naming them in
+        ``outputs`` too."""
         from .simulate import simulate
 
-        model = model if model is not None else self.dae
+        model = resolve_model(model) if model is not None else self.dae
         outputs = list(outputs or self.outputs)
         tt = np.linspace(self.t[0], self.t[-1], n_per_interval * (len(self.t) - 1) + 1)
-        x0 = {n: v for n, v in zip(self.x_names, self.x[0])}
+        x0 = {n: v for n, v in zip(self.x_names, self.x[0]) if n in model.x_names}
         r = simulate(model, tt, inputs={n: self.input_function(n) for n in self.u_names}, x0=x0,
-                     outputs=outputs, **kw)
+                     outputs=[n for n in outputs if n not in model.x_names], **kw)
         dev = {}
         for n in outputs:
-            if n in self.outputs:
-                ref = np.interp(tt, self.t, self.outputs[n])
+            if n in self.outputs or n in self.x_names or (self.xd is not None and n in self.dae.observables):
+                ref = np.interp(tt, self.t, self[n])
                 dev[n] = float(np.max(np.abs(r[n] - ref)) / max(np.max(np.abs(ref)), 1e-300))
         return r, dev
 
@@ -155,7 +169,12 @@ class Ocp:
         self.objective_args: dict = {}
         self.scale: dict[str, float] = {}
         self.warm: OcpResult | None = None
-        self.ipopt_options = {"print_level": 0, "max_iter": 3000, "tol": 1e-8}
+        # MUMPS's default pivot tolerance (1e-6) gives inaccurate steps on the KKT systems of stiff
+        # structures (stiffnesses of 1e8 N/m next to a free rigid-body mode): Ipopt then creeps for
+        # hundreds of iterations. 1e-2 costs little and brought the reduced test bed from ~300 to ~15.
+        self.ipopt_options = {"print_level": 0, "max_iter": 3000, "tol": 1e-8, "mumps_pivtol": 1e-2,
+                              "mu_strategy": "adaptive"}
+        self.expand = False      # MX maps: faster to build than SX expansion for N*d*nx in the 1e4s
 
     # ---- problem statement --------------------------------------------------------------------
     def _kind(self, name):
@@ -193,7 +212,7 @@ class Ocp:
             if self._kind(k) != "x":
                 raise UnknownNameError(f"final value for '{k}': only states can be given")
         self.x_final.update({k: float(v) for k, v in values.items()})
-        self.final_rest = rest
+        self.final_rest = bool(rest)
         return self
 
     def minimize_time(self, T_guess: float = 1.0):
@@ -232,6 +251,7 @@ class Ocp:
 
     # ---- transcription and solve ----------------------------------------------------------------
     def _nominal(self, name, default=1.0):
+        """Nominal magnitude given by the user: ``scale=``, else the largest finite bound or boundary value."""
         if name in self.scale:
             return self.scale[name]
         vals = [abs(v) for v in self.bounds.get(name, ()) if np.isfinite(v)]
@@ -239,63 +259,78 @@ class Ocp:
         m = max(vals) if vals else 0.0
         return m if m > 0 else default
 
+    def _x0(self):
+        x0 = self.dae.x_start.copy()
+        for k, v in self.x_init.items():
+            x0[self.dae.x_names.index(k)] = v
+        return x0
+
     def solve(self, solver_options: dict | None = None) -> OcpResult:
-        """Transcribe and solve with Ipopt; raises :class:`OcpError` if it does not converge."""
+        """Transcribe and solve with Ipopt; raises :class:`OcpError` if it does not converge.
+
+        Notes
+        -----
+        Scaling and the cold-start guess come from a *reference motion* (see :meth:`reference`): the
+        minimum-effort rest-to-rest move of the model linearized at the start, over ``T_guess``,
+        propagated with the transcription's own Radau steps. Every state, state derivative, algebraic
+        variable and input is scaled by its largest magnitude along that motion (unless a bound,
+        boundary value or ``scale=`` gives one), so a rotor angle of 60 rad and a screw stretch of 1 µm
+        are both O(1) unknowns; each residual row is divided by its largest scaled term. A warm start
+        replaces the reference motion by the given solution (interpolated if its N differs).
+        """
         dae, N, d = self.dae, self.N, self.d
         if self.objective_kind is None:
             raise OcpError("no objective: call minimize_time(), minimize_effort(), minimize_tracking() or "
                            "minimize_residual_vibration() first")
         nx, nz, nu = dae.nx, dae.nz, dae.nu
         tau, C = _radau(d)
+        x0 = self._x0()
+        T0 = self.T_fixed or (self.warm.T if self.warm is not None and self.T_fixed is None else self.T_guess)
+        lin = self._linearize(x0)
+        if self.warm is not None:
+            ref = self._warm_reference(lin)
+        elif self.T_fixed is None:
+            ref = self._fit_reference(T0, lin)
+        else:
+            ref = self.reference(T0, lin)
+        xs, ws, zs, us = self._scales(ref)
         opti = ca.Opti()
-        xs = self._state_nominals()
-        if self.warm is None:
-            guess = np.abs(self._rest_guess(dae.x_start.copy()))
-            unset = [i for i, n in enumerate(dae.x_names) if not n.startswith("der(") and n not in self.scale
-                     and n not in self.bounds and n not in self.x_final and n not in self.x_init]
-            for i in unset:
-                if guess[i] > 0:
-                    xs[i] = guess[i]
-        # velocity/position nominal values: propagate from a related bounded signal if none given
-        us = np.array([self._nominal(n) for n in dae.u_names])
         Xs = opti.variable(nx, N + 1)
         Xcs = opti.variable(nx, N * d)
-        Wcs = opti.variable(nx, N * d)   # state derivatives at collocation points (scaled by xs)
-        Zc = opti.variable(nz, N * d) if nz else None
-        Us = opti.variable(nu, N)
-        X = ca.diag(xs) @ Xs
-        Xc = ca.diag(xs) @ Xcs
+        Wcs = opti.variable(nx, N * d)   # state derivatives at the collocation points, scaled by ws
+        Zcs = opti.variable(nz, N * d) if nz else None
+        # inputs held at a value (bound lo == hi, e.g. a disturbance force at 0) are constants, not unknowns
+        fixed_u = {i: self.bounds[n][0] for i, n in enumerate(dae.u_names)
+                   if n in self.bounds and self.bounds[n][0] == self.bounds[n][1]}
+        free_u = [i for i in range(nu) if i not in fixed_u]
+        Uv = opti.variable(len(free_u), N)
+        rows_u = [Uv[free_u.index(i), :] if i in free_u else ca.DM(np.full((1, N), fixed_u[i] / us[i]))
+                  for i in range(nu)]
+        Us = ca.vertcat(*rows_u) if nu else ca.MX(0, N)
+        X, Xc, Wc = ca.diag(xs) @ Xs, ca.diag(xs) @ Xcs, ca.diag(ws) @ Wcs
+        Zc = ca.diag(zs) @ Zcs if nz else ca.DM(0, N * d)
         U = ca.diag(us) @ Us
         if self.T_fixed is None:
-            T = opti.variable()
-            opti.subject_to(T >= 1e-6)
-            opti.set_initial(T, self.T_guess)
+            Tsc = opti.variable()          # T in units of its guess
+            T = T0 * Tsc
+            opti.subject_to(Tsc >= 1e-6)
+            opti.set_initial(Tsc, ref["T"] / T0)
         else:
             T = self.T_fixed
         h = T / N
-        # collocation: derivative of the Lagrange polynomial at tau_j, j=1..d
-        cols = []
+        # collocation (Radau IIA): h x'(t_kj) = sum_r C[r, j] x_kr, each row in units of its state nominal
         for j in range(1, d + 1):
-            terms = C[0, j] * X[:, :N]
+            terms = C[0, j] * Xs[:, :N]
             for r in range(1, d + 1):
-                terms = terms + C[r, j] * Xc[:, (r - 1)::d]
-            cols.append(terms)
-        # Wc = dx/dt at collocation points: (1/h) * sum_r C[r, j] x_r
-        Wc = ca.diag(xs) @ Wcs
-        for j in range(1, d + 1):
-            opti.subject_to(ca.vec(h * Wc[:, (j - 1)::d] - cols[j - 1]) == 0)
-        Fm = dae.F.map(N * d)
+                terms = terms + C[r, j] * Xcs[:, (r - 1)::d]
+            opti.subject_to(ca.vec(h * ca.diag(ws / xs) @ Wcs[:, (j - 1)::d] - terms) == 0)
+        opti.subject_to(ca.vec(Xs[:, 1:] - Xcs[:, (d - 1)::d]) == 0)
         Ucol = ca.horzcat(*[U[:, k] @ np.ones((1, d)) for k in range(N)])  # u held on each interval
         Pm = ca.repmat(ca.DM(self.p), 1, N * d)
-        res = Fm(Wc, Xc, Zc if nz else ca.DM(0, N * d), Ucol, Pm)
-        # residual scaling: row norms of the scaled Jacobian at the start (equations in N, N m, m/s...)
-        rs = self._residual_scales(xs, us)
+        res = dae.F.map(N * d)(Wc, Xc, Zc, Ucol, Pm)
+        rs = self._residual_scales(lin, xs, ws, zs, us)
         opti.subject_to(ca.vec(ca.diag(1.0 / rs) @ res) == 0)
-        opti.subject_to(ca.vec(X[:, 1:] - Xc[:, (d - 1)::d]) == 0)
         # boundary conditions
-        x0 = dae.x_start.copy()
-        for k, v in self.x_init.items():
-            x0[dae.x_names.index(k)] = v
         opti.subject_to(Xs[:, 0] == x0 / xs)
         for k, v in self.x_final.items():
             i = dae.x_names.index(k)
@@ -306,73 +341,71 @@ class Ocp:
                     opti.subject_to(Xs[i, N] == 0)
         # path bounds
         y_names = [n for n in self.bounds if self._kind(n) == "y"]
-        obj_y = []
-        if self.objective_kind in ("tracking", "vibration"):
-            obj_y = [self.objective_args["output"]]
+        obj_y = [self.objective_args["output"]] if self.objective_kind in ("tracking", "vibration") else []
         all_y = list(dict.fromkeys(y_names + obj_y))
-        Yc = None
-        if all_y:
-            g = dae.output_function(all_y).map(N * d)
-            Yc = g(Wc, Xc, Zc if nz else ca.DM(0, N * d), Ucol, Pm)
+        Yc = dae.output_function(all_y).map(N * d)(Wc, Xc, Zc, Ucol, Pm) if all_y else None
+        ys = {n: self._nominal(n, default=np.nan) for n in all_y}
+        if Yc is not None and ref is not None:
+            Yref = np.atleast_2d(np.asarray(dae.output_function(all_y).map(N * d)(
+                ref["W"], ref["Xc"], ref["Z"], np.repeat(ref["U"].T, d, axis=1), np.tile(self.p[:, None], (1, N * d)))))
+            for i, n in enumerate(all_y):
+                if np.isnan(ys[n]):
+                    m = float(np.max(np.abs(Yref[i]))) if Yref.size else 0.0
+                    ys[n] = m if m > 0 else 1.0
         for n, (lo, hi) in self.bounds.items():
             kind = self._kind(n)
             if kind == "u":
                 i = dae.u_names.index(n)
+                if i in fixed_u:
+                    continue
                 expr, s = Us[i, :], us[i]
             elif kind == "x":
                 i = dae.x_names.index(n)
                 expr, s = ca.horzcat(Xs[i, :], Xcs[i, :]), xs[i]
             else:
-                i = all_y.index(n)
-                s = self._nominal(n)
-                expr = Yc[i, :] / s
-            if np.isfinite(lo):
+                s = ys[n]
+                expr = Yc[all_y.index(n), :] / s
+            if lo == hi:
+                opti.subject_to(ca.vec(expr) == lo / s)
+                continue
+            if np.isfinite(lo) and np.isfinite(hi):
+                opti.subject_to(opti.bounded(lo / s, ca.vec(expr), hi / s))
+            elif np.isfinite(lo):
                 opti.subject_to(ca.vec(expr) >= lo / s)
-            if np.isfinite(hi):
+            elif np.isfinite(hi):
                 opti.subject_to(ca.vec(expr) <= hi / s)
         # objective (quadrature with Radau weights)
-        B = np.zeros(d)
-        for j in range(1, d + 1):
-            p = np.poly1d([1.0])
-            for r in range(d + 1):
-                if r != j:
-                    p *= np.poly1d([1.0, -tau[r]]) / (tau[j] - tau[r])
-            P = np.polyint(p)
-            B[j - 1] = P(1.0) - P(0.0)
-        wq = np.tile(B, N)
+        wq = np.tile(_radau_weights(tau, d), N)
         kind = self.objective_kind
         if kind == "time":
-            J = T
+            J = T / T0
         elif kind == "effort":
             w = np.array([self.objective_args["weights"].get(n, 1.0) for n in dae.u_names])
             J = h * ca.sum2(ca.sum1(ca.diag(w) @ (Us**2)))
         elif kind == "tracking":
             tc = np.concatenate([(k + tau[1:]) * (self.T_fixed / N) for k in range(N)])
-            ref = np.array([self.objective_args["reference"](t) for t in tc])
-            s = self._nominal(self.objective_args["output"])
-            e = (Yc[0, :] - ref[None, :]) / s
+            ref_t = np.array([self.objective_args["reference"](t) for t in tc])
+            s = ys[self.objective_args["output"]]
+            e = (Yc[all_y.index(self.objective_args["output"]), :] - ref_t[None, :]) / s
             J = h * ca.sum2(e**2 * wq[None, :]) + self.objective_args["effort_weight"] * h * ca.sumsqr(Us)
         else:
             tc = np.concatenate([(k + tau[1:]) * (self.T_fixed / N) for k in range(N)])
             mask = (tc >= self.T_fixed - self.objective_args["T_settle"]).astype(float)
-            s = self._nominal(self.objective_args["output"])
-            e = Yc[0, :] / s
+            s = ys[self.objective_args["output"]]
+            e = Yc[all_y.index(self.objective_args["output"]), :] / s
             J = h * ca.sum2(e**2 * (wq * mask)[None, :])
         opti.minimize(J)
-        # initial guess
-        if self.warm is not None and self.warm.x.shape == (N + 1, nx):
-            opti.set_initial(Xs, (self.warm.x / xs).T)
-            opti.set_initial(Us, (self.warm.u / us).T)
-            if self.T_fixed is None:
-                opti.set_initial(T, self.warm.T)
-        else:
-            xf = self._rest_guess(x0)
-            lin = np.linspace(0, 1, N + 1)[None, :]
-            guess = (x0 / xs)[:, None] * (1 - lin) + (xf / xs)[:, None] * lin
-            opti.set_initial(Xs, guess)
-            opti.set_initial(Xcs, np.repeat(guess[:, 1:], d, axis=1))
-        opts = {"ipopt": dict(self.ipopt_options, **(solver_options or {})), "print_time": False, "expand": True}
-        opti.solver("ipopt", opts)
+        # initial guess: the reference motion (or the warm start)
+        opti.set_initial(Xs, (ref["X"] / xs).T)
+        opti.set_initial(Xcs, ref["Xc"] / xs[:, None])
+        opti.set_initial(Wcs, ref["W"] / ws[:, None])
+        if nz:
+            opti.set_initial(Zcs, ref["Z"] / zs[:, None])
+        if free_u:
+            opti.set_initial(Uv, (ref["U"][:, free_u] / us[free_u]).T)
+        ipopt = dict(self.ipopt_options, **(solver_options or {}))
+        opti.solver("ipopt", {"ipopt": ipopt, "print_time": False, "expand": self.expand,
+                              "detect_simple_bounds": True})
         try:
             sol = opti.solve()
             stats = opti.stats()
@@ -384,12 +417,16 @@ class Ocp:
                 viol = float("nan")
             raise OcpError(
                 f"Ipopt did not converge on '{dae.name}' (status: {stats.get('return_status')}, iterations "
-                f"{stats.get('iter_count')}, largest constraint violation {viol:.3g}). Hints: check that the final "
-                "state is reachable within the bounds, give a better T_guess or warm start, loosen bounds, or "
+                f"{stats.get('iter_count')}, largest scaled constraint violation {viol:.3g}). Hints: check that the "
+                "final state is reachable within the bounds, give a better T_guess or warm start, loosen bounds, or "
                 "give scale= for signals of very different magnitudes") from exc
         Xv = np.atleast_2d(sol.value(X)).reshape(nx, N + 1).T
         Uv = np.atleast_2d(sol.value(U)).reshape(nu, N).T
         Tv = float(sol.value(T)) if self.T_fixed is None else self.T_fixed
+        xd0, z0 = dae.initialize(Xv[0], Uv[0], self.p, store=False)
+        XDv = np.vstack([xd0, np.atleast_2d(sol.value(Wc)).reshape(nx, N * d)[:, (d - 1)::d].T])
+        Zv = np.vstack([z0, np.atleast_2d(sol.value(Zc)).reshape(nz, N * d)[:, (d - 1)::d].T]) if nz \
+            else np.zeros((N + 1, 0))
         t = np.linspace(0, Tv, N + 1)
         outputs = {}
         if all_y:
@@ -414,7 +451,229 @@ class Ocp:
         return OcpResult(T=Tv, t=t, x=Xv, u=Uv, outputs=outputs, x_names=list(dae.x_names),
                          u_names=list(dae.u_names), active=active,
                          stats={"return_status": stats.get("return_status"), "iter_count": stats.get("iter_count"),
-                                "t_wall_total": stats.get("t_wall_total")}, dae=dae, p=self.p)
+                                "t_wall_total": stats.get("t_wall_total")}, dae=dae, p=self.p, xd=XDv, z=Zv)
+
+    # ---- scaling and initial guess ---------------------------------------------------------------
+    def _linearize(self, x0):
+        """Affine model at the start, ``x' = xd0 + A (x - x0) + B u``, ``z = z0 + Zx (x - x0) + Zu u``;
+        None if the index-1 Jacobian cannot be factorised there."""
+        import scipy.sparse as sp
+        import scipy.sparse.linalg as spla
+
+        from .dae import _sp
+
+        dae = self.dae
+        u0 = np.zeros(dae.nu)
+        try:
+            xd0, z0 = dae.initialize(x0, u0, self.p, store=False)
+            _, Jxd, Jx, Jz, Ju = dae.jacobians(xd0, x0, z0, u0, self.p)
+            Jxd, Jx, Jz, Ju = _sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju)
+            lu = spla.splu(sp.hstack([Jxd, Jz]).tocsc())
+            sol = -lu.solve(sp.hstack([Jx, Ju]).toarray())
+        except (RuntimeError, BscompError, np.linalg.LinAlgError):
+            return None
+        if not np.all(np.isfinite(sol)):
+            return None
+        nx = dae.nx
+        return {"x0": x0, "xd0": np.asarray(xd0, float), "z0": np.asarray(z0, float),
+                "A": sol[:nx, :nx], "B": sol[:nx, nx:], "Zx": sol[nx:, :nx], "Zu": sol[nx:, nx:],
+                "J": (Jxd, Jx, Jz, Ju)}
+
+    def reference(self, T: float | None = None, lin=None) -> dict:
+        """Reference motion used for scaling and as the cold-start guess.
+
+        The minimum-effort input (``min Σ (u_k/u_nom)²``, piecewise constant on the OCP grid) that takes
+        the model, linearized at the start, to the final values (and to rest if ``final(rest=True)``)
+        in time ``T`` (default ``T_guess``); states are propagated with the transcription's own Radau
+        IIA steps, so the motion satisfies the collocation equations of a linear model exactly: a drive
+        moves along its rigid-body mode and its elastic coordinates carry the deflections that motion
+        causes. Falls back to a straight line towards
+        the least-strain final configuration if the model cannot be linearized.
+
+        Returns
+        -------
+        dict with ``T``, ``X`` (N+1, nx), ``Xc``, ``W`` (nx, N d) states and derivatives at the
+        collocation points, ``Z`` (nz, N d), ``U`` (N, nu).
+        """
+        dae, N, d = self.dae, self.N, self.d
+        T = float(T or self.T_fixed or self.T_guess)
+        x0 = self._x0()
+        lin = self._linearize(x0) if lin is None else lin
+        tau, _ = _radau(d)
+        nx, nu, nz = dae.nx, dae.nu, dae.nz
+        if lin is None or lin is False or nx > 1500:
+            xf = self._rest_guess(x0)
+            s = np.linspace(0, 1, N + 1)
+            X = x0[None, :] * (1 - s[:, None]) + xf[None, :] * s[:, None]
+            sc = np.concatenate([(k + tau[1:]) / N for k in range(N)])
+            Xc = (x0[:, None] * (1 - sc[None, :]) + xf[:, None] * sc[None, :])
+            return {"T": T, "X": X, "Xc": Xc, "W": np.repeat(((xf - x0) / T)[:, None], N * d, axis=1),
+                    "Z": np.zeros((nz, N * d)), "U": np.zeros((N, nu))}
+        A, B, xd0 = lin["A"], lin["B"], lin["xd0"]
+        h = T / N
+        # one Radau IIA step of the affine model, exactly as the transcription discretises it:
+        # (1/h) (C0j x_k + sum_r Crj x_kr) = xd0 + A x_kj + B u  ->  x_kj = Pj x_k + Qj u + fj
+        _, Cr = _radau(d)
+        L = np.kron(Cr[1:, 1:].T, np.eye(nx)) / h - np.kron(np.eye(d), A)
+        rhs = np.hstack([-np.kron(Cr[0, 1:][:, None], np.eye(nx)) / h, np.kron(np.ones((d, 1)), B),
+                         np.kron(np.ones((d, 1)), xd0[:, None])])
+        try:
+            sol = np.linalg.solve(L, rhs)
+        except np.linalg.LinAlgError:
+            return self.reference(T, lin=False)
+        colloc = [(sol[j * nx:(j + 1) * nx, :nx], sol[j * nx:(j + 1) * nx, nx:nx + nu], sol[j * nx:(j + 1) * nx, -1])
+                  for j in range(d)]
+        Ah, Bh, fh = colloc[-1]
+        # final conditions (deviation from x0)
+        rows, target = [], []
+        for k, v in self.x_final.items():
+            i = dae.x_names.index(k)
+            rows.append(i)
+            target.append(v - x0[i])
+        if self.final_rest:
+            for i, n in enumerate(dae.x_names):
+                if n.startswith("der(") and i not in rows:
+                    rows.append(i)
+                    target.append(-x0[i])
+        un = np.array([self._nominal(n) for n in dae.u_names])
+        fixed = {i: self.bounds[n][0] for i, n in enumerate(dae.u_names)
+                 if n in self.bounds and self.bounds[n][0] == self.bounds[n][1]}
+        un[list(fixed)] = 0.0          # inputs held at a value (e.g. a disturbance at 0) do not move the reference
+        Uref = np.zeros((N, nu))
+        if rows and nu:
+            free = np.zeros(nx)          # x_N - x0 with u = 0
+            for _ in range(N):
+                free = Ah @ free + fh
+            S = np.eye(nx)[rows]
+            G = np.zeros((len(rows), N, nu))
+            for k in range(N - 1, -1, -1):
+                G[:, k, :] = S @ Bh
+                S = S @ Ah
+            G = G.reshape(len(rows), N * nu) * np.tile(un, N)[None, :]
+            v = np.linalg.lstsq(G, np.asarray(target) - free[rows], rcond=1e-12)[0]
+            Uref = v.reshape(N, nu) * un[None, :]
+            if not np.all(np.isfinite(Uref)):
+                Uref = np.zeros((N, nu))
+        for i, v in fixed.items():
+            Uref[:, i] = v
+        dX = np.zeros((N + 1, nx))
+        dXc = np.zeros((nx, N * d))
+        for k in range(N):
+            for j, (Aj, Bj, fj) in enumerate(colloc):
+                dXc[:, k * d + j] = Aj @ dX[k] + Bj @ Uref[k] + fj
+            dX[k + 1] = Ah @ dX[k] + Bh @ Uref[k] + fh
+        Ucol = np.repeat(Uref.T, d, axis=1)
+        W = xd0[:, None] + A @ dXc + B @ Ucol
+        Z = lin["z0"][:, None] + lin["Zx"] @ dXc + lin["Zu"] @ Ucol if nz else np.zeros((0, N * d))
+        return {"T": T, "X": x0[None, :] + dX, "Xc": x0[:, None] + dXc, "W": W, "Z": Z, "U": Uref}
+
+    def _bound_ratio(self, ref):
+        """Largest ratio of a bounded signal along the reference motion to its bound (bounds that
+        contain zero only); 0 if nothing is bounded."""
+        dae, N, d = self.dae, self.N, self.d
+        y_names = [n for n in self.bounds if self._kind(n) == "y"]
+        Y = {}
+        if y_names:
+            Yv = np.atleast_2d(np.asarray(dae.output_function(y_names).map(N * d)(
+                ref["W"], ref["Xc"], ref["Z"], np.repeat(ref["U"].T, d, axis=1), np.tile(self.p[:, None], (1, N * d)))))
+            Y = dict(zip(y_names, Yv))
+        r = 0.0
+        for n, (lo, hi) in self.bounds.items():
+            if not lo <= 0 <= hi:
+                continue
+            kind = self._kind(n)
+            if kind == "u":
+                v = ref["U"][:, dae.u_names.index(n)]
+            elif kind == "x":
+                i = dae.x_names.index(n)
+                v = np.r_[ref["X"][:, i], ref["Xc"][i]]
+            else:
+                v = Y[n]
+            if hi > 0:
+                r = max(r, float(np.max(v)) / hi)
+            if lo < 0:
+                r = max(r, float(np.min(v)) / lo)
+        return r
+
+    def _fit_reference(self, T, lin):
+        """Minimum-time problems: stretch or shrink the reference move until its bounded signals peak at
+        80-100 % of their bounds (a feasible, nearly tight start; inputs and accelerations of a
+        rest-to-rest move scale as 1/T², hence the square root)."""
+        ref = self.reference(T, lin)
+        if lin is None or not self.bounds:
+            return ref
+        for _ in range(10):
+            r = self._bound_ratio(ref)
+            if r <= 0 or 0.8 <= r <= 1.0:
+                break
+            T *= float(np.sqrt(r / 0.9))
+            ref = self.reference(T, lin)
+        return ref
+
+    def _warm_reference(self, lin):
+        """The warm-start solution on this OCP's grid (linear interpolation in normalised time)."""
+        w, N, d = self.warm, self.N, self.d
+        tau, _ = _radau(d)
+        tw = w.t / w.T
+        tn = np.linspace(0, 1, N + 1)
+        tc = np.concatenate([(k + tau[1:]) / N for k in range(N)])
+        X = np.column_stack([np.interp(tn, tw, w.x[:, i]) for i in range(w.x.shape[1])])
+        Xc = np.vstack([np.interp(tc, tw, w.x[:, i]) for i in range(w.x.shape[1])])
+        km = np.clip(np.searchsorted(tw, (np.arange(N) + 0.5) / N) - 1, 0, len(w.u) - 1)
+        U = w.u[km]
+        Ucol = np.repeat(U.T, d, axis=1)
+        if lin is not None:
+            dXc = Xc - lin["x0"][:, None]
+            W = lin["xd0"][:, None] + lin["A"] @ dXc + lin["B"] @ Ucol
+            Z = lin["z0"][:, None] + lin["Zx"] @ dXc + lin["Zu"] @ Ucol
+        else:
+            W = np.gradient(Xc, tc * w.T, axis=1)
+            Z = np.zeros((self.dae.nz, N * d))
+        return {"T": w.T, "X": X, "Xc": Xc, "W": W, "Z": Z, "U": U}
+
+    def _scales(self, ref):
+        """Nominal magnitudes (states, state derivatives, algebraic variables, inputs): ``scale=``,
+        bounds or boundary values where given, else the largest magnitude along the reference motion,
+        else 1. Magnitudes below 1e-12 of the largest one in their group are round-off, not motion."""
+        dae = self.dae
+
+        def pick(names, ref_mag, fallback):
+            given = np.array([self._nominal(n, default=np.nan) for n in names]) if names else np.zeros(0)
+            big = float(np.max(ref_mag)) if ref_mag.size else 0.0
+            ok = ref_mag > 1e-12 * big
+            out = np.where(np.isnan(given), np.where(ok & (ref_mag > 0), ref_mag, fallback), given)
+            return np.where(out > 0, out, 1.0)
+
+        xmag = np.maximum(np.max(np.abs(ref["X"]), axis=0), np.max(np.abs(ref["Xc"]), axis=1))
+        xs = pick(dae.x_names, xmag, np.ones(dae.nx))
+        wmag = np.max(np.abs(ref["W"]), axis=1) if ref["W"].size else np.zeros(dae.nx)
+        ws = np.where(wmag > 1e-12 * (np.max(wmag) if wmag.size else 0.0), wmag, xs / ref["T"])
+        ws = np.where(ws > 0, ws, 1.0)
+        zmag = np.max(np.abs(ref["Z"]), axis=1) if ref["Z"].size else np.zeros(dae.nz)
+        zs = pick(dae.z_names, zmag, np.ones(dae.nz))
+        umag = np.max(np.abs(ref["U"]), axis=0) if ref["U"].size else np.zeros(dae.nu)
+        us = pick(dae.u_names, umag, np.ones(dae.nu))
+        return xs, ws, zs, us
+
+    def _residual_scales(self, lin, xs, ws, zs, us):
+        """Row scales of F: the largest scaled term of each row (Jacobian at the start × nominals)."""
+        if lin is None:
+            x0 = self._x0()
+            xd, z = self.dae.initialize(x0, np.zeros(self.dae.nu), self.p, store=False)
+            J = self.dae.jacobians(xd, x0, z, np.zeros(self.dae.nu), self.p)[1:]
+            J = [np.asarray(ca.DM(j)) for j in J]
+        else:
+            J = [abs(j).toarray() if hasattr(j, "toarray") else np.asarray(j) for j in lin["J"]]
+        Jxd, Jx, Jz, Ju = (np.abs(j) for j in J)
+        cols = [Jxd * ws[None, :], Jx * xs[None, :], Ju * us[None, :]]
+        if self.dae.nz:
+            cols.append(Jz * zs[None, :])
+        rs = np.max(np.hstack(cols), axis=1)
+        return np.where(rs > 0, rs, 1.0)
+
+    def _y0(self, name, x0, u0):
+        xd, z = self.dae.initialize(x0, u0, self.p, store=False)
+        return float(self.dae.output_function([name])(xd, x0, z, u0, self.p))
 
     def _rest_guess(self, x0):
         """Final-state guess: the least-strain static configuration that meets the final values
@@ -446,33 +705,15 @@ class Ocp:
         xf[free] = x0[free] + d_free
         return xf
 
-    def _state_nominals(self):
-        """Nominal magnitudes of the states: given scales, bounds, boundary values; a velocity without
-        any of these gets 2 |Δq| / T from its position's boundary change (a triangular profile)."""
-        dae = self.dae
-        xs = np.array([self._nominal(n, default=np.nan) for n in dae.x_names])
-        T = self.T_fixed or self.T_guess
-        for i, n in enumerate(dae.x_names):
-            if np.isnan(xs[i]) and n.startswith("der(") and n[4:-1] in dae.x_names:
-                q = n[4:-1]
-                dq = abs(self.x_final.get(q, 0.0) - self.x_init.get(q, 0.0))
-                if dq > 0:
-                    xs[i] = 2 * dq / T
-        return np.where(np.isnan(xs) | (xs <= 0), 1.0, xs)
 
-    def _residual_scales(self, xs, us):
-        dae = self.dae
-        x0 = dae.x_start.copy()
-        xd, z = dae.initialize(x0, np.zeros(dae.nu), self.p)
-        _, Jxd, Jx, Jz, Ju = dae.jacobians(xd, x0, z, np.zeros(dae.nu), self.p)
-        T = self.T_fixed or self.T_guess
-        cols = [np.abs(np.asarray(ca.DM(Jxd))) * (xs / T)[None, :], np.abs(np.asarray(ca.DM(Jx))) * xs[None, :],
-                np.abs(np.asarray(ca.DM(Ju))) * us[None, :]]
-        if dae.nz:
-            cols.append(np.abs(np.asarray(ca.DM(Jz))))
-        rs = np.max(np.hstack(cols), axis=1)
-        return np.where(rs > 0, rs, 1.0)
-
-    def _y0(self, name, x0, u0):
-        xd, z = self.dae.initialize(x0, u0, self.p)
-        return float(self.dae.output_function([name])(xd, x0, z, u0, self.p))
+def _radau_weights(tau, d):
+    """Quadrature weights of the Radau points on [0, 1]."""
+    B = np.zeros(d)
+    for j in range(1, d + 1):
+        p = np.poly1d([1.0])
+        for r in range(d + 1):
+            if r != j:
+                p *= np.poly1d([1.0, -tau[r]]) / (tau[j] - tau[r])
+        P = np.polyint(p)
+        B[j - 1] = P(1.0) - P(0.0)
+    return B
