@@ -29,6 +29,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 __all__ = [
+    "system_damping_matrix",
     "modal_damping_matrix",
     "rayleigh_damping_matrix",
     "rayleigh_coefficients",
@@ -335,6 +336,17 @@ def damped_modal_properties(
     s = s[order]
     omega = np.abs(s)
     return omega, -s.real / omega
+
+
+def system_damping_matrix(damping, M, K, coordinates) -> np.ndarray:
+    """The matrix of a system-level damping option (``System.damping``) for the mechanical (M, K).
+
+    Options with ``needs_coordinates = True`` assign their ratios by mode character and are given the
+    coordinate names; the others only see M and K.
+    """
+    if getattr(damping, "needs_coordinates", False):
+        return damping.matrix(M, K, coordinates=list(coordinates))
+    return damping.matrix(M, K)
 
 
 class ModalDamping:

@@ -524,6 +524,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
 
 def _apply_system_damping(dae, damping):
     """Add a system-level damping matrix (modal or Rayleigh, Eq A.10-A.15) to the structural C."""
+    from .damping import system_damping_matrix
     from .errors import SingularSystemError
     from .linear import second_order
 
@@ -534,10 +535,7 @@ def _apply_system_damping(dae, damping):
                                   f"'{dae.name}'; without inertia: {names[:10]} (add masses or drop the option)")
     dae.check_index1()
     so = second_order(dae, inputs=[], outputs=[])
-    if getattr(damping, "needs_coordinates", False):   # ratios assigned by mode character (names)
-        Cadd = sp.csc_matrix(damping.matrix(so.M, so.K, coordinates=list(so.coordinates)))
-    else:
-        Cadd = sp.csc_matrix(damping.matrix(so.M, so.K))
+    Cadd = sp.csc_matrix(system_damping_matrix(damping, so.M, so.K, so.coordinates))
     m.C = (m.C + Cadd).tocsc()
     dae._cache.clear()
     dae.stats["system_damping"] = repr(damping)

@@ -109,6 +109,24 @@ def _output_jac(dae: Dae, names, op: OperatingPoint):
     return [_sp(m) for m in f(op.xd, op.x, op.z, op.u, op.p)]
 
 
+def explicit_form(dae: Dae, Jxd, Jx, Jz, Ju):
+    """``(A, B, Zx, Zu)`` of the index-1 linearization from the Jacobians of F at a point (scipy sparse):
+    ``x' = A dx + B du``, ``z = Zx dx + Zu du``, i.e. ``[A B; Zx Zu] = -[dF/dx', dF/dz]^{-1} [dF/dx, dF/du]``.
+
+    ``Ju`` holds the columns of the inputs wanted. Raises :class:`SingularSystemError` if
+    ``[dF/dx', dF/dz]`` is singular at the point.
+    """
+    nx = dae.nx
+    W = sp.hstack([Jxd, Jz]).tocsc()
+    try:
+        lu = spla.splu(W)
+    except RuntimeError as exc:
+        raise SingularSystemError(dae._singular_message(W)) from exc
+    ncol = Jx.shape[1] + Ju.shape[1]
+    sol = -lu.solve(sp.hstack([Jx, Ju]).toarray()) if ncol else np.zeros((W.shape[0], 0))
+    return sol[:nx, :nx], sol[:nx, nx:], sol[nx:, :nx], sol[nx:, nx:]
+
+
 def _select_inputs(dae: Dae, inputs):
     if inputs is None:
         return list(range(dae.nu)), list(dae.u_names)
@@ -156,15 +174,7 @@ def linearize(model, inputs=None, outputs=None, at: dict | None = None, params: 
                              "Force/Torque source (its unconnected input becomes a system input); second_order() "
                              "works without inputs")
     nx = dae.nx
-    W = sp.hstack([Jxd, Jz]).tocsc()
-    try:
-        lu = spla.splu(W)
-    except RuntimeError as exc:
-        raise SingularSystemError(dae._singular_message(W)) from exc
-    rhs = sp.hstack([Jx, Ju[:, uidx]]).toarray() if (nx + len(uidx)) else np.zeros((W.shape[0], 0))
-    sol = -lu.solve(rhs) if rhs.size else np.zeros((W.shape[0], 0))
-    A, B = sol[:nx, :nx], sol[:nx, nx:]
-    Zx, Zu = sol[nx:, :nx], sol[nx:, nx:]
+    A, B, Zx, Zu = explicit_form(dae, Jxd, Jx, Jz, Ju[:, uidx])
     if outputs is None:
         outputs = list(dae.x_names)
         C = np.eye(nx)
@@ -326,10 +336,9 @@ def _refresh_system_damping(dae, M, K, C):
     M0, K0, Cadd0 = dae.system_damping_basis
     if _close(M, M0) and _close(K, K0):
         return C
-    if getattr(damping, "needs_coordinates", False):
-        Cadd = damping.matrix(M, K, coordinates=list(dae.mech.coordinate_names))
-    else:
-        Cadd = damping.matrix(M, K)
+    from .damping import system_damping_matrix
+
+    Cadd = system_damping_matrix(damping, M, K, dae.mech.coordinate_names)
     return sp.csr_matrix(C - Cadd0 + sp.csr_matrix(Cadd))
 
 

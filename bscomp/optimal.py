@@ -457,10 +457,8 @@ class Ocp:
     def _linearize(self, x0):
         """Affine model at the start, ``x' = xd0 + A (x - x0) + B u``, ``z = z0 + Zx (x - x0) + Zu u``;
         None if the index-1 Jacobian cannot be factorised there."""
-        import scipy.sparse as sp
-        import scipy.sparse.linalg as spla
-
         from .dae import _sp
+        from .linear import explicit_form
 
         dae = self.dae
         u0 = np.zeros(dae.nu)
@@ -468,16 +466,13 @@ class Ocp:
             xd0, z0 = dae.initialize(x0, u0, self.p, store=False)
             _, Jxd, Jx, Jz, Ju = dae.jacobians(xd0, x0, z0, u0, self.p)
             Jxd, Jx, Jz, Ju = _sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju)
-            lu = spla.splu(sp.hstack([Jxd, Jz]).tocsc())
-            sol = -lu.solve(sp.hstack([Jx, Ju]).toarray())
+            A, B, Zx, Zu = explicit_form(dae, Jxd, Jx, Jz, Ju)
         except (RuntimeError, BscompError, np.linalg.LinAlgError):
             return None
-        if not np.all(np.isfinite(sol)):
+        if not all(np.all(np.isfinite(a)) for a in (A, B, Zx, Zu)):
             return None
-        nx = dae.nx
         return {"x0": x0, "xd0": np.asarray(xd0, float), "z0": np.asarray(z0, float),
-                "A": sol[:nx, :nx], "B": sol[:nx, nx:], "Zx": sol[nx:, :nx], "Zu": sol[nx:, nx:],
-                "J": (Jxd, Jx, Jz, Ju)}
+                "A": A, "B": B, "Zx": Zx, "Zu": Zu, "J": (Jxd, Jx, Jz, Ju)}
 
     def reference(self, T: float | None = None, lin=None) -> dict:
         """Reference motion used for scaling and as the cold-start guess.

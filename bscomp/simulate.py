@@ -471,21 +471,16 @@ def _simulate_lti(dae, t, U, xs, p, outputs, controllers):
     :func:`scipy.signal.lfilter`); otherwise it is one matrix-vector product per step.
     """
     import scipy.linalg as sla
-    import scipy.sparse as sp
-    import scipy.sparse.linalg as spla
 
     from .dae import _sp
+    from .linear import explicit_form
 
     t_wall = time.perf_counter()
     nx, nu, nt = dae.nx, dae.nu, len(t)
     u0 = U[:, 0]
     xd0, z0 = dae.initialize(xs, u0, p, store=False)
     _, Jxd, Jx, Jz, Ju = dae.jacobians(xd0, xs, z0, u0, p)
-    Jxd, Jx, Jz, Ju = _sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju)
-    lu = spla.splu(sp.hstack([Jxd, Jz]).tocsc())
-    sol = -lu.solve(sp.hstack([Jx, Ju]).toarray()) if nx + nu else np.zeros((nx + dae.nz, 0))
-    A, B = sol[:nx, :nx], sol[:nx, nx:]
-    Zx, Zu = sol[nx:, :nx], sol[nx:, nx:]
+    A, B, Zx, Zu = explicit_form(dae, _sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju))
     # affine model in deviations: x' = xd0 + A dx + B du
     h_all = np.diff(t)
     cache = {}  # per call: the discretisation depends on this call's linearization point
@@ -523,15 +518,10 @@ def _simulate_lti(dae, t, U, xs, p, outputs, controllers):
             for j, (_, Bd, fd) in enumerate(discs):
                 sel = which == j
                 G[sel] = (U.T[sel] - u0) @ Bd.T + fd
-            if len(discs) == 1:
-                Ad = discs[0][0]
-                for k in range(nt - 1):
-                    e = Ad @ e + G[k]
-                    X[k + 1] = e
-            else:
-                for k in range(nt - 1):
-                    e = discs[which[k]][0] @ e + G[k]
-                    X[k + 1] = e
+            Ads = [d[0] for d in discs]
+            for k in range(nt - 1):
+                e = Ads[which[k]] @ e + G[k]
+                X[k + 1] = e
             X[1:] += xs
         else:
             mfun = dae.output_function([m for c in controllers for m in c.measure])

@@ -144,6 +144,8 @@ class _TangentUpdate:
         """Mass-normalised modes and modal damping at x: (lam, phi, c_modal, C_struct)."""
         import scipy.linalg as sla
 
+        from .damping import system_damping_matrix
+
         M, K, Cs = self.matrices(x)
         Md, Kd = M.toarray(), K.toarray()
         lam, phi = sla.eigh(Kd, Md, driver="gvd")
@@ -154,10 +156,7 @@ class _TangentUpdate:
                 zeta = self.damping.modal_ratios(lam, phi, Md, coords)
                 c = 2.0 * zeta * np.sqrt(np.clip(lam, 0.0, None))
             else:
-                if getattr(self.damping, "needs_coordinates", False):
-                    Cadd = self.damping.matrix(M, K, coordinates=coords)
-                else:
-                    Cadd = self.damping.matrix(M, K)
+                Cadd = system_damping_matrix(self.damping, M, K, coords)
                 Cm = phi.T @ np.asarray(Cadd.toarray() if hasattr(Cadd, "toarray") else Cadd) @ phi
                 off = Cm - np.diag(np.diag(Cm))
                 if np.abs(off).max() > 1e-8 * max(np.abs(np.diag(Cm)).max(), 1e-300):
