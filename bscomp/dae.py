@@ -147,13 +147,35 @@ class Dae:
             self._cache["mx"] = (xd, x, z, u, p)
         return self._cache["mx"]
 
-    def _selection(self, where: dict, n_target: int):
-        nr = len(self.mech.coordinate_names)
-        if not where:
+    def _structural_maps(self):
+        """Sparse maps of the structural (matrix-form) part ``P (M a + C v + K q + K t0)``.
+
+        ``q = Sq_x x + Sq_z z``, ``v = Sv_x x + Sv_xd xd``, ``a = Sa_xd xd``, ``P`` places the balance rows.
+        Returns ``(Sq_x, Sq_z, Sv_x, Sv_xd, Sa_xd, P)`` as scipy csr matrices, or None without structure.
+        """
+        m = self.mech
+        nr = len(m.coordinate_names)
+        if not (nr and (m.M.nnz or m.C.nnz or m.K.nnz)):
             return None
-        rows = list(where.keys())
-        cols = [where[r] for r in rows]
-        return ca.DM(sp.csc_matrix((np.ones(len(rows)), (rows, cols)), shape=(nr, n_target)))
+
+        def sel(where, n):
+            rows = list(where.keys())
+            return sp.csr_matrix((np.ones(len(rows)), (rows, [where[r] for r in rows])), shape=(nr, n))
+
+        nF = self.F_sx.numel()
+        P = sp.csr_matrix((np.ones(nr), (m.balance_rows, np.arange(nr))), shape=(nF, nr))
+        return (sel(m.q_in_x, self.nx), sel(m.q_in_z, self.nz), sel(m.v_in_x, self.nx), sel(m.v_in_xd, self.nx),
+                sel(m.a_in_xd, self.nx), P)
+
+    def _structural_jacobians(self):
+        """Constant Jacobians ``(d/dxd, d/dx, d/dz)`` of the structural part (scipy csr), or None."""
+        maps = self._structural_maps()
+        if maps is None:
+            return None
+        Sqx, Sqz, Svx, Svxd, Saxd, P = maps
+        m = self.mech
+        M, C, K = sp.csr_matrix(m.M), sp.csr_matrix(m.C), sp.csr_matrix(m.K)
+        return (P @ (M @ Saxd + C @ Svxd)).tocsr(), (P @ (C @ Svx + K @ Sqx)).tocsr(), (P @ (K @ Sqz)).tocsr()
 
     @property
     def F(self) -> ca.Function:
@@ -162,44 +184,66 @@ class Dae:
             xd, x, z, u, p = self._mx()
             fsx = ca.Function("F_scalar", [self.xds, self.xs, self.zs, self.us, self.ps], [self.F_sx])
             res = fsx(xd, x, z, u, p)
-            m = self.mech
-            nr = len(m.coordinate_names)
-            if nr and (m.M.nnz or m.C.nnz or m.K.nnz):
-                q = 0
-                for where, vec, n in ((m.q_in_x, x, self.nx), (m.q_in_z, z, self.nz)):
-                    S = self._selection(where, n)
-                    if S is not None:
-                        q = q + ca.mtimes(S, vec)
-                v = 0
-                for where, vec, n in ((m.v_in_x, x, self.nx), (m.v_in_xd, xd, self.nx)):
-                    S = self._selection(where, n)
-                    if S is not None:
-                        v = v + ca.mtimes(S, vec)
-                S = self._selection(m.a_in_xd, self.nx)
-                a = ca.mtimes(S, xd) if S is not None else 0
-                f = 0
-                if m.M.nnz:
-                    f = f + ca.mtimes(ca.DM(m.M), a)
-                if m.C.nnz:
-                    f = f + ca.mtimes(ca.DM(m.C), v)
-                if m.K.nnz:
-                    f = f + ca.mtimes(ca.DM(m.K), q) + ca.DM(m.Kt0)
-                nF = self.F_sx.numel()
-                P = ca.DM(sp.csc_matrix((np.ones(nr), (m.balance_rows, np.arange(nr))), shape=(nF, nr)))
+            maps = self._structural_maps()
+            if maps is not None:
+                Sqx, Sqz, Svx, Svxd, Saxd, P = (dm_sparse(A) for A in maps)
+                m = self.mech
+                q = ca.mtimes(Sqx, x) + ca.mtimes(Sqz, z)
+                v = ca.mtimes(Svx, x) + ca.mtimes(Svxd, xd)
+                f = ca.mtimes(dm_sparse(m.M), ca.mtimes(Saxd, xd)) + ca.mtimes(dm_sparse(m.C), v) \
+                    + ca.mtimes(dm_sparse(m.K), q) + ca.DM(m.Kt0)
                 res = res + ca.mtimes(P, f)
             self._cache["F"] = ca.Function("F", [xd, x, z, u, p], [res], ["xd", "x", "z", "u", "p"], ["res"])
         return self._cache["F"]
 
+    def _scalar_jacobian(self) -> ca.Function:
+        """``dF_scalar/d[xd, x, z, u]`` of the scalar (component-equation) part, one SX pass, built once.
+
+        It does not depend on the structural matrices, so it survives a change of ``mech.C`` (system damping).
+        """
+        if "jac_sx" not in self._cache:
+            w = ca.vertcat(self.xds, self.xs, self.zs, self.us)
+            self._cache["jac_sx"] = ca.Function("F_scalar_jac", [self.xds, self.xs, self.zs, self.us, self.ps],
+                                                [ca.jacobian(self.F_sx, w)])
+        return self._cache["jac_sx"]
+
     @property
     def jacobians(self) -> ca.Function:
-        """``(xd, x, z, u, p) -> (F, dF/dxd, dF/dx, dF/dz, dF/du)``, sparse, built once."""
+        """``(xd, x, z, u, p) -> (F, dF/dxd, dF/dx, dF/dz, dF/du)``, sparse, built once.
+
+        The scalar part's Jacobian comes from one SX pass (:meth:`_scalar_jacobian`), the structural
+        part's is the constant ``P M Sa``, ``P C Sv``, ``P K Sq`` -- no MX differentiation of the
+        composed residual.
+        """
         if "jac" not in self._cache:
             xd, x, z, u, p = self._mx()
             res = self.F(xd, x, z, u, p)
-            self._cache["jac"] = ca.Function(
-                "F_jac", [xd, x, z, u, p],
-                [res, ca.jacobian(res, xd), ca.jacobian(res, x), ca.jacobian(res, z), ca.jacobian(res, u)])
+            J = self._scalar_jacobian()(xd, x, z, u, p)
+            nx, nz, nu = self.nx, self.nz, self.nu
+            Jxd, Jx, Jz, Ju = ca.horzsplit(J, [0, nx, 2 * nx, 2 * nx + nz, 2 * nx + nz + nu])
+            sj = self._structural_jacobians()
+            if sj is not None:
+                Jxd, Jx, Jz = (Jb + dm_sparse(S) for Jb, S in zip((Jxd, Jx, Jz), sj, strict=True))
+            self._cache["jac"] = ca.Function("F_jac", [xd, x, z, u, p], [res, Jxd, Jx, Jz, Ju])
         return self._cache["jac"]
+
+    def jacobian_pattern(self, wrt: str) -> sp.csr_matrix:
+        """Structural sparsity (0/1 csr) of ``dF/d(wrt)`` for ``wrt`` in ``"xd"``, ``"x"``, ``"z"``, ``"xd,z"``."""
+        parts = wrt.split(",")
+        syms = {"xd": self.xds, "x": self.xs, "z": self.zs}
+        sj = self._structural_jacobians()
+        blocks = []
+        for name in parts:
+            spx = ca.jacobian_sparsity(self.F_sx, syms[name])
+            r, c = spx.get_triplet()
+            A = sp.csr_matrix((np.ones(len(r)), (r, c)), shape=(spx.size1(), spx.size2()))
+            if sj is not None:
+                S = sj[("xd", "x", "z").index(name)]
+                A = A + abs(S).sign()
+            blocks.append(A)
+        A = sp.hstack(blocks).tocsr()
+        A.data[:] = 1.0
+        return A
 
     # ---- outputs ------------------------------------------------------------------------------
     def output_names(self):
@@ -303,12 +347,8 @@ class Dae:
     # ---- checks -------------------------------------------------------------------------------
     def check_index1(self):
         """Structural (matching) and numeric check that ``[dF/dx', dF/dz]`` is non-singular."""
-        xd, x, z, u, p = self._mx()
-        res = self.F(xd, x, z, u, p)
-        spx = ca.jacobian(res, ca.vertcat(xd, z)).sparsity()
-        n = spx.size1()
-        rows, cols = spx.get_triplet()
-        A = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, spx.size2()))
+        A = self.jacobian_pattern("xd,z")
+        n = A.shape[0]
         match = maximum_bipartite_matching(A, perm_type="column")
         unmatched_rows = [i for i in range(n) if match[i] < 0]
         if unmatched_rows:
@@ -324,7 +364,7 @@ class Dae:
             names = [self.eq_origin[i] for i in unmatched_rows[:10]]
             matched_cols = set(int(c) for c in match if c >= 0)
             allnames = [f"der({n})" for n in self.x_names] + self.z_names
-            free = [allnames[j] for j in range(spx.size2()) if j not in matched_cols][:10]
+            free = [allnames[j] for j in range(A.shape[1]) if j not in matched_cols][:10]
             raise UnderdeterminedError(
                 f"'{self.name}' is structurally singular: equations {names} cannot be matched to unknowns; "
                 f"unknowns left undetermined: {free}. A coordinate may have no mass, spring or damper acting on it "
@@ -333,12 +373,17 @@ class Dae:
         return True
 
     def _states_in_rows(self, rows):
-        xd, x, z, u, p = self._mx()
-        res = self.F(xd, x, z, u, p)
-        spx = ca.jacobian(res, x).sparsity()
-        r, c = spx.get_triplet()
+        r, c = self.jacobian_pattern("x").nonzero()
         out = sorted({self.x_names[cc] for rr, cc in zip(r, c) if rr in rows})
         return out
+
+
+def dm_sparse(A) -> ca.DM:
+    """scipy sparse (or dense) matrix -> CasADi DM with the same sparsity, built from the CSC arrays
+    (``ca.DM(scipy_matrix)`` converts entry by entry, ~10x slower for a few-hundred-row matrix)."""
+    A = sp.csc_matrix(A)
+    A.sort_indices()
+    return ca.DM(ca.Sparsity(A.shape[0], A.shape[1], A.indptr.tolist(), A.indices.tolist()), A.data.tolist())
 
 
 def _sp(m):

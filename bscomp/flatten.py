@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .component import Constraint, _Context, _PortBinding
-from .dae import Dae, MechanicalInfo
+from .dae import Dae, MechanicalInfo, dm_sparse
 from .errors import (
     HighIndexError,
     ModelDefinitionError,
@@ -410,7 +410,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
     sub_from = []
     sub_to = []
     if dep_idx:
-        Td = ca.DM(sp.csc_matrix(Tcsr[dep_idx, :]))
+        Td = dm_sparse(Tcsr[dep_idx, :])
         qr_v, qdr_v, qddr_v = ca.vertcat(*qr), ca.vertcat(*qdr), ca.vertcat(*qddr)
         qdep = ca.mtimes(Td, qr_v) + ca.DM(t0[dep_idx])
         qddep = ca.mtimes(Td, qdr_v)
@@ -537,7 +537,9 @@ def _apply_system_damping(dae, damping):
     so = second_order(dae, inputs=[], outputs=[])
     Cadd = sp.csc_matrix(system_damping_matrix(damping, so.M, so.K, so.coordinates))
     m.C = (m.C + Cadd).tocsc()
-    dae._cache.clear()
+    # everything built on the structural C goes; the scalar equations' Jacobian does not depend on it
+    for key in [k for k in dae._cache if k not in ("jac_sx", "mx")]:
+        del dae._cache[key]
     dae.stats["system_damping"] = repr(damping)
     # what the damping was computed from: second_order re-derives it when parameters or the operating
     # point change M or K (modal damping follows the modes), see linear._refresh_system_damping

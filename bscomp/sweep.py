@@ -140,22 +140,60 @@ class _TangentUpdate:
             C = C + P.T @ (Ct - C0) @ P
         return self.so0.M, sp.csr_matrix(K), sp.csr_matrix(C)
 
+    def _factor(self):
+        """Once per sweep: ``M = L L^T`` and ``A0 = L^-1 K0 L^-T`` (M does not change with the parameter)."""
+        if getattr(self, "_L", None) is None:
+            import scipy.linalg as sla
+
+            Md = self.so0.M.toarray()
+            L = np.linalg.cholesky(Md)
+            Li = sla.solve_triangular(L, np.eye(L.shape[0]), lower=True)
+            A0 = Li @ (self.so0.K @ Li.T)
+            self._L, self._W = L, np.asarray(self.P @ Li.T).T            # W = L^-1 P^T  (n, r)
+            self._A0 = 0.5 * (A0 + A0.T)
+        return self._L, self._W, self._A0
+
     def modal(self, x):
-        """Mass-normalised modes and modal damping at x: (lam, phi, c_modal, C_struct)."""
+        """Mass-normalised modes and modal damping at x: (lam, phi, c_modal, C_struct).
+
+        ``K(x) phi = M phi lam`` as the standard problem ``(A0 + W dK W^T) v = v lam`` with ``A0 = L^-1 K0
+        L^-T``, ``W = L^-1 P^T`` and ``phi = L^-T v`` (``M = L L^T`` factored once; the tangent change ``dK``
+        touches a few coordinates, so the update costs O(n^2 r) for r of them, not a product of dense
+        n x n matrices).
+        """
         import scipy.linalg as sla
+        import scipy.sparse as sp
 
         from .damping import system_damping_matrix
 
-        M, K, Cs = self.matrices(x)
-        Md, Kd = M.toarray(), K.toarray()
-        lam, phi = sla.eigh(Kd, Md, driver="gvd")
+        L, W, A0 = self._factor()
+        old = self.comp._values[self.pname]
+        try:
+            self.comp._values[self.pname] = float(x)
+            t = self.comp.tangent()
+        finally:
+            self.comp._values[self.pname] = old
+        dK = (sp.csr_matrix(t.K) - self.Kt0).tocoo()
+        S = np.unique(np.concatenate([dK.row, dK.col]))
+        A = A0.copy()
+        if S.size:
+            dKs = np.zeros((S.size, S.size))
+            np.add.at(dKs, (np.searchsorted(S, dK.row), np.searchsorted(S, dK.col)), dK.data)
+            WS = W[:, S]
+            A += WS @ dKs @ WS.T
+        lam, v = sla.eigh(A, driver="evd", overwrite_a=True, check_finite=False)
+        phi = sla.solve_triangular(L, v, lower=True, trans="T", check_finite=False)
+        Cs = self.C_struct0
+        if t.C is not None or self.Ct0 is not None:
+            Cs = self.matrices(x)[2]
         c = np.zeros(lam.size)
         if self.damping is not None:
             coords = list(self.dae.mech.coordinate_names)
             if hasattr(self.damping, "modal_ratios"):
-                zeta = self.damping.modal_ratios(lam, phi, Md, coords)
+                zeta = self.damping.modal_ratios(lam, phi, self.so0.M, coords)
                 c = 2.0 * zeta * np.sqrt(np.clip(lam, 0.0, None))
             else:
+                M, K, _ = self.matrices(x)
                 Cadd = system_damping_matrix(self.damping, M, K, coords)
                 Cm = phi.T @ np.asarray(Cadd.toarray() if hasattr(Cadd, "toarray") else Cadd) @ phi
                 off = Cm - np.diag(np.diag(Cm))
@@ -183,35 +221,42 @@ def modal_lowrank_frf(lam, phi, c_modal, C_struct, B, Cq, Cv, Ca, D, freqs):
     """
     import scipy.sparse as sp
 
+    def dense(A):
+        return np.asarray(A.toarray() if hasattr(A, "toarray") else A, float)
+
     w = 2.0 * np.pi * np.asarray(freqs, float)
+    nf, m = w.size, lam.size
     Cs = sp.csr_matrix(C_struct)
     S = np.unique(np.concatenate([Cs.nonzero()[0], Cs.nonzero()[1]])) if Cs.nnz else np.zeros(0, int)
     if S.size > 40:
         return None
-    Dg = lam[None, :] - w[:, None] ** 2 + 1j * w[:, None] * c_modal[None, :]           # (nf, m)
-    Di = 1.0 / Dg
-    b = phi.T @ np.asarray(B.toarray() if hasattr(B, "toarray") else B)                  # (m, ni)
-
-    def rowmap(A):
-        A = np.asarray(A.toarray() if hasattr(A, "toarray") else A)
-        return A @ phi                                                                    # (no, m)
-
-    a = rowmap(Cq)[None].astype(complex)                                                 # (nf|1, no, m)
+    re = lam[None, :] - w[:, None] ** 2                                                   # Dg = re + j im
+    im = w[:, None] * c_modal[None, :]
+    den = re * re + im * im
+    Dr, Dm = re / den, -im / den                                                           # Dg^-1 (nf, m)
+    # output rows (Cq + jw Cv - w^2 Ca) phi, grouped by their factor (1, jw, -w^2)
+    A = [(dense(Cq) @ phi, np.ones(nf))]
     if sp.csr_matrix(Cv).nnz:
-        a = a + 1j * w[:, None, None] * rowmap(Cv)[None]
+        A.append((dense(Cv) @ phi, 1j * w))
     if sp.csr_matrix(Ca).nnz:
-        a = a - (w ** 2)[:, None, None] * rowmap(Ca)[None]
-    aD = a * Di[:, None, :]                                                               # a Dg^-1
-    H = aD @ b                                                                            # (nf, no, ni)
-    if S.size:
-        U = phi[S]                                                                        # (r, m)
-        W = 1j * w[:, None, None] * Cs[S][:, S].toarray()[None]                           # (nf, r, r)
-        UD = U[None] * Di[:, None, :]                                                     # U Dg^-1
-        G = UD @ U.T                                                                      # U Dg^-1 U^T
-        inner = np.linalg.solve(np.eye(S.size)[None] + W @ G, W @ (UD @ b))               # (nf, r, ni)
-        H = H - (aD @ U.T) @ inner
-    Dd = np.asarray(D.toarray() if hasattr(D, "toarray") else D)
-    return H + Dd[None]
+        A.append((dense(Ca) @ phi, -(w ** 2)))
+    b = phi.T @ dense(B)                                                                   # (m, ni)
+    U = phi[S]                                                                             # (r, m)
+    # every sum_k X[:, k] Dg^-1[f, k] Y[k, :] needed below as one pair of real GEMMs
+    X = np.vstack([a for a, _ in A] + [U])
+    Y = np.hstack([b, U.T])
+    P = np.einsum("ak,kb->kab", X, Y).reshape(m, -1)
+    XY = (Dr @ P + 1j * (Dm @ P)).reshape(nf, X.shape[0], Y.shape[1])
+    no, ni, r = A[0][0].shape[0], b.shape[1], S.size
+    aD = [(XY[:, j * no:(j + 1) * no], f_) for j, (_, f_) in enumerate(A)]
+    H = sum(f_[:, None, None] * blk[:, :, :ni] for blk, f_ in aD)                           # a Dg^-1 b
+    if r:
+        W = 1j * w[:, None, None] * Cs[S][:, S].toarray()[None]                              # (nf, r, r)
+        G = XY[:, -r:, ni:]                                                                  # U Dg^-1 U^T
+        inner = np.linalg.solve(np.eye(r)[None] + W @ G, W @ XY[:, -r:, :ni])               # (nf, r, ni)
+        aDU = sum(f_[:, None, None] * blk[:, :, ni:] for blk, f_ in aD)                     # a Dg^-1 U^T
+        H = H - aDU @ inner
+    return H + dense(D)[None]
 
 
 def _fast_sweep(upd, positions, freqs, n_modes, progress):

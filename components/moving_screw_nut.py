@@ -136,7 +136,8 @@ class MovingScrewNut(Component):
             if not np.any(a):
                 return None
             xi, xi2, xi3 = powers[e]
-            return a[0] + a[1] * xi + a[2] * xi2 + a[3] * xi3
+            a0, a1, a2, a3 = (float(v) for v in a)            # Python floats: no numpy ufunc dispatch on SX
+            return a0 + a1 * xi + a2 * xi2 + a3 * xi3
 
         dP = [ca.SX(0)] * 6
         for n, node in enumerate(nodes):
@@ -175,13 +176,18 @@ class MovingScrewNut(Component):
         e = int(np.clip(np.searchsorted(self.z_nodes, z0, side="right") - 1, 0, len(self.z_nodes) - 2))
         xi = (z0 - self.z_nodes[e]) / (self.z_nodes[e + 1] - self.z_nodes[e])
         Ne = np.einsum("k,kij->ij", xi ** np.arange(4), self.poly[e])
-        A = sp.lil_matrix((12, n_s + 6))
-        A[:6, 6 * e:6 * e + 12] = Ne
-        A[6:, n_s:] = np.eye(6)
-        A = A.tocsr()
+        B = np.zeros((12, 18))                                   # A restricted to its 18 non-zero columns
+        B[:6, :12] = Ne
+        B[6:, 12:] = np.eye(6)
+        cols = np.r_[6 * e:6 * e + 12, n_s:n_s + 6]
+        ii, jj = np.meshgrid(cols, cols, indexing="ij")
+
+        def scatter(X):
+            return sp.csr_matrix(((B.T @ X @ B).ravel(), (ii.ravel(), jj.ravel())), shape=(n_s + 6, n_s + 6))
+
         dofs = [f"n{i}.{d}" for i in range(len(self.z_nodes)) for d in DOF_NAMES] + [f"nut.{d}" for d in DOF_NAMES]
-        K = (A.T @ sp.csr_matrix(self.K) @ A).tocsr()
-        C = None if self.C is None else (A.T @ sp.csr_matrix(self.C) @ A).tocsr()
+        K = scatter(self.K)
+        C = None if self.C is None else scatter(self.C)
         return LinearStructure(dofs=dofs, K=K, C=C)
 
     def observables(self):

@@ -135,11 +135,14 @@ DRIVE_FIELDS = ("w", "tz", "phi", "s")
 
 def drive_fraction(shapes, M, coordinates) -> np.ndarray:
     """Share of each mode's kinetic energy ``phi^T M phi`` in the axial/torsional coordinates."""
-    drive = np.array([c.rsplit(".", 1)[-1] in DRIVE_FIELDS for c in coordinates])
-    M = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
-    Md = np.where(np.outer(drive, drive), M, 0.0)
+    import scipy.sparse as sp
+
+    drive = np.array([c.rsplit(".", 1)[-1] in DRIVE_FIELDS for c in coordinates], float)
+    M = sp.csr_matrix(M)
     total = np.sum(shapes * (M @ shapes), axis=0)
-    return np.sum(shapes * (Md @ shapes), axis=0) / np.where(total > 0, total, 1.0)
+    sd = shapes * drive[:, None]                                # (D phi)^T M (D phi), D the drive mask
+    drive_e = np.sum(sd * (M @ sd), axis=0)
+    return drive_e / np.where(total > 0, total, 1.0)
 
 
 class DriveModalDamping:
