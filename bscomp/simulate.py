@@ -204,7 +204,8 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         for linear models (equals "lti" to ~1e-10). Measured (``docs/nonlinear.md``): Coulomb
         oscillator 5e-3 / 7e-4 of x0 at 2^-12 / 2^-14 s steps; test bed with Table 5.2 friction and
         backlash, 0.4 s vs IDAS rtol 1e-8: table.v 1.3e-4, table.s 8e-6, rotor.w 7e-6 (IDAS default
-        tolerances: 4.6e-4, 8e-5, 1.1e-4), 1 s of it in ~1.5 s wall. Its accuracy is not error
+        tolerances: 4.6e-4, 8e-5, 1.1e-4); 1 s of it in ~1.5 s wall for the first run from a start
+        point, ~0.9 s for a repeated one (the set-up is cached on the Dae). Its accuracy is not error
         controlled; check it with ``substeps``.
     substeps : int
         ``method="fixed"`` / ``"split"``: integration steps per output interval.
