@@ -39,10 +39,13 @@ part is integrated exactly (augmented matrix exponential, as ``method="lti"``):
           w_{N,k+1} = \\underbrace{w_{N0} + C_N(A_d \\delta x_k + B_d \\delta u_k + f_d) + D_N \\delta u_k}_{c_k}
                       + \\underbrace{(C_N E_d + D_g)}_{H}\\,g_{k+1}
 
-so each step is a Newton solve of ``w - c_k - H g(w) = 0`` in the few nonlinear unknowns (backtracking
-line search on the residual scaled to force units), then one state update. The scheme is exact for the
-linear structure (any step, any stiffness), first order in the nonlinear force (exact while ``g`` is
-constant: sliding, contact), and for passive laws unconditionally stable (implicit Euler on ``g``).
+so each step is a Newton solve of ``w - c_k - H g(w) = 0`` in the few nonlinear unknowns, then one state
+update. In chunks and fine batches the Newton is undamped (the laws evaluated once per iteration, the linear
+solve in the ``r`` nonlinear rows: ``(I - H G)^-1 = I + H (I - G H)^-1 G``); a step it leaves unconverged is
+redone with the damped iteration (backtracking line search on the residual scaled to force units). The
+scheme is exact for the linear structure (any step, any stiffness), first order in the nonlinear force
+(exact while ``g`` is constant: sliding, contact), and for passive laws unconditionally stable (implicit
+Euler on ``g``).
 
 Regime changes: a chunk of steps runs in one regime; the first step whose end state lies in another
 regime (or whose Newton failed) ends it (a step that only needs more Newton iterations is redone alone with
@@ -58,12 +61,14 @@ The state is carried in real modal coordinates of ``A`` (``δx = V ξ``; complex
 rotation blocks), so a step is a few vector operations of length ``n`` and products with the thin
 matrices ``V^{-1}B_d``, ``V^{-1}E_d``, ``C_N V``; if ``A`` is not safely diagonalisable (a Jordan block,
 e.g. an undamped rigid-body mode), a dense ``A_d`` is used instead (per regime; the basis is computed only
-for regimes that run chunks). Chunks of 4, 16, 64 or 256 steps are one CasADi Function each (unrolled
-calls of one step Function with the regime's matrices as inputs, built once), called through zero-copy
-buffers: no per-step Python inside a regime. One ``expm`` per regime (at the fine sub-step; the chunk step
-by squaring). Set-up cost: the Functions, the regimes' ``expm`` / ``eig`` and their matrices are cached on
-``dae._cache`` per start point, step and ``newton_iter`` (:func:`split_model`); a repeated run re-activates
-the cached regimes in the order it asks for them and so repeats the first run exactly.
+for regimes that run chunks; its condition is the LAPACK 1-norm estimate). Chunks of 4, 16, 64 or 256 steps
+are one CasADi Function each (four calls of the next shorter one, down to one step Function with the
+regime's matrices as inputs; built once), called through zero-copy buffers: no per-step Python inside a
+regime. Fine batches are built for 1, 2, 4, 8 and 16 sub-steps and sized to the sub-steps that remain.
+One ``expm`` per regime (at the fine sub-step; the chunk step by squaring). Set-up cost: the Functions,
+the regimes' ``expm`` / ``eig`` and their matrices are cached on ``dae._cache`` per start point, step and
+``newton_iter`` (:func:`split_model`); a repeated run re-activates the cached regimes in the order it asks
+for them and so repeats the first run exactly.
 """
 
 from __future__ import annotations
@@ -89,7 +94,7 @@ FINE = 16            # sub-steps per step while a regime change is being resolve
 SETTLE = 2           # steps without a regime change before chunks are used again
 _ALPHAS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125)
 _ROUNDOFF = 64 * np.finfo(float).eps  # relative round-off allowed in the positions of the implicit equation
-_COND_MAX = 1.0e8    # largest eigenvector condition number accepted for modal coordinates
+_COND_MAX = 1.0e9    # largest eigenvector condition number (1-norm, LAPACK estimate) accepted for modal coordinates
 
 
 def nonlinear_structure(dae):
@@ -101,6 +106,25 @@ def nonlinear_structure(dae):
         rows = [i for i, d in enumerate(ca.which_depends(dae.F_sx, v[N], 2, True)) if d] if N else []
         dae._cache[key] = (N, rows)
     return dae._cache[key]
+
+
+class _Numeric:
+    """A CasADi Function called on numpy arrays through a zero-copy buffer (no DM conversion): returns its
+    outputs as dense arrays of their shapes (the Function's outputs must be dense)."""
+
+    def __init__(self, f):
+        self.f, (self.buf, self.ev) = f, f.buffer()
+        self.shapes = [f.size_out(i) for i in range(f.n_out())]
+
+    def __call__(self, *args):
+        ins = [np.asfortranarray(a, float).reshape(-1, order="F") for a in args]  # alive until ev()
+        outs = [np.empty(s[0] * s[1]) for s in self.shapes]
+        for i, a in enumerate(ins):
+            self.buf.set_arg(i, memoryview(a))
+        for i, a in enumerate(outs):
+            self.buf.set_res(i, memoryview(a))
+        self.ev()
+        return [a.reshape(s, order="F") for a, s in zip(outs, self.shapes)]
 
 
 def _key(h):
@@ -184,7 +208,8 @@ class SplitModel:
         for a, i in enumerate(self.Nu):
             vv[nv + i] = uN[a]
         Frw = Fr_fun(vv, ca.DM(self.p))
-        self.tangent = ca.Function("split_tangent", [w, uN], [ca.jacobian(Frw, ca.vertcat(w, uN))])
+        Jw = ca.densify(ca.jacobian(Frw, ca.vertcat(w, uN)))
+        self.tangent = _Numeric(ca.Function("split_tangent", [w, uN], [Jw]))
         # a slope error dJ costs ~ dJ H / 2 relative per step (H = dw/dg over a step): the floor of the regime
         # test is also REGIME_COUPLING / |H|, H of the softest branches (largest response)
         cand = np.stack([self.J0] + self.Jfar)
@@ -213,21 +238,25 @@ class SplitModel:
         return R
 
     # ---- regimes --------------------------------------------------------------------------------
-    def mismatch(self, Jnow, Jreg):
-        """Largest entry of ``|Jnow - Jreg| / (rtol max(|Jnow|, |Jreg|) + atol)``: > 1 = another regime."""
-        return float(np.max(np.abs(Jnow - Jreg) / (REGIME_RTOL * np.maximum(np.abs(Jnow), np.abs(Jreg))
-                                                     + self.atol), initial=0.0))
+    def mismatches(self, Jnow):
+        """For every active regime (one entry each), the largest entry of ``|Jnow - Jreg| / (rtol max(|Jnow|,
+        |Jreg|) + atol)``: > 1 = another regime."""
+        if not self.regimes:
+            return np.zeros(0)
+        Jr = np.stack([R.Jblk for R in self.regimes])
+        den = REGIME_RTOL * np.maximum(np.abs(Jnow), np.abs(Jr)) + self.atol
+        return np.max(np.abs(Jnow - Jr) / den, axis=(1, 2), initial=0.0)
 
     def regime_of(self, w, uN):
         """The active regime whose slopes match the tangent at ``(w, u_N)``, or a new one for that tangent
         (entries near an outer-branch slope snapped to it)."""
         if not self.rows:
             return self.base
-        Jnow = np.array(ca.densify(self.tangent(w, uN)))
+        Jnow = self.tangent(w, uN)[0]
         if not np.all(np.isfinite(Jnow)):
             return self.regimes[-1] if self.regimes else self.regime(self.J0)
-        mis = [self.mismatch(Jnow, R.Jblk) for R in self.regimes]
-        if mis and min(mis) <= 1.0:
+        mis = self.mismatches(Jnow)
+        if mis.size and min(mis) <= 1.0:
             return self.regimes[int(np.argmin(mis))]
         if len(self.regimes) >= MAX_REGIMES:
             return self.regimes[int(np.argmin(mis))]
@@ -310,10 +339,12 @@ class _Kernels:
         g, G, mis = ca.substitute([g, G, mis], [self.mp], [ca.DM(np.asarray(mp_value, float))])
         self.nmp, self.mp = 0, ca.SX.sym("mp", 0)
         self.g_fun = ca.Function("split_g", [self.w, self.uN, self.Jblk, self.mp], [g, G, mis])
+        self.g_only = _Numeric(ca.Function("split_g_only", [self.w, self.uN, self.Jblk, self.mp], [ca.densify(g)]))
         if nN:
             c = ca.SX.sym("c", nN)
             args = [self.w, c, self.uN, self.H, self.Jblk, self.mp]
             self.it_fun = ca.Function("split_newton_iteration", args, list(self._iteration(*args)))
+            self.full_fun = ca.Function("split_newton_full", args, [self._full_iteration(*args)])
             self.gend_fun = ca.Function("split_g_end", args, list(self._g_end(*args)))
 
     # ---- symbolic pieces --------------------------------------------------------------------------
@@ -379,6 +410,14 @@ class _Kernels:
                 best_R, best_g = ca.if_else(better, Ra, best_R), ca.if_else(better, ga, best_g)
         return best_w, self._relative(best_R, best_w, best_g, c, H, isig)
 
+    def _full_iteration(self, w, c, uN, H, Jblk, mp):
+        """One undamped Newton iteration for ``w - c - H g(w) = 0`` (the laws evaluated once): ``w+``. Used in
+        chunks and fine batches; a step it does not converge is redone with the damped :meth:`_iteration`."""
+        gv, G, _ = self._g(w, uN, Jblk, mp)
+        Rw = w - c - ca.mtimes(H, gv)
+        # (I - H G)^-1 = I + H (I - G H)^-1 G: a solve in the r nonlinear rows instead of the nN unknowns
+        return w - Rw - ca.mtimes(H, ca.solve(ca.SX.eye(self.r) - ca.mtimes(G, H), ca.mtimes(G, Rw)))
+
     def _g_end(self, w, c, uN, H, Jblk, mp):
         """``(g, res, w, mismatch)`` at the Newton iterate ``w``."""
         isig = self._scales(w, c, H)
@@ -386,13 +425,14 @@ class _Kernels:
         return gv, self._relative((w - c - ca.mtimes(H, gv)) * isig, w, gv, c, H, isig), w, mis
 
     def _newton_sx(self, c, g_prev, uN, H, Jblk, mp):
-        """SX: ``n_iter`` iterations from the predictor ``c + H g_prev``, then ``(g, res, w, mismatch)``."""
+        """SX: ``n_iter`` undamped Newton iterations from the predictor ``c + H g_prev``, then ``(g, res, w,
+        mismatch)`` (an unconverged step is redone by the caller with the damped iteration)."""
         if not self.nN:
             g, _, mis = self._g(ca.SX(0, 1), uN, Jblk, mp)
             return g, ca.SX(0, 1), ca.SX(0, 1), mis
         w = c + ca.mtimes(H, g_prev)
         for _ in range(self.n_iter):
-            w, _ = self.it_fun(w, c, uN, H, Jblk, mp)
+            w = self.full_fun(w, c, uN, H, Jblk, mp)
         return self.gend_fun(w, c, uN, H, Jblk, mp)
 
     # ---- Functions ----------------------------------------------------------------------------------
@@ -442,25 +482,12 @@ class _Kernels:
 
     def chunk(self, n, nsub, dense, jit=False):
         """``n`` steps in one Function ``(xi0, g0, dU[nu x n], U_N[nuN x n], *regime matrices, mp) -> (Xi, G, Res,
-        W, Mis)`` (unrolled calls of :meth:`step`) with a zero-copy buffer."""
+        W, Mis)`` with a zero-copy buffer (``jit``: compiled). ``n`` is a power of 4: four calls of the chunk of
+        ``n / 4`` (:meth:`_unrolled`), so building all lengths takes a few symbolic calls."""
         key = ("chunk", n, nsub, dense, jit)
         if key in self.funs:
             return self.funs[key]
-        step = self.step(nsub, dense)
-        x0, g0 = ca.MX.sym("x", self.nx), ca.MX.sym("g", self.r)
-        dU, UN = ca.MX.sym("dU", self.nu, n), ca.MX.sym("UN", self.nuN, n)
-        mats = [ca.MX.sym(name, m, k) for name, (m, k) in self.layout(dense)]
-        mp = ca.MX.sym("mp", self.nmp)
-        dUs = ca.horzsplit(dU) if self.nu else [ca.MX(0, 1)] * n
-        UNs = ca.horzsplit(UN) if self.nuN else [ca.MX(0, 1)] * n
-        outs = [[] for _ in range(5)]
-        x, g = x0, g0
-        for i in range(n):
-            o = step(x, g, dUs[i], UNs[i], *mats, mp)
-            x, g = o[0], o[1]
-            for lst, v in zip(outs, o):
-                lst.append(v)
-        f = ca.Function("split_chunk", [x0, g0, dU, UN] + mats + [mp], [ca.horzcat(*o) for o in outs])
+        f = self._unrolled(n, nsub, dense)
         if jit:
             from ._fixed_step import compiled
 
@@ -468,15 +495,49 @@ class _Kernels:
         self.funs[key] = (f, f.buffer())
         return self.funs[key]
 
-    def fine_batch(self):
+    def _unrolled(self, n, nsub, dense):
+        """The MX Function of ``n`` consecutive steps (``n`` = 1 or a power of 4): :meth:`step`, or four calls
+        of the one of ``n / 4`` steps chained through ``(x, g)``, outputs concatenated in time."""
+        key = ("unrolled", n, nsub, dense)
+        if key in self.funs:
+            return self.funs[key]
+        if n == 1:
+            inner, m = self.step(nsub, dense), 1
+        else:
+            inner, m = self._unrolled(n // 4, nsub, dense), n // 4
+        x0, g0 = ca.MX.sym("x", self.nx), ca.MX.sym("g", self.r)
+        dU, UN = ca.MX.sym("dU", self.nu, n), ca.MX.sym("UN", self.nuN, n)
+        mats = [ca.MX.sym(name, a, b) for name, (a, b) in self.layout(dense)]
+        mp = ca.MX.sym("mp", self.nmp)
+        parts = n // m
+        dUs = ca.horzsplit(dU, m) if self.nu else [ca.MX(0, m)] * parts
+        UNs = ca.horzsplit(UN, m) if self.nuN else [ca.MX(0, m)] * parts
+        outs = [[] for _ in range(5)]
+        x, g = x0, g0
+        for i in range(parts):
+            o = inner(x, g, dUs[i], UNs[i], *mats, mp)
+            x, g = o[0][:, -1], o[1][:, -1]
+            for lst, v in zip(outs, o):
+                lst.append(v)
+        f = ca.Function(f"split_chunk{n}", [x0, g0, dU, UN] + mats + [mp], [ca.horzcat(*o) for o in outs])
+        self.funs[key] = f
+        return f
+
+    def batch_size(self, n):
+        """The length of the fine batch used for ``n`` remaining sub-steps: the smallest power of two (or
+        ``K``) that covers them."""
+        return min(self.K, 1 << max(int(n) - 1, 0).bit_length())
+
+    def fine_batch(self, K):
         """``K`` dense sub-steps of one regime in the nonlinear unknowns only: ``(C0[nN x K], T[nN x r(K-1)],
         w0, u_N, H, Jblk, mp) -> (W, G, Res, Mis)`` (``K`` columns). The linear part enters through
         ``C0`` (the predictor of ``w`` from the start state, inputs and ``f_d``) and the impulse responses
-        ``T_k = C_N A_d^k E_d``: ``c_j = C0_j + sum_i T_(j+1-i) g_i``."""
-        key = "fine_batch"
+        ``T_k = C_N A_d^k E_d``: ``c_j = C0_j + sum_i T_(j+1-i) g_i``. Built for the lengths of
+        :meth:`batch_size` (a batch computes only the sub-steps that remain in the step)."""
+        key = ("fine_batch", K)
         if key in self.funs:
             return self.funs[key]
-        K, r, nN = self.K, self.r, self.nN
+        r, nN = self.r, self.nN
         C0, T = ca.SX.sym("C0", nN, K), ca.SX.sym("T", nN, r * max(K - 1, 0))
         w0, uN, H, Jblk, mp = ca.SX.sym("w0", nN), self.uN, self.H, self.Jblk, self.mp
         g_prev = self._g(w0, uN, Jblk, mp)[0]
@@ -563,7 +624,7 @@ class _Regime:
     def g_of(self, w, uN):
         if not self.m.rows:
             return np.zeros(0)
-        return np.array(self.m.kern.g_fun(w, uN, self.Jblk, self.m.mp)[0]).ravel()
+        return self.m.kern.g_only(w, uN, self.Jblk, self.m.mp)[0].ravel()
 
     # ---- linear part ----------------------------------------------------------------------------
     def _modal(self):
@@ -581,15 +642,15 @@ class _Regime:
         Wp = W[:, up]
         V = np.hstack([np.stack([Wp.real, Wp.imag], axis=2).reshape(n, -1), W[:, real].real])
         V /= np.linalg.norm(V, axis=0)
-        try:
-            cond = np.linalg.cond(V)
-        except np.linalg.LinAlgError:
-            return
+        with np.errstate(divide="ignore"):
+            lu = sla.lu_factor(V, check_finite=False)
+            rcond, info = sla.lapack.dgecon(lu[0], np.linalg.norm(V, 1), norm="1")
+        cond = 1.0 / rcond if info == 0 and rcond > 0 else np.inf
         if not np.isfinite(cond) or cond > _COND_MAX:
             return
         self.V, self.cond, self.dense = V, cond, False
         self.n_real, self.n_pair = int(np.count_nonzero(real)), int(np.count_nonzero(up))
-        self.V_lu = sla.lu_factor(V)
+        self.V_lu = lu
 
     def _expm(self, h):
         """``expm`` of the augmented matrix ``[A B E c; 0] h`` (cached); at ``2^j`` times the fine sub-step, by
@@ -791,11 +852,13 @@ def simulate_split(dae, t, U, xs, p, outputs, controllers, substeps, newton_iter
         before the first that leaves ``R`` or whose Newton did not converge: ``(count, x, w, res)``."""
         Mx, Mb, Mf, T = R.markov(hs)
         d = R.discretise(hs)
-        C0 = np.asfortranarray(((Mx @ x + Mb @ du + Mf).reshape(K, nN) + (R.wc + R.Dn @ du)).T)
-        f, (buf, ev) = m.kern.fine_batch()
-        Wb, Gb, Rb, Mb_ = np.empty((K, nN)), np.empty((K, r)), np.empty((K, nN)), np.empty((K, 1))
-        ins = (C0, T, np.ascontiguousarray(w, float), np.ascontiguousarray(uN, float), np.asfortranarray(d["H"]),
-               R.Jblk_f, m.mp)
+        Kb = m.kern.batch_size(n)
+        Mx, Mb, Mf, T = Mx[:Kb * nN], Mb[:Kb * nN], Mf[:Kb * nN], T[:, :r * (Kb - 1)]
+        C0 = np.asfortranarray(((Mx @ x + Mb @ du + Mf).reshape(Kb, nN) + (R.wc + R.Dn @ du)).T)
+        f, (buf, ev) = m.kern.fine_batch(Kb)
+        Wb, Gb, Rb, Mb_ = np.empty((Kb, nN)), np.empty((Kb, r)), np.empty((Kb, nN)), np.empty((Kb, 1))
+        ins = (C0, np.asfortranarray(T), np.ascontiguousarray(w, float), np.ascontiguousarray(uN, float),
+               np.asfortranarray(d["H"]), R.Jblk_f, m.mp)
         for i, a in enumerate(ins):
             buf.set_arg(i, memoryview(a.reshape(-1, order="F")))
         for i, a in enumerate((Wb, Gb, Rb, Mb_)):

@@ -141,3 +141,36 @@ def test_newton_failure_names_time_and_variable(monkeypatch):
         simulate(s, t, x0={"m.s": 1e-2}, method="split")
     with pytest.raises(ValueError, match="substeps"):
         simulate(oscillator(), t, method="split", substeps=0)
+
+
+def test_chunk_pieces_agree_with_their_direct_forms():
+    """The undamped Newton iteration of the chunks (solve in the r nonlinear rows) is the Newton step with the
+    full (I - H G); a chunk of 16 steps (four chunks of 4) equals 16 single steps; batch lengths cover the
+    remaining sub-steps."""
+    import casadi as ca
+
+    dae = bscomp.flatten(two_mass_backlash_friction())
+    t = np.arange(0, 0.01 + 1e-12, 1e-4)
+    simulate(dae, t, inputs={"F.f": lambda tt: 10.0}, outputs=["m2.s"], method="split")
+    m = next(iter(dae._cache["split_models"].values()))
+    k, rng = m.kern, np.random.default_rng(0)
+    nN, r = k.nN, k.r
+    w, c, H = rng.normal(size=nN) * 1e-4, rng.normal(size=nN) * 1e-4, rng.normal(size=(nN, r)) * 1e-6
+    Jblk, uN = m.base.Jblk, np.zeros(k.nuN)
+    g, G, _ = (np.array(ca.densify(a)) for a in k.g_fun(w, uN, Jblk, m.mp))
+    direct = w - np.linalg.solve(np.eye(nN) - H @ G, w - c - H @ g.ravel())
+    np.testing.assert_allclose(np.array(k.full_fun(w, c, uN, H, Jblk, m.mp)).ravel(), direct, rtol=1e-10,
+                               atol=1e-18)
+    assert [k.batch_size(n) for n in (1, 2, 3, 5, 9, 16)] == [1, 2, 4, 8, 16, 16]
+    R = m.base
+    mats, dense = R.step_params(1e-4)
+    one, four = k._unrolled(1, 1, dense), k._unrolled(16, 1, dense)
+    x, g0 = rng.normal(size=k.nx) * 1e-6, R.g_of(m.v0[m.Nw], uN)
+    dU = rng.normal(size=(k.nu, 16))
+    UN = np.zeros((k.nuN, 16))
+    out16 = [np.array(a) for a in four(x, g0, dU, UN, *mats, m.mp)]
+    xs, gs = x, g0
+    for i in range(16):
+        o = one(xs, gs, dU[:, i], UN[:, i], *mats, m.mp)
+        xs, gs = np.array(o[0]).ravel(), np.array(o[1]).ravel()
+        np.testing.assert_array_equal(out16[0][:, i], xs)
