@@ -1,7 +1,8 @@
 """Thesis Sec 5.3.3 (Fig 5.16-5.22): a single-axis slotting operation on the axial + torsional test bed
 under the three controllers of Chapter 4, each run as a sampled-data controller at T_s = 200 µs.
 
-Run: python examples/slotting.py OUT_DIR [POSITIONS]   (default out/slotting, positions "L,C,R")
+Run: python examples/slotting.py OUT_DIR [POSITIONS] [FRICTION]
+     (default out/slotting, positions "L,C,R", friction "component"; "known" for the older known-force run)
 
 Model (section: model)
     ``testbed_axial_torsional`` with the bellows coupling (the notch and the RST of Sec 4.4-4.5 were
@@ -9,21 +10,22 @@ Model (section: model)
     damping of the toml ``[damping]`` group and B = 0.0321 kg m^2/s on the motor. The analog PI velocity
     loop (PIController, Tachometer, CurrentAmplifier, K_t) is part of the DAE; the digital blocks
     (DigitalPController, NotchFilter, RSTController) run every T_s through ``simulate(controllers=...)``.
-    The table position ``table.s`` is the measured position (linear scale).
+    The table position ``table.s`` is the measured position (linear scale). The guideway's Coulomb
+    friction of Table 5.2 (Eq 5.7, F_c+ = 2066 N) is a ``CoulombFriction`` component on the table.
 Solve
-    ``simulate(..., method="lti")``: exact zero-order-hold stepping of the linear closed loop on a 25 µs
-    grid (24 points per tooth period). IDAS on the same 197-state model took 37 s for 20 ms of motion
-    here (per-sample restarts), i.e. ~35 min per controller for this 1.2 s operation; the LTI route takes
-    ~20 s. Its limits, stated where they matter:
+    ``simulate(..., method="split")`` on a 25 µs grid (24 points per tooth period): the linear closed loop
+    stepped by exact zero-order hold, re-linearized per friction regime (stick / slide), the friction
+    force implicit (bscomp._split_step). IDAS on the same model took 37 s for 20 ms of motion here
+    (per-sample restarts), i.e. ~35 min per controller for this 1.2 s operation. Limits:
 
     * **Nut position frozen.** The nut is fixed at one position per run (L, C, R, toml
       ``table.nut_position_*``); the move L -> R is run on each frozen model, which brackets the
-      position-dependent dynamics of Sec 5.2.2.3 instead of sweeping them (``MovingNutJoint`` needs IDAS).
-    * **Friction (Table 5.2) as a known force.** Coulomb friction F_c = 2066 N enters as
-      ``-F_c sign(v_ref(t))``. The move never reverses, so this is the sliding friction exactly while the
-      table slides in the commanded direction (the script reports the smallest table velocity during
-      the move to check that); at stand-still the real friction would hold the table, here it is 0.
-      The viscous part B is the motor's B (applied once, toml ``control.B``).
+      position-dependent dynamics of Sec 5.2.2.3 instead of sweeping them (``MovingNutJoint`` makes the
+      screw coupling depend on the nut position: every screw coordinate then enters nonlinearly, which
+      leaves IDAS as the only integrator, at ~35 min per case).
+    * With ``FRICTION=known`` the friction is the known force ``-F_c sign(v_ref(t))`` on the linear model
+      (``method="lti"``): exact while the table slides forward, wrong at stand-still (the table is pushed
+      back before the drive force exceeds F_c). The viscous part B is the motor's B (applied once).
 
 Trajectory (Table 5.4, Sec 5.3.3): trapezoidal velocity, 1.5 G acceleration and deceleration; 40 m/min
 over the first 100 mm from L (ending at 25 m/min), the slot at 25 m/min, then 40 m/min to R and stop.
@@ -41,7 +43,16 @@ import numpy as np
 import scipy.sparse as sp
 
 from bscomp import flatten, second_order
-from bscomp.components import CurrentAmplifier, DigitalPController, Gain, NotchFilter, PIController, Tachometer
+from bscomp.components import (
+    CoulombFriction,
+    CurrentAmplifier,
+    DigitalPController,
+    Fixed,
+    Gain,
+    NotchFilter,
+    PIController,
+    Tachometer,
+)
 from bscomp.components._sampled import sampled_controller
 from bscomp.control_design import ppc_polynomials, rst_design, split_polynomial
 from bscomp.simulate import simulate
@@ -51,7 +62,7 @@ from bscomp.systems.testbed import testbed_axial_torsional
 CONTROLLERS = ("P-PI", "P-PI + notch", "RST (Table 4.6)", "RST (redesigned)")
 #: CHOICE: slot length. Sec 5.3.3 gives it only in Fig 5.16 (missing); 200 mm leaves a 259 mm final rapid.
 SLOT_LENGTH = 0.200
-#: The first 10 ms are reported apart: there the known-force friction acts on a table still at rest.
+#: The first 10 ms are reported apart: with known-force friction it acts there on a table still at rest.
 T_START = 0.010
 DT = 25e-6  # output grid [s]: 24 points per tooth-passing period (600 µs)
 THESIS = {  # Sec 5.3.3 text; the figures themselves are missing from the extracted thesis
@@ -217,10 +228,19 @@ def _with_drive_damping(closed, nut_position, coupling):
     return dae
 
 
-def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows"):
+def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", friction: bool = False):
     """The test bed with the analog part of the controller: ``"P-PI"`` adds the PI velocity loop of
-    Fig 4.3 (input ``pi.u_s`` [V]), ``"RST"`` only the amplifier (input ``amp.u`` [V], Fig 4.19)."""
+    Fig 4.3 (input ``pi.u_s`` [V]), ``"RST"`` only the amplifier (input ``amp.u`` [V], Fig 4.19).
+    ``friction=True`` adds the guideway's Coulomb friction of Table 5.2 as a component (Eq 5.7 with the
+    +/- levels, regularised over v_reg = 0.1 mm/s as in examples/nonlinear_scenarios.py)."""
     s = testbed_axial_torsional(nut_position=nut_position, coupling=coupling)
+    if friction:
+        fb = p["friction_backlash"]
+        s.add("guide_ground", Fixed())
+        s.add("friction", CoulombFriction(F_c_pos=fb["F_coul_pos"]["value"], F_c_neg=abs(fb["F_coul_neg"]["value"]),
+                                          v_reg=1e-4))
+        s.connect("friction.flange_a", "guide_ground.flange")
+        s.connect("friction.flange_b", "table.flange_b")
     s.add("amp", CurrentAmplifier(K_a=get_value(p, "electrical.K_a")))
     s.add("kt", Gain(k=get_value(p, "electrical.K_t")))
     s.connect("amp.i", "kt.u")
@@ -312,31 +332,41 @@ def controller(p, name, reference):
 
 # ---------------------------------------------------------------------------------------------------
 # solve and post-process
-def run_case(p, name, traj, position, friction=True, t_end=None, cut_window=None, dt=DT, plants=None):
-    """Simulate one controller with the nut frozen at ``position``; returns a dict of signals."""
+def run_case(p, name, traj, position, friction="component", t_end=None, cut_window=None, dt=DT, plants=None):
+    """Simulate one controller with the nut frozen at ``position``; returns a dict of signals.
+
+    ``friction``: ``"component"`` (default) -- the Table 5.2 Coulomb friction as a component in the
+    model, run by ``simulate(method="split")`` (exact ZOH of the linear part per friction regime, so the
+    table sticks at rest and slides under load); ``"known"`` -- friction as the known force
+    ``-F_c sign(v_ref(t))`` on the linear model (``method="lti"``, exact while the table slides forward);
+    ``False`` -- none.
+    """
+    if friction not in ("component", "known", False, None):
+        raise ValueError(f"run_case: friction must be 'component', 'known' or False, got {friction!r}")
+    real = friction == "component"
     t_end = traj.duration + 0.1 if t_end is None else t_end
     t = dt * np.arange(int(round(t_end / dt)) + 1)
     ctrl, kind = controller(p, name, lambda tt: float(traj.position(tt)))
-    key = (kind, position)
+    key = (kind, position, real)
     if plants is None or key not in plants:
-        dae = closed_loop_plant(p, kind, position)
+        dae = closed_loop_plant(p, kind, position, friction=real)
         if plants is not None:
             plants[key] = dae
     else:
         dae = plants[key]
     f_cut = cutting_force(p, traj.phases["cut"] if cut_window is None else cut_window)
-    F_c = abs(get_value(p, "friction_backlash.F_coul_pos")) if friction else 0.0
+    F_c = abs(get_value(p, "friction_backlash.F_coul_pos")) if friction == "known" else 0.0
 
     def f_table(tt):
         return f_cut(tt) - F_c * np.sign(traj.velocity(tt))
 
     act = ctrl.actuate[0]
-    res = simulate(dae, t, inputs={"Fd.f": f_table}, controllers=[ctrl], method="lti",
+    res = simulate(dae, t, inputs={"Fd.f": f_table}, controllers=[ctrl], method="split" if real else "lti",
                    outputs=["table.s", "table.v", "table.a", "amp.u"])
     r = traj.position(t)
     return {"t": t, "ref": r, "v_ref": traj.velocity(t), "a_ref": traj.acceleration(t), "x": res["table.s"],
             "v": res["table.v"], "a": res["table.a"], "e": r - res["table.s"], "u": -res["amp.u"],
-            "u_ctrl": res[act], "F_d": res["Fd.f"], "wall_s": res.stats["wall_s"]}
+            "u_ctrl": res[act], "F_d": res["Fd.f"], "wall_s": res.stats["wall_s"], "friction": friction}
 
 
 def amplitude_at(t, y, f):
@@ -415,7 +445,7 @@ def plot_cut_zoom(all_res, traj, position, path):
     plt.close(fig)
 
 
-def main(out_dir="out/slotting", positions="L,C,R"):
+def main(out_dir="out/slotting", positions="L,C,R", friction="component"):
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     p = load_parameters()
@@ -433,14 +463,14 @@ def main(out_dir="out/slotting", positions="L,C,R"):
         all_res[name] = {}
         for pos in positions:
             blocks, act, kind = controller_blocks(p, name)
-            if (kind, pos) not in plants:
-                plants[(kind, pos)] = closed_loop_plant(p, kind, pos)
-            rho = spectral_radius(plants[(kind, pos)], blocks, act)
+            if (kind, pos, False) not in plants:                   # stability: the linear plant
+                plants[(kind, pos, False)] = closed_loop_plant(p, kind, pos)
+            rho = spectral_radius(plants[(kind, pos, False)], blocks, act)
             if rho >= 1.0:
                 rows.append((name, pos, rho, None))
                 print(f"  {name:<17} nut at {pos}: closed loop UNSTABLE (max |z| = {rho:.4f}), not simulated")
                 continue
-            r = run_case(p, name, traj, pos, plants=plants)
+            r = run_case(p, name, traj, pos, friction=friction, plants=plants)
             all_res[name][pos] = r
             rows.append((name, pos, rho, metrics(r, traj, f_tooth)))
             print(f"  {name:<17} nut at {pos}: max |z| = {rho:.4f}, {r['wall_s']:5.1f} s wall")
@@ -472,4 +502,4 @@ def main(out_dir="out/slotting", positions="L,C,R"):
 
 
 if __name__ == "__main__":
-    main(*(sys.argv[1:3] or ["out/slotting"]))
+    main(*(sys.argv[1:4] or ["out/slotting"]))
