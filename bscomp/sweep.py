@@ -10,6 +10,7 @@ with the same ``map`` interface (e.g. a Dask ``Client.get_executor()``) can be p
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -102,8 +103,11 @@ class _TangentUpdate:
         from .linear import second_order
 
         self.system, self.parameter, self.path, self.pname, self.comp = system, parameter, path, pname, comp
+        t0 = time.perf_counter()
         self.dae = flatten(system)
+        t1 = time.perf_counter()
         self.so0 = second_order(self.dae, inputs=inputs, outputs=outputs)
+        self.times = {"flatten_s": t1 - t0, "linearize_s": time.perf_counter() - t1}
         self.inputs, self.outputs = inputs, outputs
         m = self.dae.mech
         t0 = comp.tangent()
@@ -301,6 +305,9 @@ class PositionSweep:
     freqs : (nf,) ndarray or None
     H : (npos, nf, n_out, n_in) complex ndarray or None
     inputs, outputs : list of str
+    stats : dict
+        Method and wall times [s] of its parts (tangent path: ``flatten_s``, ``linearize_s``, ``check_s``,
+        ``positions_s``; every path: ``wall_s``).
     """
 
     parameter: str
@@ -312,6 +319,7 @@ class PositionSweep:
     inputs: list = field(default_factory=list)
     outputs: list = field(default_factory=list)
     name: str = ""
+    stats: dict = field(default_factory=dict)
 
     def to_csv(self, path) -> None:
         """One row per position: position, ``f1..fm`` [Hz], ``zeta1..zetam``."""
@@ -411,6 +419,7 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
     -------
     PositionSweep
     """
+    t_start = time.perf_counter()
     positions = np.atleast_1d(np.asarray(positions, float))
     if method not in ("auto", "tangent", "rebuild"):
         raise ValueError(f"position_sweep: method must be 'auto', 'tangent' or 'rebuild', got {method!r}")
@@ -457,7 +466,8 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
         Z[k, : r["damping"].size] = r["damping"]
     H = np.stack([r["H"] for r in results]) if freqs is not None else None
     return PositionSweep(parameter=parameter, positions=positions, frequencies=F, damping=Z, freqs=freqs, H=H,
-                         inputs=list(results[0]["inputs"]), outputs=list(results[0]["outputs"]), name=name)
+                         inputs=list(results[0]["inputs"]), outputs=list(results[0]["outputs"]), name=name,
+                         stats={"method": "rebuild", "wall_s": time.perf_counter() - t_start})
 
 
 def _tangent_sweep(system, parameter, owner, positions, freqs, inputs, outputs, n_modes, progress, name):
@@ -468,8 +478,10 @@ def _tangent_sweep(system, parameter, owner, positions, freqs, inputs, outputs, 
 
     from .errors import BscompError
 
+    t_start = time.perf_counter()
     path, pname, comp = owner
     upd = _TangentUpdate(system, parameter, path, pname, comp, inputs, outputs)
+    t_check = time.perf_counter()
     # check the update against a full linearization at the farthest position
     xc = float(positions[np.argmax(np.abs(positions - upd.x0))])
     M, K, Cs = upd.matrices(xc)
@@ -489,10 +501,9 @@ def _tangent_sweep(system, parameter, owner, positions, freqs, inputs, outputs, 
                               "method='rebuild' and report the component")
     show = (positions.size > 20) if progress is None else progress
     last = [0.0]
+    t_pos = time.perf_counter()
 
     def bar(k, n):
-        import time
-
         now = time.perf_counter()
         if show and (k == n or now - last[0] > 0.5):
             last[0] = now
@@ -501,6 +512,9 @@ def _tangent_sweep(system, parameter, owner, positions, freqs, inputs, outputs, 
     out = _fast_sweep(upd, positions, freqs, n_modes, bar)
     if out is None:
         return None
+    t_end = time.perf_counter()
+    stats = dict(method="tangent", **upd.times, check_s=t_pos - t_check, positions_s=t_end - t_pos,
+                 wall_s=t_end - t_start)
     F_list, Z_list, H_list = out
     m = max(f.size for f in F_list)
     F = np.full((positions.size, m), np.nan)
@@ -511,4 +525,4 @@ def _tangent_sweep(system, parameter, owner, positions, freqs, inputs, outputs, 
     so = upd.so0
     return PositionSweep(parameter=parameter, positions=positions, frequencies=F, damping=Z, freqs=freqs,
                          H=np.stack(H_list) if freqs is not None else None, inputs=list(so.inputs),
-                         outputs=list(so.outputs), name=name)
+                         outputs=list(so.outputs), name=name, stats=stats)

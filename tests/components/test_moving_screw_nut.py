@@ -147,6 +147,9 @@ def test_tangent_sweep_agrees_with_rebuild_sweep():
     slow = position_sweep(build, pos, freqs=f, method="rebuild", **io)
     np.testing.assert_allclose(fast.frequencies, slow.frequencies, rtol=1e-6)
     assert np.abs(fast.H - slow.H).max() <= 1e-6 * np.abs(slow.H).max()
+    assert fast.stats["method"] == "tangent" and slow.stats["method"] == "rebuild"
+    parts = sum(fast.stats[k] for k in ("flatten_s", "linearize_s", "check_s", "positions_s"))
+    assert parts <= fast.stats["wall_s"] * (1 + 1e-9)
 
 
 def test_wrong_tangent_is_caught():
