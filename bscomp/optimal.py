@@ -7,7 +7,9 @@ imposed at every collocation point; inputs are piecewise constant (what a sample
 Variables are scaled by nominal magnitudes (given ``scale``, bounds, boundary values, else the largest
 value along a reference motion of the linearized model, see :meth:`Ocp.reference`), so µm and kN live
 in one problem; the reference motion is also the cold-start guess. The transcription is chosen apart
-from the model: the Dae is not touched.
+from the model: the Dae is not touched. Linear models can be transcribed in modal coordinates with the
+states eliminated (``Ocp(..., coordinates="modal")``), and a residual-vibration limit after arrival is
+available for any linear(ized) model (:meth:`Ocp.limit_residual_vibration`).
 
 >>> ocp = Ocp(system, N=100)
 >>> ocp.bound("motor.tau", -8, 8); ocp.bound("table.v", -1, 1)
@@ -48,6 +50,8 @@ class OcpResult:
         Piecewise-constant inputs on each interval.
     outputs : dict name -> ndarray (N+1,)
     active : dict name -> fraction of points where the bound is active (within 1e-6 of it)
+    residual : dict name -> certified residual-vibration amplitude after arrival (unit of the output), for
+        the outputs given to :meth:`Ocp.limit_residual_vibration` (see there)
     """
 
     T: float
@@ -63,6 +67,7 @@ class OcpResult:
     p: Any = None
     xd: Any = None
     z: Any = None
+    residual: dict = field(default_factory=dict)
 
     def __getitem__(self, name):
         if name in self.outputs:
@@ -152,9 +157,22 @@ class Ocp:
         Radau collocation degree.
     params : dict, optional
         Parameter overrides.
+    coordinates : {"physical", "modal"}
+        ``"modal"`` (linear models only): transcribe in the real modal coordinates ``ξ`` of the model's
+        state matrix, ``x = x0 + P ξ``, ``ξ' = Λ ξ + P⁻¹ (B u + x'0)`` with ``Λ`` block diagonal (one
+        2 x 2 block ``[[σ, ω], [-ω, σ]]`` per mode, 1 x 1 for real eigenvalues, one block for the rigid-body
+        zero eigenvalues; see :mod:`bscomp._ocp_modal`). An exact change of coordinates: the optimum is
+        the same, but every damping -- modal, discrete, non-proportional -- sits in the 2 x 2 blocks, so
+        the collocation Jacobian has ~2 non-zeros per state instead of the dense rows of a modal damping
+        matrix, and the modes are scaled one by one. Bounds, final values and outputs keep the model's
+        names (they become rows of ``P``); the result is mapped back to the original states.
     """
 
-    def __init__(self, model, N: int = 100, degree: int = 3, params: dict | None = None):
+    def __init__(self, model, N: int = 100, degree: int = 3, params: dict | None = None,
+                 coordinates: str = "physical"):
+        if coordinates not in ("physical", "modal"):
+            raise ValueError(f"coordinates must be 'physical' or 'modal', not {coordinates!r}")
+        self.coordinates = coordinates
         self.dae = resolve_model(model, params)
         self.p = self.dae.parameter_vector({k: v for k, v in (params or {}).items()
                                             if k not in self.dae.structural_parameters})
@@ -169,6 +187,11 @@ class Ocp:
         self.objective_args: dict = {}
         self.scale: dict[str, float] = {}
         self.warm: OcpResult | None = None
+        self.residual_limits: dict[str, float] = {}
+        self.rest_below_hz: float | None = None
+        self.hold: dict[str, float] = {}
+        self._terminal = None    # (rows over x, targets): linear final conditions (modal transcription)
+        self._modal = None
         # MUMPS's default pivot tolerance (1e-6) gives inaccurate steps on the KKT systems of stiff
         # structures (stiffnesses of 1e8 N/m next to a free rigid-body mode): Ipopt then creeps for
         # hundreds of iterations. 1e-2 costs little and brought the reduced test bed from ~300 to ~15.
@@ -206,13 +229,24 @@ class Ocp:
         self.x_init.update({k: float(v) for k, v in values.items()})
         return self
 
-    def final(self, values: dict, rest: bool = True):
-        """Final state values by name; ``rest=True`` also sets every velocity state to zero at the end."""
+    def final(self, values: dict, rest: bool = True, rest_below_hz: float | None = None):
+        """Final state values by name.
+
+        ``rest=True`` also sets every velocity state to zero at the end. ``rest_below_hz=f`` replaces that
+        by arrival at *equilibrium* of the modes of the linear(ized) model slower than ``f`` [Hz]
+        (``|λ| < 2π f``, the rigid-body velocity mode included): each such mode's coordinates are at their
+        static values under the held input (see :meth:`limit_residual_vibration`), so those modes carry
+        no residual vibration; faster modes are left free. On a detailed model (the 98-DOF test bed has
+        modes to 180 kHz) ``rest=True`` asks the piecewise-constant input to stop modes it cannot resolve:
+        with N intervals and ~N velocities to zero the problem is square and degenerate (measured: Ipopt
+        stalls at a constraint violation of 3e-6). Choose ``f`` like the cut-off of a reduced model.
+        """
         for k in values:
             if self._kind(k) != "x":
                 raise UnknownNameError(f"final value for '{k}': only states can be given")
         self.x_final.update({k: float(v) for k, v in values.items()})
-        self.final_rest = bool(rest)
+        self.final_rest = bool(rest) and rest_below_hz is None
+        self.rest_below_hz = None if rest_below_hz is None else float(rest_below_hz)
         return self
 
     def minimize_time(self, T_guess: float = 1.0):
@@ -244,6 +278,103 @@ class Ocp:
         self.T_fixed = float(T)
         self.objective_args = {"output": output, "T_settle": float(T_settle)}
         return self
+
+    def limit_residual_vibration(self, limits: dict, hold: dict | None = None):
+        """Limit the residual vibration after arrival (linear models; linearized at the start otherwise).
+
+        After ``T`` the inputs are *held* at ``hold`` (by name; default 0 for every input, or the value
+        of an input fixed by ``bound(name, v, v)``) -- e.g. the motor torque released at arrival. From the
+        state at ``T`` the model then moves freely to an equilibrium; for every output ``y`` in ``limits``
+        the constraint guarantees ``|y(t) - y(∞)| <= limits[y]`` for **all** ``t >= T`` (unit of ``y``:
+        m for ``table.s``, m/s² for ``table.a``, ...). With ``final(..., rest=True)`` and ``y`` the
+        position given in ``final``, ``y(∞)`` is also within the limit of the target, so the move settles
+        to ``± limit`` at arrival.
+
+        Measure: the free response is a sum of damped modes, ``y(t) - y(∞) = Σ_k C P_k e^{Λ_k (t-T)} e_k``
+        (``e_k``: the modal distance of the state at ``T`` from the equilibrium under the held input), so
+        ``|y(t) - y(∞)| <= Σ_k G_k |e_k|`` with ``G_k = |C P_k|``; the constraint is the Cauchy-Schwarz
+        bound ``sqrt(Σ G_k) sqrt(Σ G_k |e_k|²) <= limit``, one smooth convex inequality on the final state
+        (see :func:`bscomp._ocp_modal.residual_rows`). It is a guarantee, conservative by at most
+        ``sqrt(Σ G_k / G_max)`` when one mode dominates. Unlike an equality "accelerations zero at T", it
+        does not fight the piecewise-constant input on the last interval: the input jumps to the held value
+        at ``T`` and the bound is on what follows. ``OcpResult.residual`` reports the bound at the optimum.
+        Raises :class:`OcpError` at solve time if the limits cannot be met (with the bound reached).
+        """
+        for k, v in limits.items():
+            if self._kind(k) == "u":
+                raise UnknownNameError(f"residual-vibration limit on '{k}': give an output or a state, not an input")
+            if not v > 0:
+                raise ValueError(f"residual-vibration limit on '{k}' must be > 0, not {v}")
+        for k in hold or {}:
+            if self._kind(k) != "u":
+                raise UnknownNameError(f"hold value for '{k}': only inputs can be held")
+        self.residual_limits.update({k: float(v) for k, v in limits.items()})
+        self.hold.update({k: float(v) for k, v in (hold or {}).items()})
+        return self
+
+    def _hold_vector(self):
+        u = np.zeros(self.dae.nu)
+        for i, n in enumerate(self.dae.u_names):
+            if n in self.hold:
+                u[i] = self.hold[n]
+            elif n in self.bounds and self.bounds[n][0] == self.bounds[n][1]:
+                u[i] = self.bounds[n][0]
+        return u
+
+    def _terminal_rows(self, lin):
+        """Linear final conditions ``R x_T = t`` beyond the named final values: the modal transcription's rows
+        and the equilibrium rows of ``final(rest_below_hz=...)``; None if there are none."""
+        parts = [r for r in (self._terminal, self._equilibrium_rows(lin)) if r is not None and len(r[1])]
+        if not parts:
+            return None
+        return np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+    def _equilibrium_rows(self, lin):
+        """Rows ``(R, t)``, ``R x_T = t``: the modes with ``|λ| < 2π rest_below_hz`` at their equilibrium under
+        the held input (``e_k = 0`` in :func:`bscomp._ocp_modal.residual_rows`)."""
+        from ._ocp_modal import ModalDae, modal_basis
+
+        if self.rest_below_hz is None:
+            return None
+        if lin is None:
+            raise OcpError("final(rest_below_hz=...) needs a model that can be linearized at the start")
+        basis = self.dae.self_basis if isinstance(self.dae, ModalDae) else modal_basis(lin["A"])
+        b = lin["xd0"] + lin["B"] @ self._hold_vector()
+        pb = basis["Pinv"] @ b
+        R, t = [], []
+        for idx, kind, lam in basis["blocks"]:
+            if kind == "zero" or abs(lam) >= 2 * np.pi * self.rest_below_hz:
+                continue
+            Lk = basis["Lam"][np.ix_(idx, idx)]
+            R.append(basis["Pinv"][idx])
+            t.append(basis["Pinv"][idx] @ lin["x0"] - np.linalg.solve(Lk, pb[idx]))
+        if not R:
+            return None
+        return np.vstack(R), np.concatenate(t)
+
+    def _residual_rows(self, lin):
+        """{name: (L, l)}: ``|L (x_T - x0) + l| <= limit`` (see :meth:`limit_residual_vibration`)."""
+        from ._ocp_modal import ModalDae, ModalError, output_rows, residual_rows
+
+        if not self.residual_limits:
+            return {}
+        if lin is None:
+            raise OcpError("limit_residual_vibration needs a model that can be linearized at the start")
+        dae = self.dae
+        names = list(self.residual_limits)
+        if isinstance(dae, ModalDae):
+            _, C, _ = dae.rows(names)
+            basis = dae.self_basis
+        else:
+            _, C, _ = output_rows(dae, self.p, dict(lin, u0=np.zeros(dae.nu)), names)
+            basis = None
+        out = {}
+        for r, n in enumerate(names):
+            try:
+                out[n] = residual_rows(lin, C[r], None, self._hold_vector(), basis=basis)
+            except ModalError as exc:
+                raise OcpError(f"residual-vibration limit on '{n}': {exc}") from exc
+        return out
 
     def warm_start(self, result: OcpResult):
         self.warm = result
@@ -282,6 +413,8 @@ class Ocp:
         if self.objective_kind is None:
             raise OcpError("no objective: call minimize_time(), minimize_effort(), minimize_tracking() or "
                            "minimize_residual_vibration() first")
+        if self.coordinates == "modal":
+            return self._solve_modal(solver_options)
         nx, nz, nu = dae.nx, dae.nz, dae.nu
         tau, C = _radau(d)
         x0 = self._x0()
@@ -339,6 +472,20 @@ class Ocp:
             for i, n in enumerate(dae.x_names):
                 if n.startswith("der("):
                     opti.subject_to(Xs[i, N] == 0)
+        term = self._terminal_rows(lin)
+        if term is not None:
+            Ct, tt = term
+            CtS = Ct * xs[None, :]
+            sc = np.max(np.abs(CtS), axis=1)
+            sc = np.where(sc > 0, sc, 1.0)
+            opti.subject_to(ca.mtimes(ca.DM(CtS / sc[:, None]), Xs[:, N]) == ca.DM(tt / sc))
+        # residual vibration after arrival: |L (x_T - x0) + l| <= limit, in units of the limit
+        res_expr = {}
+        for n, (L, l_) in self._residual_rows(lin).items():
+            lim = self.residual_limits[n]
+            e = ca.mtimes(ca.DM(L * xs[None, :] / lim), Xs[:, N]) + ca.DM((l_ - L @ x0) / lim)
+            res_expr[n] = ca.sqrt(ca.sumsqr(e)) * lim
+            opti.subject_to(ca.sumsqr(e) <= 1.0)
         # path bounds
         y_names = [n for n in self.bounds if self._kind(n) == "y"]
         obj_y = [self.objective_args["output"]] if self.objective_kind in ("tracking", "vibration") else []
@@ -415,11 +562,22 @@ class Ocp:
                 viol = float(np.max(np.abs(opti.debug.value(opti.g))))
             except Exception:  # noqa: BLE001 - diagnostic only
                 viol = float("nan")
+            vib = ""
+            if res_expr:
+                parts = []
+                for n, e in res_expr.items():
+                    try:
+                        parts.append(f"'{n}' {float(opti.debug.value(e)):.3g} (limit {self.residual_limits[n]:.3g})")
+                    except Exception:  # noqa: BLE001 - diagnostic only
+                        parts.append(f"'{n}' ? (limit {self.residual_limits[n]:.3g})")
+                vib = (" Residual-vibration bound at the last iterate: " + ", ".join(parts) + "; a limit below what "
+                       "the input grid can reach is infeasible: raise N (finer torque shaping before arrival) or the "
+                       "limit, or add time (fixed-T problems).")
             raise OcpError(
                 f"Ipopt did not converge on '{dae.name}' (status: {stats.get('return_status')}, iterations "
-                f"{stats.get('iter_count')}, largest scaled constraint violation {viol:.3g}). Hints: check that the "
-                "final state is reachable within the bounds, give a better T_guess or warm start, loosen bounds, or "
-                "give scale= for signals of very different magnitudes") from exc
+                f"{stats.get('iter_count')}, largest scaled constraint violation {viol:.3g}).{vib} Hints: check that "
+                "the final state is reachable within the bounds, give a better T_guess or warm start, loosen bounds, "
+                "or give scale= for signals of very different magnitudes") from exc
         Xv = np.atleast_2d(sol.value(X)).reshape(nx, N + 1).T
         Uv = np.atleast_2d(sol.value(U)).reshape(nu, N).T
         Tv = float(sol.value(T)) if self.T_fixed is None else self.T_fixed
@@ -451,7 +609,52 @@ class Ocp:
         return OcpResult(T=Tv, t=t, x=Xv, u=Uv, outputs=outputs, x_names=list(dae.x_names),
                          u_names=list(dae.u_names), active=active,
                          stats={"return_status": stats.get("return_status"), "iter_count": stats.get("iter_count"),
-                                "t_wall_total": stats.get("t_wall_total")}, dae=dae, p=self.p, xd=XDv, z=Zv)
+                                "t_wall_total": stats.get("t_wall_total")}, dae=dae, p=self.p, xd=XDv, z=Zv,
+                         residual={n: float(sol.value(e)) for n, e in res_expr.items()})
+
+    def _solve_modal(self, solver_options):
+        """``coordinates="modal"``: the same problem on :class:`bscomp._ocp_modal.ModalDae` (final values and
+        rest become rows of ``P``), transcribed by :func:`bscomp._ocp_modal.solve_condensed`, mapped back."""
+        from ._ocp_modal import ModalDae, ModalError, solve_condensed
+
+        dae = self.dae
+        x0 = self._x0()
+        if self._modal is None or not np.array_equal(self._modal.lin["x0"], x0):
+            try:
+                self._modal = ModalDae.from_dae(dae, self.p, x0)
+            except ModalError as exc:
+                raise OcpError(f"coordinates='modal': {exc}") from exc
+        md = self._modal
+        sub = Ocp.__new__(Ocp)
+        sub.__dict__.update(self.__dict__)
+        sub.dae, sub.coordinates, sub._modal = md, "physical", None
+        sub.x_init, sub.x_final, sub.final_rest = {}, {}, False
+        rows, tgt = [], []
+        for k, v in self.x_final.items():
+            i = dae.x_names.index(k)
+            rows.append(md.P[i])
+            tgt.append(v - x0[i])
+        if self.final_rest:
+            for i, n in enumerate(dae.x_names):
+                if n.startswith("der(") and n not in self.x_final:
+                    rows.append(md.P[i])
+                    tgt.append(-x0[i])
+        sub._terminal = (np.array(rows).reshape(len(rows), md.nx), np.array(tgt, float))
+        if self.warm is not None:
+            w = self.warm
+            xi = md.from_physical(w.x) if w.x.shape[1] == dae.nx else w.x
+            sub.warm = OcpResult(T=w.T, t=w.t, x=xi, u=w.u, outputs={}, x_names=md.x_names, u_names=w.u_names,
+                                 active={})
+        r = solve_condensed(sub, solver_options)
+        X = md.to_physical(r.x)
+        XD = r.xd @ md.P.T
+        uk = np.vstack([r.u[:1], r.u])
+        Z = (md.lin["z0"][None, :] + (X - x0[None, :]) @ md.lin["Zx"].T + uk @ md.lin["Zu"].T) if dae.nz \
+            else np.zeros((len(r.t), 0))
+        stats = dict(r.stats, coordinates="modal", modal_info=dict(md.info))
+        return OcpResult(T=r.T, t=r.t, x=X, u=r.u, outputs=r.outputs, x_names=list(dae.x_names),
+                         u_names=list(dae.u_names), active=r.active, stats=stats, dae=dae, p=self.p, xd=XD, z=Z,
+                         residual=r.residual)
 
     # ---- scaling and initial guess ---------------------------------------------------------------
     def _linearize(self, x0):
@@ -530,22 +733,27 @@ class Ocp:
                 if n.startswith("der(") and i not in rows:
                     rows.append(i)
                     target.append(-x0[i])
+        Srows = np.eye(nx)[rows]
+        term = self._terminal_rows(lin if lin else None)
+        if term is not None:
+            Srows = np.vstack([Srows, term[0]])
+            target = list(target) + list(term[1] - term[0] @ x0)
         un = np.array([self._nominal(n) for n in dae.u_names])
         fixed = {i: self.bounds[n][0] for i, n in enumerate(dae.u_names)
                  if n in self.bounds and self.bounds[n][0] == self.bounds[n][1]}
         un[list(fixed)] = 0.0          # inputs held at a value (e.g. a disturbance at 0) do not move the reference
         Uref = np.zeros((N, nu))
-        if rows and nu:
+        if len(target) and nu:
             free = np.zeros(nx)          # x_N - x0 with u = 0
             for _ in range(N):
                 free = Ah @ free + fh
-            S = np.eye(nx)[rows]
-            G = np.zeros((len(rows), N, nu))
+            S = Srows
+            G = np.zeros((len(target), N, nu))
             for k in range(N - 1, -1, -1):
                 G[:, k, :] = S @ Bh
                 S = S @ Ah
-            G = G.reshape(len(rows), N * nu) * np.tile(un, N)[None, :]
-            v = np.linalg.lstsq(G, np.asarray(target) - free[rows], rcond=1e-12)[0]
+            G = G.reshape(len(target), N * nu) * np.tile(un, N)[None, :]
+            v = np.linalg.lstsq(G, np.asarray(target) - Srows @ free, rcond=1e-12)[0]
             Uref = v.reshape(N, nu) * un[None, :]
             if not np.all(np.isfinite(Uref)):
                 Uref = np.zeros((N, nu))

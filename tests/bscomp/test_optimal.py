@@ -120,3 +120,89 @@ def test_reduced_testbed_min_time_cold_start_meets_constraints_on_resimulation(r
     phi = V[:, 0] / V[0, 0]
     T_rigid = _rigid_min_time(float(phi @ M @ phi), 0.0321)
     assert r.T == pytest.approx(T_rigid, rel=0.03)
+
+
+# ---- residual-vibration limit and modal coordinates (issue #7) ---------------------------------------------------
+def _small_drive_min_time(coordinates="physical", limit=None, N=40):
+    import bscomp
+
+    ocp = (Ocp(bscomp.flatten(small_drive()), N=N, coordinates=coordinates).bound("motor.tau", -8, 8)
+           .bound("table.v", -0.2, 0.2).initial({}).final({"table.s": 0.05}, rest=True).minimize_time(T_guess=0.4))
+    if limit is not None:
+        ocp.limit_residual_vibration({"table.s": limit}, hold={"motor.tau": 0.0})
+    return ocp
+
+
+def _residual_after_arrival(r):
+    """Max |table.s(t) - table.s(inf)| for t >= T with the torque released at T (re-simulation with
+    ``simulate(method="lti")``, exact zero-order-hold stepping of this linear model).
+
+    table.s(inf): the end of a 6 s run -- the slowest mode (table on its guide damping, -3.8 1/s) has then
+    decayed by e^-23."""
+    from bscomp.simulate import simulate
+
+    f = r.input_function("motor.tau")
+    t = np.unique(np.r_[np.linspace(0, r.T, 401), np.linspace(r.T, r.T + 0.2, 4001), np.linspace(r.T + 0.2, 6.0, 2000)])
+    sim = simulate(r.dae, t, inputs={"motor.tau": lambda tt: f(tt) if tt < r.T else 0.0}, outputs=["table.s"],
+                   method="lti")
+    s = sim["table.s"]
+    return float(np.max(np.abs(s[sim.t >= r.T] - s[-1])))
+
+
+def test_residual_vibration_limit_holds_on_resimulation():
+    """Min time, rest at arrival, then the torque released: the unconstrained optimum rings (its last
+    intervals are at full braking torque); with the limit, the re-simulated residual amplitude is within it."""
+    r0 = _small_drive_min_time().solve()
+    amp0 = _residual_after_arrival(r0)
+    limit = 0.25 * amp0                        # the unconstrained optimum violates it by 4x
+    r = _small_drive_min_time(limit=limit).solve()
+    assert r.stats["return_status"] == "Solve_Succeeded"
+    assert r.residual["table.s"] <= limit * (1 + 1e-6)        # the certified bound at the optimum
+    amp = _residual_after_arrival(r)
+    assert amp <= limit
+    assert amp0 > limit
+    assert r.T >= r0.T * (1 - 1e-9)             # a constraint cannot shorten the minimum time
+
+
+def test_residual_vibration_hold_without_equilibrium_is_an_error():
+    """A torque held on a drive whose rigid body is free (only viscous guide damping) has no rest state."""
+    ocp = _small_drive_min_time(limit=1e-6)
+    ocp.limit_residual_vibration({"table.s": 1e-6}, hold={"motor.tau": 1.0})
+    with pytest.raises(OcpError, match="no equilibrium"):
+        ocp.solve()
+
+
+def test_modal_coordinates_give_the_same_optimum():
+    """coordinates='modal' is an exact change of state coordinates with the states eliminated by solving the
+    same Radau IIA equations block by block: the optimum (T, inputs, states mapped back) equals the one in
+    the model's coordinates to solver tolerance, with and without a residual-vibration limit."""
+    rp = _small_drive_min_time().solve()
+    rm = _small_drive_min_time("modal").solve()
+    assert rm.stats["coordinates"] == "modal" and rm.stats["n_unknowns"] == 40 + 1     # N inputs and T
+    assert rm.T == pytest.approx(rp.T, rel=1e-6)
+    assert np.max(np.abs(rm["motor.tau"] - rp["motor.tau"])) < 1e-4 * 8
+    scale = np.max(np.abs(rp.x), axis=0) + 1e-12
+    assert np.max(np.abs(rm.x - rp.x) / scale) < 1e-5
+    vel = [i for i, n in enumerate(rm.x_names) if n.startswith("der(")]
+    assert np.max(np.abs(rm.x[-1, vel]) / scale[vel]) < 1e-8
+    lim = 2e-6
+    rp2 = _small_drive_min_time(limit=lim).solve()
+    rm2 = _small_drive_min_time("modal", limit=lim).solve()
+    assert rm2.T == pytest.approx(rp2.T, rel=1e-6)
+    assert rm2.residual["table.s"] == pytest.approx(rp2.residual["table.s"], rel=1e-4)
+
+
+def test_rest_below_hz_puts_the_slow_modes_at_equilibrium():
+    """final(rest_below_hz=f): the modes slower than f end at their static values under the held input, so
+    releasing the torque at T leaves only the faster modes' vibration; here f is above every mode (294 Hz),
+    so the re-simulated table moves after arrival only by the collocation error of the move (h = 11 ms against
+    the 3.4 ms period of the 294 Hz mode at N = 40): far less than the ringing of velocities-only rest."""
+    import bscomp
+
+    ocp = (Ocp(bscomp.flatten(small_drive()), N=40, coordinates="modal").bound("motor.tau", -8, 8)
+           .bound("table.v", -0.2, 0.2).initial({}).final({"table.s": 0.05}, rest_below_hz=1000.0)
+           .minimize_time(T_guess=0.4))
+    r = ocp.solve()
+    r0 = _small_drive_min_time().solve()
+    assert r.T > r0.T                       # stricter than velocities-only rest
+    assert _residual_after_arrival(r) < 0.05 * _residual_after_arrival(r0)
