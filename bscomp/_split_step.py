@@ -81,7 +81,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from .simulate import SimulationError, SimulationResult, _evaluate_outputs, _sample_controllers
+from .simulate import SimulationError, SimulationResult, _evaluate_outputs, _held_inputs, _sample_controllers
 
 CHUNK = 256          # most output intervals per chunk Function (lengths are powers of two, inputs padded)
 NEWTON_TOL = 1e-6    # accepted final residual, as a force relative to 1 + max |g| (the nonlinear forces)
@@ -917,13 +917,7 @@ def simulate_split(dae, t, U, xs, p, outputs, controllers, substeps, newton_iter
             while (k + n < nt - 1 and n < min(CHUNK, grow) and abs(h_all[k + n] - h) < 1e-9 * h
                    and t[k + n] + 1e-12 < t_next):
                 n += 1
-        Uc = Ut[k:k + n]
-        if controllers:
-            Uc = Uc.copy()
-            for c, val in zip(controllers, ctrl_u):
-                if val is not None:
-                    for a, v in zip(c.actuate, val):
-                        Uc[:, dae.u_names.index(a)] = v
+        Uc = _held_inputs(dae, Ut[k:k + n], controllers, ctrl_u)
         n_calls += 1
         if fine_left > 0:
             # ---- one step in FINE x substeps sub-steps, each in the regime of its end state ----

@@ -391,13 +391,7 @@ def _simulate_fixed(dae, t, U, xs, p, outputs, controllers, substeps, newton_ite
         while (k + n < nt - 1 and n < fs.CHUNK and abs(h_all[k + n] - h) < 1e-9 * h
                and t[k + n] + 1e-12 < t_next):
             n += 1
-        Uc = Ut[k:k + n]
-        if controllers:
-            Uc = Uc.copy()
-            for c, val in zip(controllers, ctrl_u):
-                if val is not None:
-                    for a, v in zip(c.actuate, val):
-                        Uc[:, dae.u_names.index(a)] = v
+        Uc = _held_inputs(dae, Ut[k:k + n], controllers, ctrl_u)
         stepper.run(n, h, X[k], V[k], Uc, X[k + 1:k + 1 + n], V[k + 1:k + 1 + n], E[k + 1:k + 1 + n])
         Uh[k + 1:k + 1 + n] = Uc
         n_calls += 1
@@ -465,6 +459,18 @@ def _evaluate_outputs(dae, names, XD, X, Z, Uh, p, chunk=1000):
         ev()
         Y[k:k + n] = ys
     return {name: Y[:, i].copy() for i, name in enumerate(names)}
+
+
+def _held_inputs(dae, Uc, controllers, ctrl_u):
+    """Input rows ``Uc`` with every sampled controller's actuated inputs replaced by its held output."""
+    if not controllers:
+        return Uc
+    Uc = Uc.copy()
+    for c, val in zip(controllers, ctrl_u):
+        if val is not None:
+            for a, v in zip(c.actuate, val):
+                Uc[:, dae.u_names.index(a)] = v
+    return Uc
 
 
 def _sample_controllers(dae, controllers, t_k, u_k, ctrl_next, ctrl_u, y_of):

@@ -125,16 +125,20 @@ class _TangentUpdate:
             C = C - sp.csr_matrix(self.dae.system_damping_basis[2])
         self.C_struct0 = sp.csr_matrix(C)
 
+    def _tangent_at(self, x):
+        """The component's tangent with its parameter at x (restored afterwards)."""
+        old = self.comp._values[self.pname]
+        try:
+            self.comp._values[self.pname] = float(x)
+            return self.comp.tangent()
+        finally:
+            self.comp._values[self.pname] = old
+
     def matrices(self, x):
         """(M, K, C_struct) at parameter value x (C_struct without the system damping)."""
         import scipy.sparse as sp
 
-        old = self.comp._values[self.pname]
-        try:
-            self.comp._values[self.pname] = float(x)
-            t = self.comp.tangent()
-        finally:
-            self.comp._values[self.pname] = old
+        t = self._tangent_at(x)
         P = self.P
         K = self.so0.K + P.T @ (sp.csr_matrix(t.K) - self.Kt0) @ P
         C = self.C_struct0
@@ -171,12 +175,7 @@ class _TangentUpdate:
         from .damping import system_damping_matrix
 
         L, W, A0 = self._factor()
-        old = self.comp._values[self.pname]
-        try:
-            self.comp._values[self.pname] = float(x)
-            t = self.comp.tangent()
-        finally:
-            self.comp._values[self.pname] = old
+        t = self._tangent_at(x)
         dK = (sp.csr_matrix(t.K) - self.Kt0).tocoo()
         S = np.unique(np.concatenate([dK.row, dK.col]))
         A = A0.copy()
