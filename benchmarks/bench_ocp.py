@@ -8,8 +8,9 @@ The same problem on three models, for N = 100, 200, 400 intervals (Radau degree 
   (thesis Sec 5.2.3) with the exterior DOF ``rotor.phi`` and ``sn.nut.w``, free-interface modes up to
   2 kHz plus the rigid-body mode: 6 coordinates, modes 119 / 275 / 1235 / 2150 / 2996 Hz;
 * **axial+torsional**: the unreduced model (98 DOF, 196 states, modes to 182 kHz), solved with
-  ``Ocp(coordinates="modal")`` (states eliminated in the real modal coordinates of the linear model, see
-  docs/optimal.md) and ``final(..., rest_below_hz=2000)``: arrival at equilibrium of the modes below
+  ``Ocp(coordinates="modal")`` (the real modal coordinates of the linear model; for its 196 states the
+  sparse form: modal collocation states kept as variables, see docs/optimal.md) and
+  ``final(..., rest_below_hz=2000)``: arrival at equilibrium of the modes below
   2 kHz (the reduced model's cut-off) instead of all 98 velocities zero, which is a square, degenerate
   condition on a 100-interval input (Ipopt stalls at a violation of 3e-6, measured).
 
@@ -22,7 +23,8 @@ the re-simulation error is ``max_t |table.s_sim(t) - table.s_ocp(t)| / move`` ov
 predicts (OCP values linearly interpolated between its grid points). Solve time is the wall time
 of ``Ocp.solve()`` (transcription + Ipopt), from a cold start, model already flattened.
 
-Run: python benchmarks/bench_ocp.py [N ...] [--full-max-N K]   (K: largest N tried on the full model)
+Run: python benchmarks/bench_ocp.py [N ...] [--full-max-N K] [--full-only]
+(K: largest N tried on the full model; --full-only skips the rigid and reduced models)
 """
 
 from __future__ import annotations
@@ -87,11 +89,11 @@ def row(label, N, wall, base, r, err):
     print(f"{label:<18} {N:>4} {wall:>9.2f} {ratio:>8} {r.stats['iter_count']:>6} {r.T:>8.4f} {e:>12}", flush=True)
 
 
-def main(Ns=(100, 200, 400), full_max_N=200):
+def main(Ns=(100, 200, 400), full_max_N=400, full_only=False):
     print(f"{'model':<18} {'N':>4} {'solve[s]':>9} {'vs rigid':>8} {'iters':>6} {'T [s]':>8} {'resim err':>12}")
-    base = {}
+    base = {N: None for N in Ns}
     rig = bscomp.flatten(rigid_drive())
-    for N in Ns:
+    for N in () if full_only else Ns:
         r, wall = solve(rig, "motor.tau", {"rotor.phi": MOVE / R_G}, {"rotor.w": V_MAX / R_G}, N)
         base[N] = wall
         sim, dev = r.resimulate(outputs=["rotor.phi"])
@@ -99,7 +101,7 @@ def main(Ns=(100, 200, 400), full_max_N=200):
     s, u, ys, yv, ya, q_nut = reduced_drive()
     red = bscomp.flatten(s)
     sign = 1.0   # table.s = sn.nut.w (Cq of the reduced model)
-    for N in Ns:
+    for N in () if full_only else Ns:
         try:
             r, wall = solve(red, u, {q_nut: sign * MOVE}, {yv: V_MAX, ya: A_MAX}, N)
             sim, dev = r.resimulate(outputs=[ys])
@@ -129,6 +131,7 @@ def main(Ns=(100, 200, 400), full_max_N=200):
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("N", nargs="*", type=int, default=[100, 200, 400])
-    ap.add_argument("--full-max-N", type=int, default=200)   # N = 400 on the full model: out of memory (24 GB)
+    ap.add_argument("--full-max-N", type=int, default=400)
+    ap.add_argument("--full-only", action="store_true", help="only the 98-DOF model (and its reduced comparison)")
     a = ap.parse_args()
-    main(tuple(a.N), a.full_max_N)
+    main(tuple(a.N), a.full_max_N, a.full_only)

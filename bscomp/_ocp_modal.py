@@ -12,7 +12,9 @@ Two pieces, both built on one real block-diagonalisation of the state matrix of 
 * :class:`ModalDae`: the model in those coordinates, ``ξ' = Λ ξ + P⁻¹ (x'0 + B u)`` with ``x = x0 + P ξ``;
   outputs and original states are linear maps of ξ. :func:`solve_condensed` transcribes it with the
   Radau IIA equations solved block by block, so only the inputs and T are unknowns (a dense 98 x 98
-  damping matrix would otherwise give dense 196 x 196 Jacobian blocks at every collocation point).
+  damping matrix would otherwise give dense 196 x 196 Jacobian blocks at every collocation point); with
+  ``sparse=True`` it keeps the scaled modal collocation states as variables instead (O(N nx) sparse rows,
+  for large models: the condensed expressions are O(N² nx)).
 * :func:`residual_rows`: rows ``L`` such that ``||L (x_T - x0) + l|| <= a`` guarantees that the free
   response after ``T`` (input held) stays within ``± a`` of its final value in a named output.
 """
@@ -327,7 +329,7 @@ def residual_rows(lin, C, D, hold_u, zero_tol=1e-7, basis=None):
     return L, l_
 
 
-def solve_condensed(ocp, solver_options=None):
+def solve_condensed(ocp, solver_options=None, sparse=False):
     """Transcribe and solve ``ocp`` (an :class:`bscomp.optimal.Ocp` whose model is a first-order
     :class:`ModalDae`) with the states eliminated.
 
@@ -337,6 +339,8 @@ def solve_condensed(ocp, solver_options=None):
     ``Mx``, ``Mb`` are 3m x m symbolic functions of the step h = T/N, built once per block. The unknowns are
     the free inputs and T only: the same collocation solution as the full transcription, but the NLP has
     ``N nu + 1`` variables, so the KKT systems are small and dense instead of large with long fill-in chains.
+    ``sparse=True``: the states are kept instead (:func:`_sparse_collocation`, built in MX), the rest of the
+    problem (final rows, residual limit, path bounds, objective) is the same.
     Returns an :class:`bscomp.optimal.OcpResult` in modal coordinates.
     """
     from .optimal import OcpError, OcpResult, _radau, _radau_weights
@@ -357,34 +361,17 @@ def solve_condensed(ocp, solver_options=None):
     fixed_u = {i: ocp.bounds[n][0] for i, n in enumerate(md.u_names)
                if n in ocp.bounds and ocp.bounds[n][0] == ocp.bounds[n][1]}
     free_u = [i for i in range(nu) if i not in fixed_u]
-    Uv = ca.SX.sym("u", len(free_u), N)
+    # the sparse form in MX: matrix-level derivatives (the dense output rows over all modes would need ~nx
+    # forward directions through an SX graph of O(N nx) nodes: 47 of 65 s at N = 100 on the 98-DOF model)
+    Sym = ca.MX if sparse else ca.SX
+    Uv = Sym.sym("u", len(free_u), N)
     rows_u = [Uv[free_u.index(i), :] * us[i] if i in free_u else ca.DM(np.full((1, N), fixed_u[i])) for i in range(nu)]
-    U = ca.vertcat(*rows_u) if nu else ca.SX(0, N)
+    U = ca.vertcat(*rows_u) if nu else Sym(0, N)
     free_T = ocp.T_fixed is None
-    Tsc = ca.SX.sym("T") if free_T else None
+    Tsc = Sym.sym("T") if free_T else None
     T = T0 * Tsc if free_T else ocp.T_fixed
     h = T / N
     beta = ca.mtimes(ca.DM(md.Bm), U) + ca.repmat(ca.DM(md.fm), 1, N)          # nx x N
-    # exact Radau IIA solution, block by block
-    Xi = ca.SX.zeros(nx, N + 1)
-    Xc = ca.SX.zeros(nx, N * d)
-    Ct = Cr[1:, 1:].T
-    c0 = Cr[0, 1:][:, None]
-    for idx, _, _ in md.self_basis["blocks"]:
-        m = len(idx)
-        Lb = ca.DM(md.Asp[np.ix_(idx, idx)])
-        Lh = ca.DM(np.kron(Ct, np.eye(m))) - h * ca.kron(ca.DM.eye(d), Lb)
-        Mx = ca.solve(Lh, ca.DM(-np.kron(c0, np.eye(m))))
-        Mb = ca.solve(Lh, h * ca.DM(np.kron(np.ones((d, 1)), np.eye(m))))
-        xk = ca.DM(np.zeros(m))
-        Xi[idx, 0] = xk
-        for k in range(N):
-            st = ca.mtimes(Mx, xk) + ca.mtimes(Mb, beta[idx, k])
-            for j in range(d):
-                Xc[idx, k * d + j] = st[j * m:(j + 1) * m]
-            xk = st[(d - 1) * m:]
-            Xi[idx, k + 1] = xk
-    Ucol = ca.horzcat(*[ca.repmat(U[:, k], 1, d) for k in range(N)]) if N else U
     g, lbg, ubg = [], [], []
 
     def add(expr, lo, hi):
@@ -392,6 +379,16 @@ def solve_condensed(ocp, solver_options=None):
         n_ = expr.numel()
         lbg.append(np.broadcast_to(lo, (n_,)).astype(float))
         ubg.append(np.broadcast_to(hi, (n_,)).astype(float))
+
+    Xvars, X0 = [], []
+    if sparse:
+        Xc, Xcs, xsc = _sparse_collocation(md, ref, us, h, ref["T"] / N, beta, add)
+        Xvars.append(ca.vec(Xcs))
+        X0.append((ref["Xc"] / xsc[:, None]).ravel(order="F"))
+        Xi = ca.horzcat(Sym.zeros(nx, 1), Xc[:, (d - 1)::d])
+    else:
+        Xi, Xc = _condensed_states(md, N, d, Cr, h, beta)
+    Ucol = ca.horzcat(*[ca.repmat(U[:, k], 1, d) for k in range(N)]) if N else U
 
     # final conditions (rows over ξ), each scaled by its target or its magnitude along the reference
     term = ocp._terminal_rows(lin)
@@ -407,7 +404,7 @@ def solve_condensed(ocp, solver_options=None):
     for n, (L, l_) in ocp._residual_rows(lin).items():
         lim = ocp.residual_limits[n]
         e = ca.mtimes(ca.DM(L / lim), Xi[:, N]) + ca.DM((l_ - L @ x0) / lim)
-        E = ca.SX.sym(f"E{len(Evars)}", e.numel())
+        E = Sym.sym(f"E{len(Evars)}", e.numel())
         Evars.append(E)
         E0.append((L @ ref["X"][-1] + l_ - L @ x0) / lim)
         res_expr[n] = ca.sqrt(ca.sumsqr(e)) * lim
@@ -459,16 +456,18 @@ def solve_condensed(ocp, solver_options=None):
             mask = (tc >= ocp.T_fixed - ocp.objective_args["T_settle"]).astype(float)
             e = Yc[all_y.index(out), :] / s
             J = h * ca.sum2(e**2 * ca.DM((wq * mask)[None, :]))
-    w = ca.vertcat(Tsc, ca.vec(Uv), *Evars) if free_T else ca.vertcat(ca.vec(Uv), *Evars)
+    w = ca.vertcat(Tsc, ca.vec(Uv), *Evars, *Xvars) if free_T else ca.vertcat(ca.vec(Uv), *Evars, *Xvars)
     nE = sum(E.numel() for E in Evars)
-    lbx.append(np.full(nE, -np.inf))
-    ubx.append(np.full(nE, np.inf))
-    G = ca.vertcat(*g) if g else ca.SX(0, 1)
+    nX = sum(v.numel() for v in Xvars)
+    lbx.append(np.full(nE + nX, -np.inf))
+    ubx.append(np.full(nE + nX, np.inf))
+    G = ca.vertcat(*g) if g else Sym(0, 1)
     nlp = {"x": w, "f": J, "g": G}
     ipopt = dict(ocp.ipopt_options, **(solver_options or {}))
-    solver = ca.nlpsol("ocp_condensed", "ipopt", nlp, {"ipopt": ipopt, "print_time": False})
+    solver = ca.nlpsol("ocp_sparse" if sparse else "ocp_condensed", "ipopt", nlp,
+                       {"ipopt": ipopt, "print_time": False})
     w0 = np.concatenate([[ref["T"] / T0] if free_T else [], (ref["U"][:, free_u] / us[free_u]).T.ravel(order="F")]
-                        + E0)
+                        + E0 + X0)
     sol = solver(x0=w0, lbx=np.concatenate(lbx), ubx=np.concatenate(ubx),
                  lbg=np.concatenate(lbg) if lbg else np.zeros(0), ubg=np.concatenate(ubg) if ubg else np.zeros(0))
     stats = solver.stats()
@@ -516,5 +515,71 @@ def solve_condensed(ocp, solver_options=None):
     return OcpResult(T=Tv, t=np.linspace(0, Tv, N + 1), x=Xv, u=Uv_, outputs=outputs, x_names=list(md.x_names),
                      u_names=list(md.u_names), active=active,
                      stats={"return_status": stats.get("return_status"), "iter_count": stats.get("iter_count"),
-                            "t_wall_total": stats.get("t_wall_total"), "n_unknowns": int(w.numel()) - nE},
+                            "t_wall_total": stats.get("t_wall_total"), "n_unknowns": int(w.numel()) - nE,
+                            "transcription": "sparse" if sparse else "condensed"},
                      dae=md, p=md.p, xd=XDv, z=np.zeros((N + 1, 0)), residual=residual)
+
+
+def _condensed_states(md, N, d, Cr, h, beta):
+    """Exact Radau IIA solution of the block-diagonal model, block by block: (ξ at the grid points,
+    ξ at the collocation points) as expressions of the inputs (in ``beta``) and the step ``h``."""
+    nx = md.nx
+    Xi = ca.SX.zeros(nx, N + 1)
+    Xc = ca.SX.zeros(nx, N * d)
+    Ct = Cr[1:, 1:].T
+    c0 = Cr[0, 1:][:, None]
+    for idx, _, _ in md.self_basis["blocks"]:
+        m = len(idx)
+        Lb = ca.DM(md.Asp[np.ix_(idx, idx)])
+        Lh = ca.DM(np.kron(Ct, np.eye(m))) - h * ca.kron(ca.DM.eye(d), Lb)
+        Mx = ca.solve(Lh, ca.DM(-np.kron(c0, np.eye(m))))
+        Mb = ca.solve(Lh, h * ca.DM(np.kron(np.ones((d, 1)), np.eye(m))))
+        xk = ca.DM(np.zeros(m))
+        Xi[idx, 0] = xk
+        for k in range(N):
+            st = ca.mtimes(Mx, xk) + ca.mtimes(Mb, beta[idx, k])
+            for j in range(d):
+                Xc[idx, k * d + j] = st[j * m:(j + 1) * m]
+            xk = st[(d - 1) * m:]
+            Xi[idx, k + 1] = xk
+    return Xi, Xc
+
+
+def _sparse_collocation(md, ref, us, h, h0, beta, add):
+    """States kept: scaled modal collocation variables ``Ξ_s`` (ξ = s_b Ξ_s, one scale per block: the largest
+    |ξ| of the block along the reference motion, floored at 1e-9 of the largest block) and the Radau IIA
+    equations ``Σ_r C_rj ξ_kr = h (Λ ξ_kj + β_k)`` as constraints, each row divided by its largest term at
+    the reference step ``h0``. Every row has the 1 x 1 / 2 x 2 / rigid block of its mode, the inputs and T:
+    O(N nx) non-zeros instead of the O(N² nx) expressions of the condensed form.
+    Returns (ξ at the collocation points, the scaled variables, the scales)."""
+    from .optimal import _radau
+
+    nx, N = md.nx, beta.shape[1]
+    d = ref["Xc"].shape[1] // max(N, 1)
+    _, Cr = _radau(d)
+    mag = np.maximum(np.max(np.abs(ref["Xc"]), axis=1), np.max(np.abs(ref["X"]), axis=0))
+    xsc = np.ones(nx)
+    for idx, _, _ in md.self_basis["blocks"]:
+        xsc[idx] = np.max(mag[idx])
+    big = float(np.max(xsc)) if nx else 1.0
+    xsc = np.maximum(xsc, 1e-9 * big) if big > 0 else np.ones(nx)
+    Xcs = ca.MX.sym("xi", nx, N * d)
+    Xc = ca.mtimes(ca.diag(ca.DM(xsc)), Xcs)
+    Ls = md.Asp * xsc[None, :] / xsc[:, None]
+    Ls[np.abs(Ls) < 1e-300] = 0.0
+    Uref = ref["U"].T
+    bref = md.Bm @ Uref + md.fm[:, None] if N else np.zeros((nx, 0))
+    rs = np.maximum.reduce([np.ones(nx), h0 * np.max(np.abs(Ls), axis=1),
+                            h0 * np.max(np.abs(bref), axis=1) / xsc if N else np.zeros(nx),
+                            h0 * np.max(np.abs(md.Bm) * us[None, :], axis=1) / xsc])
+    Lsp = ca.sparsify(ca.DM(Ls))
+    Rinv = ca.diag(ca.DM(1.0 / rs))
+    Xprev = ca.horzcat(ca.MX.zeros(nx, 1), Xcs[:, (d - 1)::d][:, :N - 1]) if N else ca.MX(nx, 0)
+    bs = ca.mtimes(ca.diag(ca.DM(1.0 / xsc)), beta)
+    for j in range(1, d + 1):
+        lhs = Cr[0, j] * Xprev
+        for r in range(1, d + 1):
+            lhs = lhs + Cr[r, j] * Xcs[:, (r - 1)::d]
+        rhs = h * (ca.mtimes(Lsp, Xcs[:, (j - 1)::d]) + bs)
+        add(ca.mtimes(Rinv, lhs - rhs), 0.0, 0.0)
+    return Xc, Xcs, xsc

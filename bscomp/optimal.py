@@ -8,7 +8,7 @@ Variables are scaled by nominal magnitudes (given ``scale``, bounds, boundary va
 value along a reference motion of the linearized model, see :meth:`Ocp.reference`), so µm and kN live
 in one problem; the reference motion is also the cold-start guess. The transcription is chosen apart
 from the model: the Dae is not touched. Linear models can be transcribed in modal coordinates with the
-states eliminated (``Ocp(..., coordinates="modal")``), and a residual-vibration limit after arrival is
+states eliminated or kept (``Ocp(..., coordinates="modal")``), and a residual-vibration limit after arrival is
 available for any linear(ized) model (:meth:`Ocp.limit_residual_vibration`).
 
 >>> ocp = Ocp(system, N=100)
@@ -29,6 +29,10 @@ from .errors import BscompError, UnknownNameError
 from .linear import resolve_model
 
 __all__ = ["Ocp", "OcpResult", "OcpError"]
+
+# coordinates="modal" keeps the modal states as collocation variables (sparse) above this many states and
+# eliminates them (condensed: inputs and T the only unknowns, O(N² nx) expressions) up to it
+SPARSE_MODAL_NX = 40
 
 
 class OcpError(BscompError):
@@ -157,7 +161,7 @@ class Ocp:
         Radau collocation degree.
     params : dict, optional
         Parameter overrides.
-    coordinates : {"physical", "modal"}
+    coordinates : {"physical", "modal", "modal-condensed", "modal-sparse"}
         ``"modal"`` (linear models only): transcribe in the real modal coordinates ``ξ`` of the model's
         state matrix, ``x = x0 + P ξ``, ``ξ' = Λ ξ + P⁻¹ (B u + x'0)`` with ``Λ`` block diagonal (one
         2 x 2 block ``[[σ, ω], [-ω, σ]]`` per mode, 1 x 1 for real eigenvalues, one block for the rigid-body
@@ -166,12 +170,16 @@ class Ocp:
         the collocation Jacobian has ~2 non-zeros per state instead of the dense rows of a modal damping
         matrix, and the modes are scaled one by one. Bounds, final values and outputs keep the model's
         names (they become rows of ``P``); the result is mapped back to the original states.
+        Transcription: ``"modal-condensed"`` eliminates the states (inputs and T the only unknowns;
+        O(N² nx) expressions), ``"modal-sparse"`` keeps the scaled modal collocation states as variables
+        (O(N nx) sparse rows); ``"modal"`` chooses condensed up to ``SPARSE_MODAL_NX`` states, sparse above.
     """
 
     def __init__(self, model, N: int = 100, degree: int = 3, params: dict | None = None,
                  coordinates: str = "physical"):
-        if coordinates not in ("physical", "modal"):
-            raise ValueError(f"coordinates must be 'physical' or 'modal', not {coordinates!r}")
+        if coordinates not in ("physical", "modal", "modal-condensed", "modal-sparse"):
+            raise ValueError("coordinates must be 'physical', 'modal', 'modal-condensed' or 'modal-sparse', not "
+                             f"{coordinates!r}")
         self.coordinates = coordinates
         self.dae = resolve_model(model, params)
         self.p = self.dae.parameter_vector({k: v for k, v in (params or {}).items()
@@ -413,7 +421,7 @@ class Ocp:
         if self.objective_kind is None:
             raise OcpError("no objective: call minimize_time(), minimize_effort(), minimize_tracking() or "
                            "minimize_residual_vibration() first")
-        if self.coordinates == "modal":
+        if self.coordinates.startswith("modal"):
             return self._solve_modal(solver_options)
         nx, nz, nu = dae.nx, dae.nz, dae.nu
         tau, C = _radau(d)
@@ -645,7 +653,8 @@ class Ocp:
             xi = md.from_physical(w.x) if w.x.shape[1] == dae.nx else w.x
             sub.warm = OcpResult(T=w.T, t=w.t, x=xi, u=w.u, outputs={}, x_names=md.x_names, u_names=w.u_names,
                                  active={})
-        r = solve_condensed(sub, solver_options)
+        sparse = self.coordinates == "modal-sparse" or (self.coordinates == "modal" and md.nx > SPARSE_MODAL_NX)
+        r = solve_condensed(sub, solver_options, sparse=sparse)
         X = md.to_physical(r.x)
         XD = r.xd @ md.P.T
         uk = np.vstack([r.u[:1], r.u])

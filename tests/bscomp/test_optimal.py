@@ -206,3 +206,27 @@ def test_rest_below_hz_puts_the_slow_modes_at_equilibrium():
     r0 = _small_drive_min_time().solve()
     assert r.T > r0.T                       # stricter than velocities-only rest
     assert _residual_after_arrival(r) < 0.05 * _residual_after_arrival(r0)
+
+
+def test_sparse_modal_transcription_gives_the_same_optimum():
+    """coordinates='modal-sparse' keeps the modal collocation states as (scaled) variables with the Radau IIA
+    equations as sparse constraints -- the form coordinates='modal' picks for large models: the optimum equals
+    the physical-coordinate one to solver tolerance, mapped back to the model's states (re-simulation works),
+    with and without a residual-vibration limit."""
+    rp = _small_drive_min_time().solve()
+    rs = _small_drive_min_time("modal-sparse").solve()
+    assert rs.stats["transcription"] == "sparse"
+    assert rs.stats["n_unknowns"] == 40 + 1 + 6 * 40 * 3               # inputs, T and the stage states
+    assert rs.T == pytest.approx(rp.T, rel=1e-6)
+    assert np.max(np.abs(rs["motor.tau"] - rp["motor.tau"])) < 1e-4 * 8
+    scale = np.max(np.abs(rp.x), axis=0) + 1e-12
+    assert np.max(np.abs(rs.x - rp.x) / scale) < 1e-5
+    assert rs.x_names == rp.x_names
+    _, dev = rs.resimulate(outputs=["table.s"])
+    assert dev["table.s"] < 1e-2
+    lim = 2e-6
+    rp2 = _small_drive_min_time(limit=lim).solve()
+    rs2 = _small_drive_min_time("modal-sparse", limit=lim).solve()
+    assert rs2.T == pytest.approx(rp2.T, rel=1e-6)
+    assert rs2.residual["table.s"] == pytest.approx(rp2.residual["table.s"], rel=1e-4)
+    assert _small_drive_min_time("modal").solve().stats["transcription"] == "condensed"   # 6 states: condensed
