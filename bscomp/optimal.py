@@ -53,7 +53,8 @@ class OcpResult:
     u : ndarray (N, nu)
         Piecewise-constant inputs on each interval.
     outputs : dict name -> ndarray (N+1,)
-    active : dict name -> fraction of points where the bound is active (within 1e-6 of it)
+    active : dict name -> fraction of points where the bound is active (within 1e-4 of it); rate limits as
+        ``"rate:<name>"`` (fraction of intervals at the limit)
     residual : dict name -> certified residual-vibration amplitude after arrival (unit of the output), for
         the outputs given to :meth:`Ocp.limit_residual_vibration` (see there)
     """
@@ -186,6 +187,7 @@ class Ocp:
                                             if k not in self.dae.structural_parameters})
         self.N, self.d = int(N), int(degree)
         self.bounds: dict[str, tuple] = {}
+        self.rate_limits: dict[str, float] = {}
         self.x_init: dict[str, float] = {}
         self.x_final: dict[str, float] = {}
         self.final_rest = False
@@ -227,6 +229,27 @@ class Ocp:
         self.bounds[name] = (float(lo), float(hi))
         if scale is not None:
             self.scale[name] = float(scale)
+        return self
+
+    def bound_rate(self, name, limit):
+        """Rate limit ``|d(name)/dt| <= limit`` on an input, state or observable, e.g. a **jerk limit**
+        ``bound_rate("table.a", j_max)`` [m/s³] or a torque slew rate ``bound_rate("motor.tau", r)`` [N m/s].
+
+        Measured on the transcription's grid: the change of the value between the ends of consecutive
+        intervals (for an input: between consecutive piecewise-constant values), from the value before
+        the move (the model at rest with its free inputs at 0) to the end of the first interval, and from
+        the end of the last interval to the value just after arrival (final state, inputs held as in
+        :meth:`limit_residual_vibration`, default 0: a jerk limit thus also brings the acceleration back
+        to zero), each divided by the interval length ``h = T/N``: ``|y_{k+1} - y_k| <= limit h``. For an
+        output that a piecewise-constant input moves in steps (the acceleration of a rigid inertia under a
+        torque staircase) this is the average rate of the staircase; as N grows the minimum time
+        converges to the continuous one (tested against the analytic jerk-limited move). Physical
+        coordinates only.
+        """
+        self._kind(name)
+        if not limit > 0:
+            raise ValueError(f"rate limit on '{name}' must be > 0, not {limit}")
+        self.rate_limits[name] = float(limit)
         return self
 
     def initial(self, values: dict):
@@ -495,7 +518,7 @@ class Ocp:
             res_expr[n] = ca.sqrt(ca.sumsqr(e)) * lim
             opti.subject_to(ca.sumsqr(e) <= 1.0)
         # path bounds
-        y_names = [n for n in self.bounds if self._kind(n) == "y"]
+        y_names = [n for n in list(self.bounds) + list(self.rate_limits) if self._kind(n) == "y"]
         obj_y = [self.objective_args["output"]] if self.objective_kind in ("tracking", "vibration") else []
         all_y = list(dict.fromkeys(y_names + obj_y))
         Yc = dae.output_function(all_y).map(N * d)(Wc, Xc, Zc, Ucol, Pm) if all_y else None
@@ -529,6 +552,50 @@ class Ocp:
                 opti.subject_to(ca.vec(expr) >= lo / s)
             elif np.isfinite(hi):
                 opti.subject_to(ca.vec(expr) <= hi / s)
+        # rate limits: |v_{k+1} - v_k| <= limit h between interval ends, from the value before the move to
+        # the value after arrival (the model at its final state with the held input)
+        rate_expr = {}
+        after = {}
+        if self.rate_limits:
+            u_before = np.array([fixed_u.get(i, 0.0) for i in range(nu)])
+            xd_b, z_b = dae.initialize(x0, u_before, self.p, store=False)
+            u_hold = self._hold_vector()
+            if any(self._kind(n) == "y" for n in self.rate_limits):
+                # (x', z) just after arrival: consistent with the final state and the held input
+                XDa = opti.variable(nx)
+                opti.set_initial(XDa, np.zeros(nx))
+                xd_a = ca.diag(ws) @ XDa
+                if nz:
+                    Za = opti.variable(nz)
+                    opti.set_initial(Za, ref["Z"][-1] / zs)
+                    z_a = ca.diag(zs) @ Za
+                else:
+                    z_a = ca.DM(0, 1)
+                opti.subject_to(ca.diag(1.0 / rs) @ dae.F(xd_a, X[:, N], z_a, u_hold, self.p) == 0)
+                after = {"xd": xd_a, "z": z_a}
+        for n, lim in self.rate_limits.items():
+            kind = self._kind(n)
+            if kind == "u":
+                i = dae.u_names.index(n)
+                seq, first, last = U[i, :], u_before[i], u_hold[i]
+            elif kind == "x":
+                i = dae.x_names.index(n)
+                seq, first, last = X[i, 1:], x0[i], None          # a state does not jump at arrival
+            else:
+                yf = dae.output_function([n])
+                seq = Yc[all_y.index(n), (d - 1)::d]
+                first = float(np.asarray(yf(xd_b, x0, z_b, u_before, self.p)).ravel()[0])
+                last = yf(after["xd"], X[:, N], after["z"], u_hold, self.p)
+            parts = [seq[:, 0] - first, seq[:, 1:] - seq[:, :-1]]
+            if last is not None:
+                parts.append(last - seq[:, -1])
+            diff = ca.horzcat(*parts)                                           # (1, N or N+1)
+            h0 = T0 / N
+            g = diff / (lim * h0)                                               # in units of the allowed step
+            hs = h / h0
+            opti.subject_to(ca.vec(g - hs) <= 0)
+            opti.subject_to(ca.vec(-g - hs) <= 0)
+            rate_expr[n] = diff / h
         # objective (quadrature with Radau weights)
         wq = np.tile(_radau_weights(tau, d), N)
         kind = self.objective_kind
@@ -614,6 +681,9 @@ class Ocp:
             if np.isfinite(hi):
                 act |= v >= hi - 1e-4 * span
             active[n] = float(np.mean(act))
+        for n, e in rate_expr.items():
+            r = np.abs(np.atleast_1d(np.asarray(sol.value(e), float)).ravel())
+            active[f"rate:{n}"] = float(np.mean(r >= self.rate_limits[n] * (1 - 1e-4)))
         return OcpResult(T=Tv, t=t, x=Xv, u=Uv, outputs=outputs, x_names=list(dae.x_names),
                          u_names=list(dae.u_names), active=active,
                          stats={"return_status": stats.get("return_status"), "iter_count": stats.get("iter_count"),
@@ -625,6 +695,9 @@ class Ocp:
         rest become rows of ``P``), transcribed by :func:`bscomp._ocp_modal.solve_condensed`, mapped back."""
         from ._ocp_modal import ModalDae, ModalError, solve_condensed
 
+        if self.rate_limits:
+            raise OcpError(f"bound_rate ({sorted(self.rate_limits)}) is transcribed in physical coordinates only: "
+                           "use Ocp(..., coordinates='physical') or drop the rate limit")
         dae = self.dae
         x0 = self._x0()
         if self._modal is None or not np.array_equal(self._modal.lin["x0"], x0):

@@ -230,3 +230,54 @@ def test_sparse_modal_transcription_gives_the_same_optimum():
     assert rs2.T == pytest.approx(rp2.T, rel=1e-6)
     assert rs2.residual["table.s"] == pytest.approx(rp2.residual["table.s"], rel=1e-4)
     assert _small_drive_min_time("modal").solve().stats["transcription"] == "condensed"   # 6 states: condensed
+
+
+def _jerk_limited(N, J=1.0, tau_max=1.0, j_max=2.0, theta=2.0, on="rotor.a"):
+    s = System("rotor_j")
+    s.add("motor", Torque())
+    s.add("rotor", Inertia(J=J))
+    s.connect("motor.flange", "rotor.flange_a")
+    limit = j_max if on == "rotor.a" else J * j_max          # torque slew rate equivalent to the jerk limit
+    return (Ocp(s, N=N).bound("motor.tau", -tau_max, tau_max).bound_rate(on, limit)
+            .initial({"rotor.phi": 0.0}).final({"rotor.phi": theta}).minimize_time(T_guess=3.0).solve())
+
+
+def test_jerk_limited_min_time_converges_to_the_analytic_move():
+    """Rest-to-rest move of a rigid inertia with |a| <= a_max (torque bound) and |jerk| <= j (bound_rate).
+
+    The time-optimal profile (no velocity limit) is jerk +j, 0, -j for the acceleration phase and its
+    mirror for the deceleration, with t_j = a/j and a constant-acceleration time t_a from
+    theta = a (t_j + t_a)(2 t_j + t_a): T = 2 (2 t_j + t_a) = 3.3723 s for J = 1, a = 1, j = 2, theta = 2.
+    The transcription's torque staircase (steps <= J j h) leads the ramp by O(h): T is first order in h
+    (measured -0.98 % at N = 100, -0.49 % at N = 200). A torque slew-rate limit J j on the input is the
+    same constraint for a rigid inertia.
+    """
+    J, a, j, theta = 1.0, 1.0, 2.0, 2.0
+    tj = a / j
+    ta = (-3 * tj + math.sqrt(tj**2 + 4 * theta / a)) / 2
+    T_an = 2 * (2 * tj + ta)
+    r100, r200 = _jerk_limited(100), _jerk_limited(200)
+    assert r200.T == pytest.approx(T_an, rel=1e-2)
+    e100, e200 = abs(r100.T - T_an), abs(r200.T - T_an)
+    assert 1.6 < e100 / e200 < 2.4                            # first-order convergence
+    u, h = r200["motor.tau"], r200.T / 200
+    steps = np.abs(np.diff(np.r_[0.0, u, 0.0]))               # from rest, and back to the released torque
+    assert steps.max() <= J * j * h * (1 + 1e-6)
+    assert r200.active["rate:rotor.a"] > 0.3 and np.max(np.abs(u)) == pytest.approx(a * J, rel=1e-6)
+    r_u = _jerk_limited(200, on="motor.tau")
+    assert r_u.T == pytest.approx(r200.T, rel=1e-6)
+    sim, _ = r200.resimulate(outputs=["rotor.phi", "rotor.w"])
+    assert sim["rotor.phi"][-1] == pytest.approx(theta, rel=1e-4)
+
+
+def test_rate_limit_is_refused_in_modal_coordinates():
+    s = System("rotor_m")
+    s.add("motor", Torque())
+    s.add("rotor", Inertia(J=1.0))
+    s.connect("motor.flange", "rotor.flange_a")
+    ocp = (Ocp(s, N=20, coordinates="modal").bound("motor.tau", -1, 1).bound_rate("rotor.a", 2.0)
+           .initial({"rotor.phi": 0.0}).final({"rotor.phi": 1.0}).minimize_time(T_guess=2.0))
+    with pytest.raises(OcpError, match="physical"):
+        ocp.solve()
+    with pytest.raises(ValueError, match="> 0"):
+        ocp.bound_rate("rotor.a", 0.0)
