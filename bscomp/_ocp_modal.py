@@ -350,13 +350,7 @@ def solve_condensed(ocp, solver_options=None, sparse=False):
     tau, Cr = _radau(d)
     x0 = ocp._x0()
     lin = ocp._linearize(x0)
-    T0 = ocp.T_fixed or (ocp.warm.T if ocp.warm is not None and ocp.T_fixed is None else ocp.T_guess)
-    if ocp.warm is not None:
-        ref = ocp._warm_reference(lin)
-    elif ocp.T_fixed is None:
-        ref = ocp._fit_reference(T0, lin)
-    else:
-        ref = ocp.reference(T0, lin)
+    T0, ref = ocp._start(lin)
     xs, _, _, us = ocp._scales(ref)
     fixed_u = {i: ocp.bounds[n][0] for i, n in enumerate(md.u_names)
                if n in ocp.bounds and ocp.bounds[n][0] == ocp.bounds[n][1]}

@@ -81,7 +81,14 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from .simulate import SimulationError, SimulationResult, _evaluate_outputs, _held_inputs, _sample_controllers
+from .simulate import (
+    SimulationError,
+    SimulationResult,
+    _evaluate_outputs,
+    _held_inputs,
+    _progress_bar,
+    _sample_controllers,
+)
 
 CHUNK = 256          # most output intervals per chunk Function (lengths are powers of two, inputs padded)
 NEWTON_TOL = 1e-6    # accepted final residual, as a force relative to 1 + max |g| (the nonlinear forces)
@@ -982,11 +989,7 @@ def simulate_split(dae, t, U, xs, p, outputs, controllers, substeps, newton_iter
         if nN:
             m.max_residual = max(m.max_residual, float(np.max(Res[:k + 1][-max(n, 1):])))
         if progress and (n_calls % 20 == 0 or k == nt - 1):
-            frac = k / (nt - 1)
-            sys.stderr.write(f"\r  simulating '{dae.name}' [{'#' * int(30 * frac):<30}] {100 * frac:5.1f}%  "
-                             f"t = {t[k]:.4g} s")
-            if k == nt - 1:
-                sys.stderr.write("\n")
+            _progress_bar(dae.name, k / (nt - 1), t[k])
     X = xs + dX
     dU = Uh - u0
     G = m.g_base(W, Uh[:, m.Nu])

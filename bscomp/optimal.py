@@ -449,14 +449,8 @@ class Ocp:
         nx, nz, nu = dae.nx, dae.nz, dae.nu
         tau, C = _radau(d)
         x0 = self._x0()
-        T0 = self.T_fixed or (self.warm.T if self.warm is not None and self.T_fixed is None else self.T_guess)
         lin = self._linearize(x0)
-        if self.warm is not None:
-            ref = self._warm_reference(lin)
-        elif self.T_fixed is None:
-            ref = self._fit_reference(T0, lin)
-        else:
-            ref = self.reference(T0, lin)
+        T0, ref = self._start(lin)
         xs, ws, zs, us = self._scales(ref)
         opti = ca.Opti()
         Xs = opti.variable(nx, N + 1)
@@ -689,6 +683,16 @@ class Ocp:
                          stats={"return_status": stats.get("return_status"), "iter_count": stats.get("iter_count"),
                                 "t_wall_total": stats.get("t_wall_total")}, dae=dae, p=self.p, xd=XDv, z=Zv,
                          residual={n: float(sol.value(e)) for n, e in res_expr.items()})
+
+    def _start(self, lin):
+        """Horizon guess and the reference motion it starts from: the warm start, the fitted minimum-time
+        reference, or the fixed-T reference (also the scaling, see :meth:`_scales`)."""
+        T0 = self.T_fixed or (self.warm.T if self.warm is not None and self.T_fixed is None else self.T_guess)
+        if self.warm is not None:
+            return T0, self._warm_reference(lin)
+        if self.T_fixed is None:
+            return T0, self._fit_reference(T0, lin)
+        return T0, self.reference(T0, lin)
 
     def _solve_modal(self, solver_options):
         """``coordinates="modal"``: the same problem on :class:`bscomp._ocp_modal.ModalDae` (final values and

@@ -341,11 +341,7 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         x_cur, w_cur, z_cur = xf[:, -1], zf[:dae.nx, -1], zf[dae.nx:, -1]
         k += n
         if progress and (n_calls % 20 == 0 or k == nt - 1):
-            frac = k / (nt - 1)
-            bar = "#" * int(30 * frac)
-            sys.stderr.write(f"\r  simulating '{dae.name}' [{bar:<30}] {100 * frac:5.1f}%  t = {t[k]:.4g} s")
-            if k == nt - 1:
-                sys.stderr.write("\n")
+            _progress_bar(dae.name, k / (nt - 1), t[k])
     wall = time.perf_counter() - t_wall
     out = _evaluate_outputs(dae, outputs, XD, X, Z, Uh, p)
     return SimulationResult(t=t, x=X, xd=XD, z=Z, u=Uh, x_names=list(dae.x_names), z_names=list(dae.z_names),
@@ -409,11 +405,7 @@ def _simulate_fixed(dae, t, U, xs, p, outputs, controllers, substeps, newton_ite
                 "switching element may need method='idas'")
         k += n
         if progress and (n_calls % 20 == 0 or k == nt - 1):
-            frac = k / (nt - 1)
-            sys.stderr.write(f"\r  simulating '{dae.name}' [{'#' * int(30 * frac):<30}] {100 * frac:5.1f}%  "
-                             f"t = {t[k]:.4g} s")
-            if k == nt - 1:
-                sys.stderr.write("\n")
+            _progress_bar(dae.name, k / (nt - 1), t[k])
     XD, Z = V[:, :nx], V[:, nx:]
     out = _evaluate_outputs(dae, outputs, XD, X, Z, Uh, p)
     wall = time.perf_counter() - t_wall
@@ -459,6 +451,13 @@ def _evaluate_outputs(dae, names, XD, X, Z, Uh, p, chunk=1000):
         ev()
         Y[k:k + n] = ys
     return {name: Y[:, i].copy() for i, name in enumerate(names)}
+
+
+def _progress_bar(name, frac, t_now):
+    """One progress line on stderr (overwritten; a newline at the end)."""
+    sys.stderr.write(f"\r  simulating '{name}' [{'#' * int(30 * frac):<30}] {100 * frac:5.1f}%  t = {t_now:.4g} s")
+    if frac >= 1.0:
+        sys.stderr.write("\n")
 
 
 def _held_inputs(dae, Uc, controllers, ctrl_u):
