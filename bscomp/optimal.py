@@ -101,25 +101,38 @@ class OcpResult:
             return u[k]
         return f
 
-    def resimulate(self, model=None, outputs=None, n_per_interval=10, **kw):
+    def resimulate(self, model=None, outputs=None, n_per_interval=10, names: dict | None = None, **kw):
         """Run the optimal input through :func:`bscomp.simulate.simulate` on the same model (default)
-        or another one (e.g. the full model); returns (SimulationResult, deviation per name). The
-        deviation of a recorded output or state is ``max_t |sim(t) - ocp(t)| / max_t |ocp(t)|``, the OCP
-        values interpolated linearly between its grid points; states are recorded by naming them in
-        ``outputs`` too."""
+        or another one (e.g. the full model the OCP's reduced model came from); returns
+        (SimulationResult, deviation per name). The deviation of a recorded output or state is
+        ``max_t |sim(t) - ocp(t)| / max_t |ocp(t)|``, the OCP values interpolated linearly between its
+        grid points; states are recorded by naming them in ``outputs`` too. ``names`` maps this result's
+        names to the other model's (e.g. ``{"plant.motor_tau": "motor.tau", "plant.table_s": "table.s"}``
+        for a reduced model in a SecondOrderBlock); inputs not in the other model must be mapped or be
+        zero, else :class:`OcpError`. The SimulationResult uses the other model's names; ``dev`` this
+        result's. Further keywords go to ``simulate`` (e.g. ``method="lti"`` for a linear model)."""
         from .simulate import simulate
 
+        names = dict(names or {})
         model = resolve_model(model) if model is not None else self.dae
         outputs = list(outputs or self.outputs)
         tt = np.linspace(self.t[0], self.t[-1], n_per_interval * (len(self.t) - 1) + 1)
-        x0 = {n: v for n, v in zip(self.x_names, self.x[0]) if n in model.x_names}
-        r = simulate(model, tt, inputs={n: self.input_function(n) for n in self.u_names}, x0=x0,
-                     outputs=[n for n in outputs if n not in model.x_names], **kw)
+        inputs = {}
+        for n in self.u_names:
+            m = names.get(n, n)
+            if m in model.u_names:
+                inputs[m] = self.input_function(n)
+            elif np.any(self[n] != 0.0):
+                raise OcpError(f"resimulate: input '{n}' of the OCP is not an input of '{model.name}' "
+                               f"({model.u_names}); map it with names={{'{n}': ...}}")
+        x0 = {names.get(n, n): v for n, v in zip(self.x_names, self.x[0]) if names.get(n, n) in model.x_names}
+        r = simulate(model, tt, inputs=inputs, x0=x0,
+                     outputs=[names.get(n, n) for n in outputs if names.get(n, n) not in model.x_names], **kw)
         dev = {}
         for n in outputs:
             if n in self.outputs or n in self.x_names or (self.xd is not None and n in self.dae.observables):
                 ref = np.interp(tt, self.t, self[n])
-                dev[n] = float(np.max(np.abs(r[n] - ref)) / max(np.max(np.abs(ref)), 1e-300))
+                dev[n] = float(np.max(np.abs(r[names.get(n, n)] - ref)) / max(np.max(np.abs(ref)), 1e-300))
         return r, dev
 
     def plot(self, names=None, path=None, title="optimal control"):
