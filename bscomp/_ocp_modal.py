@@ -343,7 +343,7 @@ def solve_condensed(ocp, solver_options=None, sparse=False):
     problem (final rows, residual limit, path bounds, objective) is the same.
     Returns an :class:`bscomp.optimal.OcpResult` in modal coordinates.
     """
-    from .optimal import OcpError, OcpResult, _radau, _radau_weights
+    from .optimal import OcpError, OcpResult, _radau, _radau_weights, active_fraction
 
     md, N, d = ocp.dae, ocp.N, ocp.d
     nx, nu = md.nx, md.nu
@@ -497,13 +497,7 @@ def solve_condensed(ocp, solver_options=None, sparse=False):
     active = {}
     for n, (lo, hi) in ocp.bounds.items():
         v = Uv_[:, md.u_names.index(n)] if n in md.u_names else outputs[n]
-        span = max(abs(lo) if np.isfinite(lo) else 0, abs(hi) if np.isfinite(hi) else 0, 1e-300)
-        act = np.zeros(len(v), bool)
-        if np.isfinite(lo):
-            act |= v <= lo + 1e-4 * span
-        if np.isfinite(hi):
-            act |= v >= hi - 1e-4 * span
-        active[n] = float(np.mean(act))
+        active[n] = active_fraction(v, lo, hi)
     off = 4 + (Yc is not None)
     residual = {n: float(vals[off + i]) for i, n in enumerate(res_expr)}
     return OcpResult(T=Tv, t=np.linspace(0, Tv, N + 1), x=Xv, u=Uv_, outputs=outputs, x_names=list(md.x_names),

@@ -35,6 +35,18 @@ __all__ = ["Ocp", "OcpResult", "OcpError"]
 SPARSE_MODAL_NX = 40
 
 
+def active_fraction(v, lo, hi) -> float:
+    """Fraction of the values ``v`` within 1e-4 (relative to the larger finite bound) of ``lo`` or ``hi``."""
+    v = np.asarray(v, float)
+    span = max(abs(lo) if np.isfinite(lo) else 0, abs(hi) if np.isfinite(hi) else 0, 1e-300)
+    act = np.zeros(len(v), bool)
+    if np.isfinite(lo):
+        act |= v <= lo + 1e-4 * span
+    if np.isfinite(hi):
+        act |= v >= hi - 1e-4 * span
+    return float(np.mean(act))
+
+
 class OcpError(BscompError):
     """Ipopt did not converge; the message gives its status, the largest violations and a hint."""
 
@@ -681,13 +693,7 @@ class Ocp:
                 v = Uv[:, dae.u_names.index(n)]
             else:
                 v = Xv[:, dae.x_names.index(n)]
-            span = max(abs(lo) if np.isfinite(lo) else 0, abs(hi) if np.isfinite(hi) else 0, 1e-300)
-            act = np.zeros(len(v), bool)
-            if np.isfinite(lo):
-                act |= v <= lo + 1e-4 * span
-            if np.isfinite(hi):
-                act |= v >= hi - 1e-4 * span
-            active[n] = float(np.mean(act))
+            active[n] = active_fraction(v, lo, hi)
         for n, e in rate_expr.items():
             r = np.abs(np.atleast_1d(np.asarray(sol.value(e), float)).ravel())
             active[f"rate:{n}"] = float(np.mean(r >= self.rate_limits[n] * (1 - 1e-4)))
