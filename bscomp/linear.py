@@ -343,8 +343,12 @@ def _refresh_system_damping(dae, M, K, C):
 
 
 def second_order(model, inputs=None, outputs=None, at: dict | None = None, params: dict | None = None,
-                 _op: OperatingPoint | None = None) -> SecondOrderModel:
+                 _op: OperatingPoint | None = None, refresh_damping: bool = True) -> SecondOrderModel:
     """Second-order form of a mechanical system, linearized at ``at`` (see :class:`SecondOrderModel`).
+
+    ``refresh_damping=False`` keeps the system damping of the flattening (``dae.system_damping_basis``)
+    instead of re-deriving it from this linearization's modes: for callers that re-derive it themselves
+    in modal coordinates (:class:`bscomp.compiled.CompiledModel`).
 
     Raises
     ------
@@ -413,7 +417,8 @@ def second_order(model, inputs=None, outputs=None, at: dict | None = None, param
         def ysub(Yx, Gx_):
             return sp.csr_matrix(Yx - Yw @ lu.solve(sp.csc_matrix(Gx_).toarray()))
         Cq, Cv, Ca, Dy = ysub(Cq, Gq), ysub(Cv, Gv), ysub(Ca, Ga), ysub(Dy, Gu)
-    Cv_ = _refresh_system_damping(dae, sp.csr_matrix(Ma), sp.csr_matrix(Kq), sp.csr_matrix(Cv_))
+    if refresh_damping:
+        Cv_ = _refresh_system_damping(dae, sp.csr_matrix(Ma), sp.csr_matrix(Kq), sp.csr_matrix(Cv_))
     return SecondOrderModel(
         M=sp.csr_matrix(Ma), C=sp.csr_matrix(Cv_), K=sp.csr_matrix(Kq), B=-sp.csr_matrix(Bu),
         Cq=sp.csr_matrix(Cq), Cv=sp.csr_matrix(Cv), Ca=sp.csr_matrix(Ca), D=sp.csr_matrix(Dy),

@@ -20,7 +20,9 @@ from .fixed import Fixed
 from .fixed_node import FixedNode
 from .fixed_rotational import FixedRotational
 from .force import Force
+from .force_between import ForceBetween
 from .gain import Gain
+from .housing import Housing
 from .ideal_lead_screw import IdealLeadScrew
 from .inertia import Inertia
 from .linear_guide import LinearGuide
@@ -55,7 +57,7 @@ __all__ = [
     "MovingScrewNut",
     "AccelerationSensor", "AngleSensor", "Damper", "Fixed", "FixedRotational", "Force", "Gain",
     "IdealLeadScrew", "Inertia", "Mass", "PositionSensor", "SpeedSensor", "Spring", "Torque",
-    "TorsionalDamper", "TorsionalSpring", "VelocitySensor",
+    "TorsionalDamper", "TorsionalSpring", "VelocitySensor", "ForceBetween",
     "Ballscrew", "Bearing", "BoltedFastener", "Bushing", "Coupling", "FixedNode", "LinearGuide",
     "NodeToFlange", "NodeToRotFlange", "RigidBody", "ScrewNut",
 ]
@@ -64,3 +66,4 @@ __all__ += [
     "DigitalPController", "NotchFilter", "RSTController",
 ]
 __all__ += ["Backlash", "CoulombFriction", "RotationalBacklash", "StribeckFriction"]
+__all__ += ["Housing"]

@@ -97,9 +97,12 @@ class Backlash(PartialCompliant):
 
         return Spring(c=self.c)
 
+    def force_law(self, s_rel, v_rel):
+        """Element force ``f(s_rel, v_rel)`` (Eq 5.8-5.9 as a contact law); see CoulombFriction.force_law."""
+        return contact_force(s_rel - self.s_rel0, v_rel, self.b, self.c, self.d, self.eps)
+
     def equations(self):
-        delta = self.s_rel - self.s_rel0
-        return [self.f - contact_force(delta, self.v_rel, self.b, self.c, self.d, self.eps)]
+        return [self.f - self.force_law(self.s_rel, self.v_rel)]
 
     def observables(self):
         out = super().observables()

@@ -80,8 +80,13 @@ class CoulombFriction(PartialCompliant):
         d = 0.5 * (self.d_pos + self.d_neg)
         return Damper(d=d) if d > 0 else None
 
+    def force_law(self, s_rel, v_rel):
+        """Element force ``f(s_rel, v_rel)`` (Eq 5.7, regularised): what :meth:`equations` states, and what
+        a compiled simulator evaluates with parameters as symbols."""
+        return self.friction_force(v_rel)
+
     def equations(self):
-        return [self.f - self.friction_force(self.v_rel)]
+        return [self.f - self.force_law(self.s_rel, self.v_rel)]
 
     def observables(self):
         out = super().observables()
