@@ -187,13 +187,18 @@ class CompiledModel:
         self._sens = {}
         self._reflatten = set()
         for name in free:
-            self._prepare(name)
+            self.prepare(name)
         self._steps = {}
+        self._modal_cache = {}
         self.stats = {"evaluations": 0}
 
     # ---- parameters -------------------------------------------------------------------------------
-    def _prepare(self, name):
-        """Measure the affine sensitivity of a structural parameter (two re-flattenings)."""
+    def has_parameter(self, name: str) -> bool:
+        """True if ``name`` is a parameter of the linear part or of a nonlinear element."""
+        return name in self._el_of or name in self.dae.p_names
+
+    def prepare(self, name):
+        """Measure the affine sensitivity of a structural parameter (two re-flattenings); no-op otherwise."""
         from .flatten import flatten
         from .linear import second_order
 
@@ -236,7 +241,7 @@ class CompiledModel:
             elif k in self._sens or k in self._reflatten:
                 struct[k] = float(v)
             elif k in self.dae.structural_parameters:
-                self._prepare(k)
+                self.prepare(k)
                 struct[k] = float(v)
             elif k in self.dae.p_names:
                 lin[k] = float(v)
@@ -274,11 +279,22 @@ class CompiledModel:
 
     # ---- the linear part in modal coordinates --------------------------------------------------------
     def modal(self, params: dict | None = None, extra_damping: float = 0.0, delay: float = 0.0) -> ModalModel:
-        """Modes, modal damping and residual flexibility of the linear part at ``params``."""
+        """Modes, modal damping and residual flexibility of the linear part at ``params`` (cached: a change
+        of a nonlinear element's parameter only re-runs the time integration)."""
+        lin, _law, struct = self._split(dict(params or {}))
+        key = (tuple(sorted(lin.items())), tuple(sorted(struct.items())), float(extra_damping), float(delay))
+        if key in self._modal_cache:
+            return self._modal_cache[key]
+        mm = self._modal(lin, struct, extra_damping, delay)
+        if len(self._modal_cache) > 8:
+            self._modal_cache.pop(next(iter(self._modal_cache)))
+        self._modal_cache[key] = mm
+        return mm
+
+    def _modal(self, lin, struct, extra_damping, delay):
         from .flatten import flatten
         from .linear import second_order
 
-        lin, _law, struct = self._split(dict(params or {}))
         refl = {k: v for k, v in struct.items() if k in self._reflatten}
         if refl:
             d = flatten(self.linear_system.with_parameters(refl))

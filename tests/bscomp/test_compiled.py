@@ -1,0 +1,108 @@
+"""CompiledModel: one flattening, FRFs and time series per parameter vector, checked against the library's
+own independent paths (bscomp.frf on a re-flattened system, IDAS at tight tolerance) and exact identities
+(a delay is e^{-jwT}; an integer-sample delay is a shift)."""
+
+import numpy as np
+import pytest
+
+from bscomp.compiled import CompiledModel
+from bscomp.components import Fixed
+from bscomp.components.backlash import Backlash
+from bscomp.components.coulomb_friction import CoulombFriction
+from bscomp.frf import frf
+from bscomp.simulate import simulate
+from bscomp.systems import get
+
+OUTS = ["rotor.phi", "rotor.w", "table.s", "table.a"]
+F = np.logspace(0, 3, 120)
+
+
+def _nrmse(a, b):
+    b = np.asarray(b, float)
+    return float(np.sqrt(np.mean((np.asarray(a) - b) ** 2)) / np.sqrt(np.mean(b ** 2)))
+
+
+def _square(t, amp=2.125):
+    return amp * np.sign(np.sin(2 * np.pi * 5 * t) + 1e-12)
+
+
+@pytest.fixture(scope="module")
+def testbed_model():
+    s = get("testbed_axial_torsional")
+    return s, CompiledModel(s, ["amp.u"], OUTS, free=["table.m", "coupling.k_T", "b1.k_axial"])
+
+
+def test_frf_equals_bscomp_frf_on_the_fe_test_bed_after_parameter_changes(testbed_model):
+    s, cm = testbed_model
+    # structural parameters (coupling, thrust bearing) through affine sensitivities, table mass through p
+    assert set(cm._sens) == {"coupling.k_T", "b1.k_axial"}
+    for pv in ({}, {"table.m": 272.0, "coupling.k_T": 3500.0, "b1.k_axial": 3.1e8}):
+        H = cm.frf(pv, F, [("amp.u", "table.a"), ("amp.u", "rotor.w")])
+        ref = frf(s.with_parameters(pv), input="amp.u", output=["table.a", "rotor.w"], freqs=F)
+        for o in ("table.a", "rotor.w"):
+            r = ref.H[:, ref.outputs.index(o), 0]
+            assert np.max(np.abs(H[("amp.u", o)] - r) / np.abs(r)) < 1e-6
+
+
+def test_delay_is_exact_in_frf_and_a_shift_in_time(testbed_model):
+    _, cm = testbed_model
+    T = 3.7e-4
+    H0 = cm.frf({}, F, [("amp.u", "table.a")])[("amp.u", "table.a")]
+    H1 = cm.frf({}, F, [("amp.u", "table.a")], delay=T)[("amp.u", "table.a")]
+    assert np.allclose(H1, H0 * np.exp(-2j * np.pi * F * T), rtol=1e-12, atol=0)
+    t = np.arange(0, 0.2, 2e-4)
+    u = _square(t)
+    y0 = cm.simulate({}, t, {"amp.u": u})["table.s"]
+    y3 = cm.simulate({}, t, {"amp.u": u}, delay=3 * 2e-4)["table.s"]
+    assert np.allclose(y3[3:], y0[:-3], rtol=0, atol=1e-12 * np.max(np.abs(y0)))
+
+
+def test_linear_time_series_matches_exact_zoh_of_the_full_model(testbed_model):
+    s, cm = testbed_model
+    t = np.arange(0, 0.3, 2e-4)
+    u = _square(t)
+    Y = cm.simulate({}, t, {"amp.u": u})
+    ref = simulate(s, t, inputs={"amp.u": u}, outputs=OUTS, method="lti")
+    for o in OUTS:  # modes above 6 kHz enter statically: 1e-6 of the signal
+        assert _nrmse(Y[o], ref[o]) < 1e-5, o
+
+
+def test_friction_and_backlash_agree_with_idas_at_tight_tolerance():
+    s = get("validation_drive")
+    s.add("friction", CoulombFriction(F_c=1500.0, v_reg=5e-4))
+    s.connect("friction.flange_a", "ground.flange")
+    s.connect("friction.flange_b", "table.flange_b")
+    c, d = s.get("axial.c"), s.get("axial_loss.d")
+    s.remove("axial")
+    s.remove("axial_loss")
+    s.add("axial", Backlash(b=2e-5, c=c, d=d, s_rel0=-1e-5, eps=4e-6))
+    s.connect("lead.flange_b", "axial.flange_a")
+    s.connect("axial.flange_b", "nut.flange_a")
+    cm = CompiledModel(s, ["amp.u"], OUTS)
+    assert [e.path for e in cm.elements] == ["friction", "axial"]
+    t = np.arange(0, 0.4, 2e-4)
+    u = _square(t)
+    Y = cm.simulate({}, t, {"amp.u": u}, n_sub=8)
+    assert cm.stats["last_newton_residual"] < 1e-9
+    ref = simulate(s, t, inputs={"amp.u": u}, outputs=OUTS, rtol=1e-9, atol=1e-12)
+    for o in ("rotor.phi", "rotor.w", "table.s"):
+        assert _nrmse(Y[o], ref[o]) < 2e-5, o
+    assert _nrmse(Y["table.a"], ref["table.a"]) < 1e-2
+    # a change of a law parameter alone re-uses the modal model and changes the response
+    Y2 = cm.simulate({"friction.F_c_pos": 1200.0, "friction.F_c_neg": 1200.0}, t, {"amp.u": u}, n_sub=8)
+    assert _nrmse(Y2["table.s"], Y["table.s"]) > 1e-2
+
+
+def test_friction_on_the_fe_test_bed_converges_with_substeps(testbed_model):
+    s, _ = testbed_model
+    s2 = s.copy()
+    s2.add("fr", CoulombFriction(F_c=2066.0, v_reg=5e-4))
+    s2.add("gnd", Fixed())
+    s2.connect("fr.flange_a", "gnd.flange")
+    s2.connect("fr.flange_b", "table.flange_b")
+    cm = CompiledModel(s2, ["amp.u"], OUTS)
+    t = np.arange(0, 0.3, 2e-4)
+    u = _square(t)
+    ys = [cm.simulate({}, t, {"amp.u": u}, n_sub=n)["table.a"] for n in (2, 4, 16)]
+    e2, e4 = _nrmse(ys[0], ys[2]), _nrmse(ys[1], ys[2])
+    assert e4 < e2 and e4 < 1e-3, (e2, e4)  # converges towards the fine-step solution
