@@ -45,6 +45,10 @@ from .errors import BscompError, UnknownNameError
 __all__ = ["CompiledModel", "ModalModel", "nonlinear_elements"]
 
 
+_VERIFIED: dict = {}
+"""(component class, parameter) -> whether its structural-block sensitivity matched a re-flattening."""
+
+
 class CompiledModelError(BscompError):
     """A model that the compiled evaluator cannot handle (named element, what to do instead)."""
 
@@ -198,10 +202,9 @@ class CompiledModel:
         return name in self._el_of or name in self.dae.p_names
 
     def prepare(self, name):
-        """Measure the affine sensitivity of a structural parameter (two re-flattenings); no-op otherwise."""
-        from .flatten import flatten
-        from .linear import second_order
-
+        """Sensitivity of a structural parameter (no-op for others): from the component's own structural
+        block at two values (exact, no re-flattening), verified once per component type and parameter
+        against a re-flattening; a parameter that is not affine is re-flattened per evaluation."""
         if name in self._el_of or name in self._sens or name in self._reflatten:
             return
         dae = self.dae
@@ -210,28 +213,96 @@ class CompiledModel:
         if name not in dae.structural_parameters:
             return
         v0 = float(dae.p0[dae.p_names.index(name)])
+        sens = self._block_sensitivity(name, v0)
+        key = None
+        if sens is not None:
+            path = name.rpartition(".")[0]
+            key = (type(self.linear_system.component(path)).__name__, name.rpartition(".")[2])
+            if key not in _VERIFIED:
+                _VERIFIED[key] = self._verify(name, v0, sens)
+            if not _VERIFIED[key]:
+                sens = None
+        if sens is None:
+            sens = self._flatten_sensitivity(name, v0)
+        if sens is None:
+            self._reflatten.add(name)
+        else:
+            self._sens[name] = sens
+
+    def _block_sensitivity(self, name, v0):
+        """``(v0, dM, dK, dC)`` on the reduced coordinates from the component's ``structure()`` block."""
+        path, _, pname = name.rpartition(".")
+        comp = self.linear_system.component(path)
+        m = self.dae.mech
+        blocks = []
+        old = comp._values[pname]
+        try:
+            for f in (1.0, 1.1, 0.9):
+                comp._values[pname] = v0 * f
+                blocks.append(comp.structure())
+        finally:
+            comp._values[pname] = old
+        if any(b is None for b in blocks):
+            return None
+        try:
+            rows = [m.port_coordinates[f"{path}.{d}"] for d in blocks[0].dofs]
+        except KeyError:
+            return None
+        P = sp.csr_matrix(m.T)[rows]
+        out = []
+        for attr in ("M", "K", "C"):
+            A0, A1, A2 = (sp.csr_matrix(getattr(b, attr)) if getattr(b, attr) is not None
+                          else sp.csr_matrix((len(rows), len(rows))) for b in blocks)
+            mid = 0.5 * (A1 + A2) - A0
+            if mid.nnz and abs(mid).max() > 1e-9 * max(abs(A0).max(), 1e-300):
+                return None                                   # not affine in the parameter
+            out.append(sp.csr_matrix(P.T @ ((A1 - A2) / (0.2 * v0)) @ P))
+        dM, dK, dC = out
+        return (v0, dM, dK, dC)
+
+    def _verify(self, name, v0, sens) -> bool:
+        ref = self._flatten_sensitivity(name, v0, steps=(1.1,))
+        if ref is None:
+            return False
+        _, dM, dK, dC = sens
+        ok = True
+        for a, b in ((dM, ref[1]), (dK, ref[2]), (dC, ref[3])):
+            d = (a - b).tocsr()
+            scale = max(abs(b).max() if b.nnz else 0.0, abs(a).max() if a.nnz else 0.0, 1e-300)
+            ok &= bool(d.nnz == 0 or abs(d).max() <= 1e-6 * scale)
+        return ok
+
+    def _flatten_sensitivity(self, name, v0, steps=(1.1, 0.9)):
+        """Sensitivity by re-flattening at ``v0 * step`` (one step: forward difference, used to verify)."""
+        from .flatten import flatten
+        from .linear import second_order
+
         mats = []
-        for f in (1.1, 0.9):
+        for f in steps:
             d = flatten(self.linear_system.with_parameters({name: v0 * f}))
             so = second_order(d, refresh_damping=False, **self._so_args)
+            if so.coordinates != self.so0.coordinates:
+                return None
             C = so.C - (sp.csr_matrix(d.system_damping_basis[2]) if self.damping is not None else 0)
             mats.append((so, sp.csr_matrix(C)))
-        (s1, C1), (s2, C2) = mats
         C0 = sp.csr_matrix(self.so0.C - (self._Cadd0 if self._Cadd0 is not None else 0))
-        dv = 0.2 * v0
-        dM, dK, dC = (s1.M - s2.M) / dv, (s1.K - s2.K) / dv, (C1 - C2) / dv
-        ok = True
+        if len(steps) == 1:
+            (s1, C1), = mats
+            dv = (steps[0] - 1.0) * v0
+            return (v0, sp.csr_matrix((s1.M - self.so0.M) / dv), sp.csr_matrix((s1.K - self.so0.K) / dv),
+                    sp.csr_matrix((C1 - C0) / dv))
+        (s1, C1), (s2, C2) = mats
+        dv = (steps[0] - steps[1]) * v0
         for A0, A1, A2 in ((self.so0.M, s1.M, s2.M), (self.so0.K, s1.K, s2.K), (C0, C1, C2)):
-            mid = 0.5 * (A1 + A2) - A0
-            scale = max(abs(A0).max(), 1e-300)
-            ok &= bool(abs(mid).max() <= 1e-8 * scale) if mid.nnz else True
+            mid = sp.csr_matrix(0.5 * (A1 + A2) - A0)
+            if mid.nnz and abs(mid).max() > 1e-8 * max(abs(A0).max(), 1e-300):
+                return None
         for attr in ("B", "Cq", "Cv", "Ca", "D"):
-            diff = getattr(s1, attr) - getattr(self.so0, attr)
-            ok &= bool(diff.nnz == 0 or abs(diff).max() <= 1e-10 * max(abs(getattr(self.so0, attr)).max(), 1e-300))
-        if ok:
-            self._sens[name] = (v0, sp.csr_matrix(dM), sp.csr_matrix(dK), sp.csr_matrix(dC))
-        else:
-            self._reflatten.add(name)
+            diff = sp.csr_matrix(getattr(s1, attr) - getattr(self.so0, attr))
+            if diff.nnz and abs(diff).max() > 1e-10 * max(abs(getattr(self.so0, attr)).max(), 1e-300):
+                return None
+        return (v0, sp.csr_matrix((s1.M - s2.M) / dv), sp.csr_matrix((s1.K - s2.K) / dv),
+                sp.csr_matrix((C1 - C2) / dv))
 
     def _split(self, params):
         lin, law, struct = {}, {}, {}
