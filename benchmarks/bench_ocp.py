@@ -50,7 +50,8 @@ J_RIGID, B_RIGID = 8.55e-3, 0.0321   # Eq 4.2, Sec 4.2.1
 
 def reduced_drive(nut_position="C"):
     """CMS-reduced axial+torsional test bed in a System: (system, input, s, v, a, nut coordinate state)."""
-    so = bscomp.second_order(testbed_axial_torsional(nut_position=nut_position), inputs=["motor.tau"],
+    so = bscomp.second_order(testbed_axial_torsional(nut_position=nut_position, drive_input="torque"),
+                             inputs=["motor.tau"],
                              outputs=["table.s", "table.v", "table.a", "rotor.phi"])
     red, _ = reduce_second_order(so, boundary=["rotor.phi", "sn.nut.w"], f_cut=2000.0)
     s = System("reduced_drive")
@@ -100,7 +101,7 @@ def main(Ns=(100, 200, 400), full_max_N=400, full_only=False):
         row("rigid (Eq 4.2)", N, wall, None, r, dev["rotor.phi"])
     s, u, ys, yv, ya, q_nut = reduced_drive()
     red = bscomp.flatten(s)
-    sign = 1.0   # table.s = sn.nut.w (Cq of the reduced model)
+    sign = -1.0   # table.s = -sn.nut.w: the table axis is the screw's -z (systems/testbed.py)
     for N in () if full_only else Ns:
         try:
             r, wall = solve(red, u, {q_nut: sign * MOVE}, {yv: V_MAX, ya: A_MAX}, N)
@@ -108,13 +109,13 @@ def main(Ns=(100, 200, 400), full_max_N=400, full_only=False):
             row("CMS reduced", N, wall, base[N], r, dev[ys])
         except bscomp.BscompError as exc:
             print(f"{'CMS reduced':<18} {N:>4} failed: {str(exc)[:300]}", flush=True)
-    full = bscomp.flatten(testbed_axial_torsional())
+    full = bscomp.flatten(testbed_axial_torsional(drive_input="torque"))
     for N in Ns:
         if N > full_max_N:
             print(f"{'axial+torsional':<18} {N:>4} skipped (--full-max-N {full_max_N})", flush=True)
             continue
         try:
-            r, wall = solve(full, "motor.tau", {"sn.nut.w": MOVE}, {"table.v": V_MAX, "table.a": A_MAX}, N,
+            r, wall = solve(full, "motor.tau", {"sn.nut.w": sign * MOVE}, {"table.v": V_MAX, "table.a": A_MAX}, N,
                             fixed=("Fd.f",), coordinates="modal", rest_below_hz=2000.0)
             sim, dev = r.resimulate(outputs=["table.s"])
             row("axial+torsional", N, wall, base[N], r, dev["table.s"])

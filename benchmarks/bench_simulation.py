@@ -52,8 +52,14 @@ U_PP, F_SQ = 4.25, 5.0             # Sec 5.3.1: 4.25 V peak-to-peak, 5 Hz
 OUTS = ["table.a", "rotor.w", "table.s"]
 
 
+def voltage(t):
+    """Amplifier command amp.u [V]: the 4.25 V peak-to-peak, 5 Hz square wave."""
+    return 0.5 * U_PP * (1.0 if (t * F_SQ) % 1.0 < 0.5 else -1.0)
+
+
 def torque(t):
-    return K_A * K_T * 0.5 * U_PP * (1.0 if (t * F_SQ) % 1.0 < 0.5 else -1.0)
+    """The same command as motor torque [N m] (Eq 4.1: tau = K_a K_t u)."""
+    return K_A * K_T * voltage(t)
 
 
 def main(T_end: float = 1.0, scipy_baseline: bool = True):
@@ -70,7 +76,7 @@ def main(T_end: float = 1.0, scipy_baseline: bool = True):
         rows[name] = (wall, y)
         print(f"  {name:<26} {wall:8.3f} s wall", flush=True)
 
-    dae = bscomp.flatten(testbed_axial_torsional())
+    dae = bscomp.flatten(testbed_axial_torsional(drive_input="torque"))     # the scipy baseline takes the torque
     so = bscomp.second_order(dae, inputs=["motor.tau"], outputs=OUTS)
     red, info = reduce_second_order(so, boundary=["rotor.phi", "sn.nut.w"], f_cut=2000.0)
     rs = System("reduced")
@@ -117,11 +123,11 @@ def nonlinear(T_end: float = 1.0, reference: bool = False):
     dae = bscomp.flatten(drive("C", friction=True, backlash=True))
     t = np.arange(0.0, T_end + 1e-12, 1e-4)
     outs = ["table.s", "table.v", "rotor.w"]
-    _sim(dae, outs, "motor.tau", t[:3], "idas")  # builds the Jacobians and outputs every method shares
+    _sim(dae, outs, "amp.u", t[:3], "idas")  # builds the Jacobians and outputs every method shares
 
     def cold_split(**kw):
         dae._cache.pop("split_models", None)  # the split set-up (regimes, expm, eig, Functions) is cached per start
-        return _sim(dae, outs, "motor.tau", t, "split", **kw)
+        return _sim(dae, outs, "amp.u", t, "split", **kw)
 
     runs = {}
     cases = [("idas rtol 1e-8 (ref)", None, dict(method="idas", rtol=1e-8, atol=1e-11), 1)] if reference else []
@@ -135,7 +141,7 @@ def nonlinear(T_end: float = 1.0, reference: bool = False):
         try:
             for _ in range(repeat):
                 t0 = time.perf_counter()
-                y = fn() if fn is not None else _sim(dae, outs, "motor.tau", t, **kw)
+                y = fn() if fn is not None else _sim(dae, outs, "amp.u", t, **kw)
                 walls.append(time.perf_counter() - t0)
         except bscomp.simulate.SimulationError as exc:
             print(f"  {name}: failed: {str(exc)[:160]}")
@@ -155,7 +161,8 @@ def nonlinear(T_end: float = 1.0, reference: bool = False):
 
 
 def _sim(dae, outs, u, t, method, **kw):
-    r = simulate(dae, t, inputs={u: torque}, outputs=outs, method=method, max_num_steps=10**6, progress=False,
+    command = voltage if u == "amp.u" else torque
+    r = simulate(dae, t, inputs={u: command}, outputs=outs, method=method, max_num_steps=10**6, progress=False,
                  **kw)
     return [r[o] for o in outs]
 

@@ -37,7 +37,7 @@ from bscomp.sweep import _tangent_component, _TangentUpdate, position_sweep  # n
 from bscomp.systems import get  # noqa: E402
 from bscomp.systems.testbed import testbed  # noqa: E402
 
-INPUTS = ["motor.tau", "Fd.f"]
+INPUTS = ["amp.u", "Fd.f"]          # amplifier command (the test bed's default input) and table force
 OUTPUTS = ["rotor.w", "table.s"]
 N_POS, N_FREQ = 100, 1000
 

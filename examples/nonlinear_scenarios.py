@@ -27,12 +27,11 @@ from bscomp.simulate import simulate
 from bscomp.systems._params import load_parameters
 from bscomp.systems.testbed import testbed_axial_torsional
 
-K_A, K_T = 6.4898, 0.4769  # Eq 4.1
-
 
 def square_wave(t, pp=4.25, f=5.0):
-    """Motor torque of the 4.25 V peak-to-peak, 5 Hz square wave (Sec 5.3.1) through K_a K_t."""
-    return K_A * K_T * 0.5 * pp * (1.0 if (t * f) % 1.0 < 0.5 else -1.0)
+    """Amplifier command ``amp.u``: the 4.25 V peak-to-peak, 5 Hz square wave (Sec 5.3.1); the model's
+    amplifier and torque constant turn it into the motor torque (Eq 4.1)."""
+    return 0.5 * pp * (1.0 if (t * f) % 1.0 < 0.5 else -1.0)
 
 
 def drive(position="C", friction=False, backlash=False) -> System:
@@ -54,7 +53,7 @@ def drive(position="C", friction=False, backlash=False) -> System:
 
 def run(system, t, outputs=("table.v", "table.a", "rotor.w")):
     """Simulate the square-wave response (section: solve)."""
-    return simulate(system, t, inputs={"motor.tau": square_wave}, outputs=list(outputs), max_num_steps=10**6)
+    return simulate(system, t, inputs={"amp.u": square_wave}, outputs=list(outputs), max_num_steps=10**6)
 
 
 def main(out_dir="out/nonlinear", T_end=0.4):
@@ -97,11 +96,11 @@ def main(out_dir="out/nonlinear", T_end=0.4):
     fig.savefig(out / "fig5_12_position.png", dpi=120)
     plt.close(fig)
     # Fig 5.14/5.15: full vs CMS-reduced (linear model)
-    so = bscomp.second_order(drive("C"), inputs=["motor.tau"], outputs=["table.a", "table.v"])
+    so = bscomp.second_order(drive("C"), inputs=["amp.u"], outputs=["table.a", "table.v"])
     red, info = reduce_second_order(so, boundary=["rotor.phi", "sn.nut.w"], f_cut=2000.0)
     rs = System("reduced")
     rs.add("plant", SecondOrderBlock(red))
-    rr = simulate(rs, t, inputs={"plant.motor_tau": square_wave}, outputs=["plant.table_a"])
+    rr = simulate(rs, t, inputs={"plant.amp_u": square_wave}, outputs=["plant.table_a"])
     full = res["linear"]
     err = np.max(np.abs(rr["plant.table_a"] - full["table.a"])) / np.max(np.abs(full["table.a"]))
     print(f"  reduced model: {red.M.shape[0]} coordinates (full {so.n}); table.a max error {err:.2e}; "

@@ -45,10 +45,8 @@ import scipy.sparse as sp
 from bscomp import flatten, second_order
 from bscomp.components import (
     CoulombFriction,
-    CurrentAmplifier,
     DigitalPController,
     Fixed,
-    Gain,
     NotchFilter,
     PIController,
     Tachometer,
@@ -233,7 +231,7 @@ def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", fricti
     Fig 4.3 (input ``pi.u_s`` [V]), ``"RST"`` only the amplifier (input ``amp.u`` [V], Fig 4.19).
     ``friction=True`` adds the guideway's Coulomb friction of Table 5.2 as a component (Eq 5.7 with the
     +/- levels, regularised over v_reg = 0.1 mm/s as in examples/nonlinear_scenarios.py)."""
-    s = testbed_axial_torsional(nut_position=nut_position, coupling=coupling)
+    s = testbed_axial_torsional(nut_position=nut_position, coupling=coupling)   # amp.u -> amp -> kt -> motor
     if friction:
         fb = p["friction_backlash"]
         s.add("guide_ground", Fixed())
@@ -241,10 +239,6 @@ def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", fricti
                                           v_reg=1e-4))
         s.connect("friction.flange_a", "guide_ground.flange")
         s.connect("friction.flange_b", "table.flange_b")
-    s.add("amp", CurrentAmplifier(K_a=get_value(p, "electrical.K_a")))
-    s.add("kt", Gain(k=get_value(p, "electrical.K_t")))
-    s.connect("amp.i", "kt.u")
-    s.connect("kt.y", "motor.tau")
     if kind == "P-PI":
         s.add("pi", PIController(K_v=get_value(p, "control.K_v"), K_i=get_value(p, "control.K_i")))
         s.add("tacho", Tachometer(H_g=get_value(p, "electrical.H_g")))
@@ -304,7 +298,7 @@ def controller_blocks(p, name):
     raise ValueError(f"controller {name!r}: use one of {CONTROLLERS}")
 
 
-def spectral_radius(dae, blocks, actuate, measure="table.s", gain=-1.0):
+def spectral_radius(dae, blocks, actuate, measure="table.s", gain=1.0):
     """Largest |z| of the sampled closed loop (plant ZOH-discretised at T_s, linearized): < 1 is stable."""
     import control
 
@@ -324,10 +318,10 @@ def spectral_radius(dae, blocks, actuate, measure="table.s", gain=-1.0):
 
 
 def controller(p, name, reference):
-    """Sampled controller and the plant kind it acts on. Positive motor rotation moves the table to
-    -z in this model (``table.v = -r_g rotor.w``), so the controllers work on ``-table.s``."""
+    """Sampled controller and the plant kind it acts on. A positive command moves the table forward
+    (``table.v = r_g rotor.w``, systems/testbed.py sign convention), so the controllers work on ``table.s``."""
     blocks, act, kind = controller_blocks(p, name)
-    return sampled_controller(blocks, "table.s", act, reference, measure_gain=-1.0), kind
+    return sampled_controller(blocks, "table.s", act, reference), kind
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -365,7 +359,7 @@ def run_case(p, name, traj, position, friction="component", t_end=None, cut_wind
                    outputs=["table.s", "table.v", "table.a", "amp.u"])
     r = traj.position(t)
     return {"t": t, "ref": r, "v_ref": traj.velocity(t), "a_ref": traj.acceleration(t), "x": res["table.s"],
-            "v": res["table.v"], "a": res["table.a"], "e": r - res["table.s"], "u": -res["amp.u"],
+            "v": res["table.v"], "a": res["table.a"], "e": r - res["table.s"], "u": res["amp.u"],
             "u_ctrl": res[act], "F_d": res["Fd.f"], "wall_s": res.stats["wall_s"], "friction": friction}
 
 
@@ -417,7 +411,7 @@ def plot_case(results, traj, name, path):
     ax[0].set_ylabel("table velocity [m/min]")
     ax[1].set_ylabel("tracking error [mm]")
     ax[2].set_ylabel("table acceleration [G]")
-    ax[3].set_ylabel("amplifier command [V]\n(+ drives towards R)")
+    ax[3].set_ylabel("amplifier command [V]\n(+ drives the table forward)")
     ax[3].set_xlabel("time [s] (grey: slot cut)")
     ax[0].legend(fontsize=7, loc="lower center")
     ax[0].set_title(f"Slotting, {name} (cf. Fig 5.19-5.21)")

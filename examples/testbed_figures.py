@@ -60,7 +60,8 @@ def fig_4_2(out: Path):
               (0, 1): ("F_d", "omega", "rad/s/N"), (1, 1): ("F_d", "x", "m/N")}
     errs = []
     for pos in "LCR":
-        so = second_order(testbed("full", nut_position=pos), inputs=DRIVE_INPUTS, outputs=DRIVE_OUTPUTS)
+        so = second_order(testbed("full", nut_position=pos, drive_input="torque"), inputs=DRIVE_INPUTS,
+                          outputs=DRIVE_OUTPUTS)     # Fig 4.2 is drawn from the motor torque
         md = modes(so, damping="projection")
         errs.append(check_frf(so, md, np.array([20.0, 118.0, 270.0])))
         H = modal_frf(md, f)
@@ -169,8 +170,8 @@ def fig_appendix_c(out: Path):
     res = {}
     for pitch in (None, 0.045):
         for case, ksn in (("A", "axial_torsional"), ("B", "full")):
-            so = second_order(testbed("appendix_c", ksn=ksn, pitch=pitch, damping=False), inputs=["motor.tau"],
-                              outputs=outputs)
+            so = second_order(testbed("appendix_c", ksn=ksn, pitch=pitch, damping=False, drive_input="torque"),
+                              inputs=["motor.tau"], outputs=outputs)
             md = modes(so, damping="projection")
             # light uniform damping for the plot only (App C gives none): 2 % on every elastic mode
             md.damping = np.where(md.rigid_body, np.nan, 0.02)

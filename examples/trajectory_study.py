@@ -69,7 +69,7 @@ U, S, V, A = "plant.motor_tau", "plant.table_s", "plant.table_v", "plant.table_a
 
 # ---- model ----------------------------------------------------------------------------------------
 def reduced_testbed(position):
-    so = bscomp.second_order(testbed_axial_torsional(nut_position=position), inputs=["motor.tau"],
+    so = bscomp.second_order(testbed_axial_torsional(nut_position=position, drive_input="torque"), inputs=["motor.tau"],
                              outputs=["table.s", "table.v", "table.a", "rotor.phi"])
     red, _ = reduce_second_order(so, boundary=["rotor.phi", "sn.nut.w"], f_cut=2000.0)
     s = System(f"testbed_{position}_cms")
@@ -79,7 +79,8 @@ def reduced_testbed(position):
     lam, Vm = sla.eigh(K, M)
     i_rot, i_nut = red.coordinates.index("rotor.phi"), red.coordinates.index("sn.nut.w")
     phi = Vm[:, 0] / Vm[i_rot, 0]                 # rigid-body mode, rotor angle 1 rad
-    rigid = {"J": float(phi @ M @ phi), "B": float(phi @ C @ phi), "r": float(phi[i_nut])}
+    # table travel per motor radian: the nut coordinate is in screw z, the table axis is -z (systems/testbed.py)
+    rigid = {"J": float(phi @ M @ phi), "B": float(phi @ C @ phi), "r": float(-phi[i_nut])}
     f = np.sqrt(np.clip(lam[1:3], 0, None)) / (2 * np.pi)
     return dae, f"plant.q{i_nut}.q", rigid, f
 
@@ -104,7 +105,7 @@ def trapezoid(t):
 
 def optimal_move(dae, q_nut, tau_max, residual_limit=None):
     ocp = (Ocp(dae, N=N).bound(U, -tau_max, tau_max).bound(V, -V_MAX, V_MAX).bound(A, -A_MAX, A_MAX)
-           .initial({}).final({q_nut: MOVE}).minimize_time(T_guess=0.2))
+           .initial({}).final({q_nut: -MOVE}).minimize_time(T_guess=0.2))     # nut -z = table +MOVE
     if residual_limit is not None:
         ocp.limit_residual_vibration({S: residual_limit}, hold={U: 0.0})
     t0 = time.perf_counter()

@@ -7,7 +7,7 @@ Layout (thesis Sec 3.5.1, Fig 3.3), axial coordinate ``x`` = screw axis ``z`` of
 at the free end of section A, increasing towards section F (toml ``[meta].coordinate``)::
 
     x=0    b2 (deep-groove, radial)        nut (P)                     b1 (angular-contact pair)   x=0.9205
-     |A|B|--------------- C (thread, 39 elements) ---------------|D|E|F|--coupling--rotor <- motor.tau
+     |A|B|--------------- C (thread, 39 elements) ---------------|D|E|F|--coupling--rotor <- motor <- kt <- amp <- amp.u
                                           |
                                         table (250 kg, z only; rigid box way), Fd.f
 
@@ -26,10 +26,35 @@ at the free end of section A, increasing towards section F (toml ``[meta].coordi
 * ``B``: rigid-body viscous damping B = 0.0321 kg m^2/s at the motor shaft (Sec 4.2.1, Eq 4.2), used once:
   ``viscous="guide"`` puts the same damping on the table instead (12 673 N s/m, Table 5.2).
 * ``coupling``: :class:`Coupling`, k_T 3938 N m/rad (Sec B.4; bellows 45 940, Sec 4.4.1), jaws J1/J2;
-  ``rotor``: :class:`Inertia` 5.98e-3 kg m^2 (Table 3.1), torque input ``motor.tau`` (Eq 4.1: the
-  amplifier is a gain, so the mechanical input is the torque).
+  ``rotor``: :class:`Inertia` 5.98e-3 kg m^2 (Table 3.1) driven by the torque source ``motor``.
+* Input (``drive_input``): by default the amplifier command voltage ``amp.u`` [V], the channel users
+  measure: ``amp`` (:class:`CurrentAmplifier`, K_a = 6.4898 A/V) and ``kt`` (:class:`Gain`, K_t = 0.4769
+  N m/A) in series before ``motor.tau`` (Eq 4.1: current mode, G_e = K_a K_t, as in
+  :mod:`bscomp.systems.validation_drive`). ``drive_input="torque"`` leaves the torque ``motor.tau`` [N m]
+  as the input (the Ch 4 plant, the form the design equations of Sec 4.2-4.5 are written in).
 * Damping: :class:`DriveModalDamping`, 6 % (mode 1), 10 % (mode 2), 6 % (others) (Tables 4.1/4.2, toml
   ``[damping]``), rigid-body mode undamped (Sec 5.2.2.1).
+
+Sign convention
+---------------
+Motor angle ``rotor.phi`` is positive about the screw axis +z (right-hand rule). Table position and
+acceleration (``table.s``, ``table.a``) and the disturbance force ``Fd.f`` are along the machine's table
+axis, positive in the direction a positive command moves the table (thesis Eq 4.2: G_x = r_g / s and
+G_d = r_g / (J s + B); the same as :mod:`bscomp.systems.validation_drive`): a positive voltage or torque
+gives a positive motor angle and a positive table position, ``table.s = r_g rotor.phi`` at low frequency
+(r_g = lead / 2 pi = 1.59e-3 m/rad), and a positive ``Fd.f`` pushes the table forward.
+The screw's thread is right-handed (Eq 3.12), so a positive screw rotation drives the nut towards -z: the
+table axis is the screw's -z axis, and the nut-to-table joint ``table_joint`` (:class:`NodeToFlange`)
+carries ``direction = -1``. The FE coordinates stay in screw z: the nut's ``nut.w``, the moving joint's
+nut position ``sn.z0 + nut.w`` and every screw node are measured along +z from the free end of section A.
+
+Validation interface
+--------------------
+Every drive variant declares ``s.validation`` (:class:`bscomp.interface.ValidationInterface`): the
+measured input (``amp.u``, or ``motor.tau``) and outputs (``rotor.phi``, ``rotor.w``, ``table.s``,
+``table.a``), the uncertain parameters with spreads (table mass, coupling stiffness, thrust-bearing
+stiffness) and insertion points by role (nut-table joint, table on its guideways, thrust support ``b1``,
+coupling, amplifier, rotor, table, whole structure). See ``docs/validation.md``.
 
 Choices where the thesis is silent (toml notes starting with CHOICE; see ``docs/testbed-sensitivity.md``
 for how the results move with each): the motor at the F end, the angular-contact pair acting at the
@@ -56,10 +81,12 @@ from bscomp.components import (
     Bearing,
     Bushing,
     Coupling,
+    CurrentAmplifier,
     Damper,
     Fixed,
     FixedRotational,
     Force,
+    Gain,
     Inertia,
     LinearGuide,
     Mass,
@@ -74,6 +101,7 @@ from bscomp.components import (
 from bscomp.components._beam_fe import Section
 from bscomp.damping import modal_damping_matrix
 from bscomp.errors import ModelDefinitionError
+from bscomp.interface import InsertionPoint, UncertainParameter, ValidationInterface
 
 from ._params import get_value, load_parameters
 
@@ -193,7 +221,7 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
             motor_end: str | None = None, b1_position: float | None = None, b2_position: float | None = None,
             coupling_position: float | None = None, root_diameter: float | None = None,
             jaw1: str = "motor", ksn: str = "full", pitch: float | None = None, damping: bool = True,
-            viscous: str = "motor", nut_joint: str = "point",
+            viscous: str = "motor", nut_joint: str = "point", drive_input: str = "voltage",
             params: str = "fadal_vmc2216_x") -> System:
     """Build the test bed (or one of its verification steps) as a :class:`bscomp.System`.
 
@@ -246,6 +274,10 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
         tests/systems/test_testbed_moving.py); with ``"moving"`` the position is the ordinary parameter
         ``sn.z0``, so one flattening serves every position (fast sweeps) and the nut can travel in time
         simulations. Needs ``ksn="full"``.
+    drive_input : {"voltage", "torque"}
+        System input of the drive variants: the amplifier command voltage ``amp.u`` [V] (default; amplifier
+        ``amp`` with K_a and torque constant ``kt`` with K_t of Eq 4.1 in series before the motor torque),
+        or the motor torque ``motor.tau`` [N m] (the Ch 4 plant the design equations are written for).
     params : str
         Parameter set name or path (default the thesis test bed).
 
@@ -253,8 +285,8 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
     -------
     System
         With ``position_parameter = "nut_position"`` (``"sn.z0"`` for ``nut_joint="moving"``) where a nut
-        exists, ``sources`` citing the thesis,
-        and ``build_args`` (the resolved choices).
+        exists, ``sources`` citing the thesis, ``build_args`` (the resolved choices) and, for the drive
+        variants, ``validation`` (:class:`~bscomp.interface.ValidationInterface`, see the module docstring).
     """
     if variant not in VARIANTS:
         raise ModelDefinitionError(f"testbed: unknown variant {variant!r}; use one of {VARIANTS}")
@@ -271,6 +303,9 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
         raise ModelDefinitionError(f"testbed: jaw1 must be 'motor' or 'screw', got {jaw1!r}")
     if viscous not in ("motor", "guide", "none"):
         raise ModelDefinitionError(f"testbed: viscous must be 'motor', 'guide' or 'none', got {viscous!r}")
+    if drive_input not in ("voltage", "torque"):
+        raise ModelDefinitionError(f"testbed: drive_input must be 'voltage' (amplifier command amp.u [V]) or "
+                                   f"'torque' (motor.tau [N m]), got {drive_input!r}")
     p = thesis_parameters(params)
     v = lambda key: get_value(p, key)  # noqa: E731
     motor_end = v("screw.motor_end") if motor_end is None else motor_end
@@ -375,13 +410,16 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
         else:
             s.add("nut", RigidBody(m=m_nut, I=I_nut, dofs=("w",)))             # bolted to the table
             s.connect(nut_port, "nut.com")
-            s.add("table_joint", NodeToFlange())
+            # the table axis is the screw's -z for a right-hand thread (module docstring, "Sign convention")
+            s.add("table_joint", NodeToFlange(direction=-float(sn.hand)))
             s.add("table", Mass(m=v("table.mass")))
             s.add("Fd", Force())
             s.connect("nut.com", "table_joint.node")
             s.connect("table_joint.flange", "table.flange_a")
             s.connect("Fd.flange", "table.flange_a")
             src.update({"nut": "Table 3.1 (mass); moves with the table along z only (Sec 3.5.1)",
+                        "table_joint": "table axis = -z: positive in the direction a positive command moves "
+                                       "the table (Eq 4.2, G_x = r_g/s; right-hand thread, Eq 3.12)",
                         "table": "Table 3.1, Sec B.3", "Fd": "disturbance force F_d on the table (Fig 4.1)"})
             if viscous == "guide":
                 s.add("guide", Damper(d=v("guideways.viscous_coefficient")))
@@ -390,11 +428,18 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
                 s.connect("guide.flange_b", "frame.flange")
                 src["guide"] = "Table 5.2 (B = 12673 N s/m = 0.0321 kg m^2/s of Sec 4.2.1 seen from the table)"
 
-    # ---- coupling (Sec B.4 / Sec 4.4.1) and rotor (Table 3.1, Sec B.3); torque input (Eq 4.1)
+    # ---- coupling (Sec B.4 / Sec 4.4.1), rotor (Table 3.1, Sec B.3); amplifier + torque constant (Eq 4.1)
     if has_drive:
         k_T = v("coupling.kT") if coupling == "jaw" else v("coupling.bellows_kT")
         J1, J2 = v("coupling.J1"), v("coupling.J2")
         s.add("motor", Torque())
+        if drive_input == "voltage":             # current mode: G_e = K_a K_t (Eq 4.1), input amp.u [V]
+            s.add("amp", CurrentAmplifier(K_a=v("electrical.K_a")))
+            s.add("kt", Gain(k=v("electrical.K_t")))
+            s.connect("amp.i", "kt.u")
+            s.connect("kt.y", "motor.tau")
+            src.update({"amp": "Eq 4.1 (Sec 4.2): current amplifier K_a = 6.4898 A/V, input amp.u [V]",
+                        "kt": "Eq 4.1 (Sec 4.2): motor torque constant K_t = 0.4769 N m/A"})
         if jaw1 == "screw":                     # sensitivity only: both jaws on the screw side
             J1, J2 = 0.0, J1 + J2
         s.add("rotor", Inertia(J=v("rotor.Izz")))
@@ -412,19 +457,71 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
             src["B"] = "Sec 4.2.1 (Eq 4.2): B = 0.0321 kg m^2/s at the motor shaft (= Table 5.2 x r_g^2)"
         src.update({"coupling": ("Sec B.4 (k_T = 3938, Eq B.1)" if coupling == "jaw" else "Sec 4.4.1 (bellows "
                                  "k_T = 45940)") + f"; J1, J2 Table 3.1; J2 at x = {x_cp} m (CHOICE)",
-                    "rotor": "Table 3.1, Sec B.3", "motor": "torque input tau = K_a K_t u (Eq 4.1)"})
+                    "rotor": "Table 3.1, Sec B.3",
+                    "motor": "motor torque tau = K_a K_t u (Eq 4.1)" if drive_input == "voltage" else
+                             "torque input motor.tau (Eq 4.1: tau = K_a K_t u, amplifier left out)"})
         if damping and variant != "appendix_c":
             s.damping = DriveModalDamping(v("damping.zeta_mode1"), v("damping.zeta_mode2"), v("damping.zeta_other"))
             src["damping"] = "Tables 4.1/4.2 (6 %, 10 %); others 6 % (CHOICE); rigid mode undamped (Sec 5.2.2.1)"
 
     s.sources = {k: t for k, t in src.items() if t}
+    if has_drive:
+        s.validation = _validation_interface(s, variant, drive_input)
     if has_nut:
         s.position_parameter = "nut_position" if nut_joint == "point" else "sn.z0"
     s.build_args = dict(variant=variant, nut_position=x_nut, dofs=dofs, coupling=coupling, motor_end=motor_end,
                         b1_position=x_b1 if has_bearings else None, b2_position=x_b2 if has_bearings else None,
                         coupling_position=x_cp if has_drive else None, root_diameter=sections[2].d_out,
-                        jaw1=jaw1, ksn=ksn, pitch=pitch, viscous=viscous, nut_joint=nut_joint, params=params)
+                        jaw1=jaw1, ksn=ksn, pitch=pitch, viscous=viscous, nut_joint=nut_joint,
+                        drive_input=drive_input if has_drive else None, params=params)
     return s
+
+
+#: The sign convention of the test bed's measured channels, in words (module docstring).
+SIGN_CONVENTION = ("motor angle positive about the screw axis +z; table position/acceleration and the disturbance "
+                   "Fd.f along the table axis (= screw -z, right-hand thread), positive in the direction a positive "
+                   "command moves the table: table.s = r_g rotor.phi at low frequency (Eq 4.2, G_x = r_g/s); FE "
+                   "coordinates (nut.w, sn.z0, screw nodes) stay in screw z")
+
+
+def _validation_interface(s: System, variant: str, drive_input: str) -> ValidationInterface:
+    """The declared validation interface of a drive variant (module docstring, "Validation interface")."""
+    has_table = variant in ("full", "axial_torsional")
+    joint = ("table_joint.flange", "table.flange_a")
+    frame = "frame.flange" if "frame" in s._components else None
+    points = [
+        InsertionPoint("screw_support", "support", ("screw.b1", "b1"),
+                       doc="the grounded angular-contact pair b1 (thrust support); its housing becomes a mass on "
+                           "a fastener spring"),
+        InsertionPoint("coupling", "parameter", parameters=("coupling.k_T",), doc="coupling torsional stiffness"),
+        InsertionPoint("rotor", "rotational", ("rotor.flange_a",), doc="motor rotor"),
+        InsertionPoint("structure", "all", doc="modal damping of the whole FE structure"),
+    ]
+    if drive_input == "voltage":
+        points.append(InsertionPoint("amplifier", "connection", ("amp.i", "kt.u"),
+                                     doc="amplifier current -> torque constant (D/A + amplifier delay)"))
+    if has_table:
+        points += [
+            InsertionPoint("nut_table", "connection", joint,
+                           doc="nut-to-table joint flange -> table (the disturbance Fd stays on the table)"),
+            InsertionPoint("screw_nut", "joint", joint,
+                           doc="the screw-nut clearance, modelled in series between nut and table: with a 1.49 kg "
+                               "nut on a 250 kg table this is what the gap does to the table"),
+            InsertionPoint("table_guide", "attach", ("table.flange_b",), ground=frame,
+                           doc="the table on its guideways" + ("" if frame else " (no frame flange: add a Fixed)")),
+            InsertionPoint("table", "attach", ("table.flange_a",), doc="the table (added mass)"),
+        ]
+    uncertain = [UncertainParameter("coupling.k_T", 0.2, "Sec B.4 (Eq B.1): from the 805 Hz mode of the coupling "
+                                                         "measured alone; the bellows value is a catalogue value"),
+                 UncertainParameter("b1.k_axial", 0.3, "Table 3.1: catalogue value for an assumed 700 N preload, "
+                                                       "doubled for the pair (Sec B.5)")]
+    if variant != "submodel1":
+        uncertain.insert(0, UncertainParameter("table.m", 0.2, "Table 3.1: CAD estimate (Sec B.3)"
+                                               + ("; Table C.1 table + nut" if variant == "appendix_c" else "")))
+    outputs = ["rotor.phi", "rotor.w"] + (["table.s", "table.a"] if has_table else [])
+    notes = SIGN_CONVENTION if has_table else "motor angle positive about the screw axis +z"
+    return ValidationInterface(inputs=["amp.u" if drive_input == "voltage" else "motor.tau"], outputs=outputs,
+                               uncertain=uncertain, points=points, ground=frame, notes=notes)
 
 
 def _appendix_c_table(s: System, v, nut_port: str) -> None:

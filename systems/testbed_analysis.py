@@ -18,7 +18,8 @@ __all__ = ["field_fractions", "drive_parameters", "free_free_modes", "submodel1_
            "DRIVE_INPUTS", "DRIVE_OUTPUTS"]
 
 #: Inputs and outputs of Fig 4.1 / 4.2: motor torque tau and table disturbance F_d; motor angle (its
-#: rate is omega) and table position x.
+#: rate is omega) and table position x. ``motor.tau`` is an input of a drive built with
+#: ``drive_input="torque"``; the default build's input is the amplifier voltage ``amp.u`` (tau = K_a K_t u).
 DRIVE_INPUTS = ["motor.tau", "Fd.f"]
 DRIVE_OUTPUTS = ["rotor.phi", "table.s"]
 
@@ -49,38 +50,51 @@ def drive_parameters(system=None, **build) -> dict:
     ----------
     system : bscomp.System, optional
         A drive variant of :func:`~bscomp.systems.testbed.testbed`; else built from ``build``
-        (keyword arguments of ``testbed``, default the full model).
+        (keyword arguments of ``testbed``, default the full model with the torque input). A system with the
+        amplifier-voltage input ``amp.u`` is analysed from ``amp.u`` and its residues divided by
+        K_a K_t, so the numbers are per N m of motor torque either way (Table 4.1).
 
     Returns
     -------
     dict
         ``J`` [kg m^2] (rigid-body modal mass at the motor angle), ``B`` [kg m^2/s], ``f1``, ``f2`` [Hz],
         ``zeta1``, ``zeta2``, residues ``Rw1``, ``Rw2`` (tau -> motor angle, Eq 4.5 with s),
-        ``Rm1``, ``Rm2`` (tau -> table x, Eq 4.7), ``Rd1``, ``Rd2`` (F_d -> motor angle, Eq 4.6), all with
-        the thesis's sign convention (table advancing for a positive motor angle: the model's signs are
-        multiplied by the sign of the rigid-body r_g), and ``modes`` (the :class:`~bscomp.modal.Modes`).
+        ``Rm1``, ``Rm2`` (tau -> table x, Eq 4.7), ``Rd1``, ``Rd2`` (F_d -> motor angle, Eq 4.6), all in
+        the thesis's sign convention, which the test bed's table axis follows (table advancing for a
+        positive motor angle, F_d positive along the table axis), ``r_g`` (table advance per motor
+        radian of the rigid-body mode, > 0) and ``modes`` (the :class:`~bscomp.modal.Modes`).
     """
     if system is None:
         build.setdefault("variant", "full")
+        build.setdefault("drive_input", "torque")
         system = testbed(**build)
-    so = second_order(system, inputs=DRIVE_INPUTS, outputs=DRIVE_OUTPUTS)
+    tau, gain = _torque_input(system)
+    so = second_order(system, inputs=[tau, DRIVE_INPUTS[1]], outputs=DRIVE_OUTPUTS)
     md = modes(so, damping="projection")
     frac = field_fractions(md, so.M)
     el = np.flatnonzero(~md.rigid_body)
     drive = [k for k in el if frac["bending"][k] < 0.5][:2]
     r = int(np.flatnonzero(md.rigid_body)[0])
-    R = md.residues
-    sign = np.sign(R[r, 1, 0])          # rigid-body tau -> x residue is r_g / J > 0 in the thesis
+    R = md.residues.copy()
+    R[:, :, 0] /= gain                  # per N m of torque (amp.u input: tau = K_a K_t u)
     out = {"J": md.reflected_inertia("rotor.phi"), "B": md.reflected_damping("rotor.phi"), "modes": md,
-           "r_g": abs(R[r, 1, 0]) / R[r, 0, 0]}
+           "r_g": R[r, 1, 0] / R[r, 0, 0]}
     for i, k in enumerate(drive, start=1):
         out[f"f{i}"] = float(md.frequencies[k])
         out[f"zeta{i}"] = float(md.damping[k])
         out[f"Rw{i}"] = float(R[k, 0, 0])
-        out[f"Rm{i}"] = float(sign * R[k, 1, 0])
-        out[f"Rd{i}"] = float(sign * R[k, 0, 1])
+        out[f"Rm{i}"] = float(R[k, 1, 0])
+        out[f"Rd{i}"] = float(R[k, 0, 1])
         out[f"mode{i}"] = int(k)
     return out
+
+
+def _torque_input(system) -> tuple:
+    """(input name, input -> torque gain): ``("motor.tau", 1)`` or ``("amp.u", K_a K_t)``."""
+    names = {p for p, _ in system.leaves()}
+    if "amp" in names and "kt" in names:
+        return "amp.u", float(system.get("amp.K_a")) * float(system.get("kt.k"))
+    return DRIVE_INPUTS[0], 1.0
 
 
 def free_free_modes(nut_position="2", **build) -> dict:

@@ -67,7 +67,8 @@ def reduced_testbed():
     from bscomp.reduce import reduce_second_order
     from bscomp.systems.testbed import testbed_axial_torsional
 
-    so = bscomp.second_order(testbed_axial_torsional(), inputs=["motor.tau"],
+    # torque input: the OCP's limits are the motor's peak torque (Sec 5.3.3)
+    so = bscomp.second_order(testbed_axial_torsional(drive_input="torque"), inputs=["motor.tau"],
                              outputs=["table.s", "table.v", "table.a", "rotor.phi"])
     red, _ = reduce_second_order(so, boundary=["rotor.phi", "sn.nut.w"], f_cut=2000.0)
     s = System("reduced_testbed")
@@ -103,8 +104,9 @@ def test_reduced_testbed_min_time_cold_start_meets_constraints_on_resimulation(r
     """
     dae, q_nut = reduced_testbed
     N = 80
+    # the nut coordinate is in screw z, the table axis is -z (systems/testbed.py): the table moves +MOVE
     r = (Ocp(dae, N=N).bound("plant.motor_tau", -TAU_MAX, TAU_MAX).bound("plant.table_v", -V_MAX, V_MAX)
-         .bound("plant.table_a", -A_MAX, A_MAX).initial({}).final({q_nut: MOVE}).minimize_time().solve())
+         .bound("plant.table_a", -A_MAX, A_MAX).initial({}).final({q_nut: -MOVE}).minimize_time().solve())
     assert r.stats["return_status"] == "Solve_Succeeded"
     assert np.max(np.abs(r["plant.motor_tau"])) <= TAU_MAX * (1 + 1e-6)
     sim, dev = r.resimulate(outputs=["plant.table_s", "plant.table_v", "plant.table_a"], rtol=1e-7, atol=1e-10)
@@ -117,8 +119,8 @@ def test_reduced_testbed_min_time_cold_start_meets_constraints_on_resimulation(r
     from bscomp.systems.testbed import testbed_axial_torsional
 
     names = {"plant.motor_tau": "motor.tau", "plant.table_s": "table.s", "plant.table_v": "table.v"}
-    sim_full, dev_full = r.resimulate(testbed_axial_torsional(), outputs=["plant.table_s", "plant.table_v"],
-                                      names=names, method="lti")
+    sim_full, dev_full = r.resimulate(testbed_axial_torsional(drive_input="torque"),
+                                      outputs=["plant.table_s", "plant.table_v"], names=names, method="lti")
     assert dev_full["plant.table_s"] < 1e-3
     assert sim_full["table.s"][-1] == pytest.approx(MOVE, abs=1e-5)
     assert np.max(np.abs(sim_full["table.v"])) <= V_MAX * 1.02

@@ -273,6 +273,41 @@ def test_adapters_reflected_inertia_with_ideal_lead_screw():
     np.testing.assert_allclose(so.M.toarray()[0, 0], J + m * r_g**2, rtol=1e-12)   # Eq 4.2
 
 
+@pytest.mark.parametrize("direction", [1.0, -1.0])
+def test_node_to_flange_direction_flips_the_axis_not_the_inertia(direction):
+    """flange.s = direction * node.w: rotor -> lead screw -> nut node (w) -> adapter -> table flange.
+
+    The table moves direction * r_g per radian, a force on it acts on the node as direction * F
+    (virtual work: node.Fz = -direction * flange.f), and the reflected inertia is that of Eq 4.2."""
+    from bscomp.components import Force, Mass
+    from bscomp.frf import frf
+
+    J, m_nut, m, lead = 5.98e-3, 1.49, 250.0, 0.010
+    s = System("t")
+    s.add("rotor", RigidBody(I=[0, 0, J], dofs=("tz",)))
+    s.add("rot", NodeToRotFlange())
+    s.add("lead", IdealLeadScrew(lead=lead))
+    s.add("lead_nut", NodeToFlange())
+    s.add("nut", RigidBody(m=m_nut, dofs=("w",)))
+    s.add("tr", NodeToFlange(direction=direction))
+    s.add("table", Mass(m=m))
+    s.add("F", Force())
+    s.connect("rotor.com", "rot.node")
+    s.connect("rot.flange", "lead.flange_a")
+    s.connect("lead.flange_b", "lead_nut.flange")
+    s.connect("lead_nut.node", "nut.com")
+    s.connect("nut.com", "tr.node")
+    s.connect("tr.flange", "table.flange_a")
+    s.connect("F.flange", "table.flange_a")
+    so = second_order(s, inputs=["F.f"], outputs=["table.s"])
+    r_g = lead / (2 * math.pi)
+    assert so.M.shape == (1, 1)
+    np.testing.assert_allclose(so.M.toarray()[0, 0], J + (m_nut + m) * r_g**2, rtol=1e-12)   # Eq 4.2
+    H = frf(s, input="F.f", output=["rot.flange.phi", "table.s"], freqs=[1.0]).H[0, :, 0]
+    assert H[1].real < 0                          # mass line -1/(m_red w^2): the force pushes the table along +s
+    np.testing.assert_allclose(H[1] / H[0], direction * r_g, rtol=1e-9)   # table.s = direction * r_g * phi
+
+
 def test_fixed_node_twice_is_redundant():
     s = System("t")
     s.add("body", RigidBody(m=1.0, dofs=("w",)))
