@@ -27,26 +27,38 @@ Values (``systems/data/fadal_vmc2216_x.toml``, thesis sections cited there):
 - nut 1.49 kg, table 250 kg (Table 3.1), guideway viscous coefficient B = 12 673 N s/m (Table 5.2);
 - amplifier K_a = 6.4898 A/V and torque constant K_t = 0.4769 N m/A (Eq 4.1).
 
-Insertion points
-----------------
-:data:`INSERTION_POINTS` names the connections a candidate effect may cut (``System.insert``) or the
-component it attaches to; ``validation_drive().insertion_points`` carries the same dictionary.
+Validation interface
+--------------------
+``validation_drive().validation`` is a :class:`bscomp.interface.ValidationInterface` (:data:`INTERFACE`
+lists the same declarations): input ``amp.u``, outputs :data:`OUTPUTS`, the uncertain parameters and the
+insertion points by role.
 
-======================  =====================================  ===========================================
-name                    connection / component                 candidate effects
-======================  =====================================  ===========================================
-``nut_table``           ``nut.flange_b`` -- ``table.flange_a``  bolted-joint compliance (spring + damper)
-``table_guide``         ``table.flange_b`` -- ``guide.flange_a``  guideway compliance, guideway friction
-``lead_axial``          ``lead.flange_b`` -- ``axial.flange_a``   bearing housing (mass + compliance)
-``screw_nut``           component ``axial`` (+ ``axial_loss``)   backlash at the screw-nut
-``amplifier``           ``amp.i`` -- ``kt.u``                  D/A + amplifier time delay (Pade)
-``table`` / ``rotor``   components                             missing mass / inertia
-======================  =====================================  ===========================================
+=================  ==========  =========================================  ===========================================
+role               kind        ports / parameters                         candidate effects
+=================  ==========  =========================================  ===========================================
+``nut_table``      connection  ``nut.flange_b`` -- ``table.flange_a``     bolted-joint compliance (spring + damper)
+``table_guide``    attach      ``table.flange_b`` (ground ``ground``)     guideway compliance, guideway friction
+``screw_support``  connection  ``lead.flange_b`` -- ``axial.flange_a``    bearing housing (mass + compliance)
+``screw_nut``      joint       components ``axial``, ``axial_loss``       backlash with their stiffness and damping
+``amplifier``      connection  ``amp.i`` -- ``kt.u``                      D/A + amplifier time delay (Pade)
+``coupling``       parameter   ``coupling.c``                             coupling stiffness
+``rotor``          rotational  ``rotor.flange_a``                         missing inertia
+``table``          attach      ``table.flange_a``                         missing mass
+``structure``      all                                                    extra modal damping
+=================  ==========  =========================================  ===========================================
 
-Uncertain parameters a user typically marks for re-calibration: :data:`UNCERTAIN` (table mass, the
-coupling stiffness, the guideway viscous coefficient). The lumped axial stiffness is trusted: Sec 3.5.2.2
-matched the screw-nut assembly to measurements, and re-scaling it would absorb a nut-table joint
+Uncertain parameters a user typically marks for re-calibration (:data:`UNCERTAIN`): the table mass, the
+coupling stiffness and the guideway viscous coefficient. The lumped axial stiffness is trusted: Sec
+3.5.2.2 matched the screw-nut assembly to measurements, and re-scaling it would absorb a nut-table joint
 compliance (two springs in series are indistinguishable below the nut's own mode).
+
+Sign convention: motor angle and table position positive in the direction a positive voltage drives them
+(thesis Eq 4.2, G_x = r_g / s), as on the FE test bed (:mod:`bscomp.systems.testbed`).
+
+Legacy attributes: ``insertion_points`` (:data:`INSERTION_POINTS`, name -> connection or component),
+``uncertain``, ``input`` and ``outputs`` are still set on the system, derived from the interface, for
+code that has not moved to ``system.validation`` yet (:mod:`bscomp.validate.candidates`,
+:func:`bscomp.validate.diagnose`); new code reads ``system.validation``.
 """
 
 from __future__ import annotations
@@ -67,29 +79,65 @@ from bscomp.components import (
     TorsionalDamper,
     TorsionalSpring,
 )
+from bscomp.interface import InsertionPoint, UncertainParameter, ValidationInterface
 from bscomp.systems._params import get_value, load_parameters
 
-__all__ = ["validation_drive", "INSERTION_POINTS", "UNCERTAIN", "INPUT", "OUTPUTS"]
+__all__ = ["validation_drive", "interface", "INTERFACE", "INSERTION_POINTS", "UNCERTAIN", "INPUT", "OUTPUTS"]
 
-INPUT = "amp.u"
-"""The system input: amplifier command voltage [V]."""
 
-OUTPUTS = ["rotor.phi", "rotor.w", "table.s", "table.a"]
+def interface() -> ValidationInterface:
+    """The declared validation interface of the drive (a new object on every call; module docstring)."""
+    return ValidationInterface(
+        inputs=["amp.u"],
+        outputs=["rotor.phi", "rotor.w", "table.s", "table.a"],
+        uncertain=[UncertainParameter("table.m", 0.2, "Table 3.1: CAD estimate (Sec B.3)"),
+                   UncertainParameter("coupling.c", 0.2, "Sec B.4 (Eq B.1): from the 805 Hz mode of the coupling "
+                                                         "measured alone"),
+                   UncertainParameter("guide.d", 0.3, "Table 5.2")],
+        points=[
+            InsertionPoint("nut_table", "connection", ("nut.flange_b", "table.flange_a"),
+                           doc="bolted joint between nut and table"),
+            InsertionPoint("table_guide", "attach", ("table.flange_b",), ground="ground.flange",
+                           doc="the table on its guideways"),
+            InsertionPoint("screw_support", "connection", ("lead.flange_b", "axial.flange_a"),
+                           doc="housing in series with the axial support"),
+            InsertionPoint("screw_nut", "joint", ("axial", "axial_loss"), parameters=("axial.c", "axial_loss.d"),
+                           doc="the components replaced by a backlash element with the same stiffness and "
+                               "damping"),
+            InsertionPoint("amplifier", "connection", ("amp.i", "kt.u"), doc="amplifier current -> torque constant"),
+            InsertionPoint("rotor", "rotational", ("rotor.flange_a",), doc="motor rotor"),
+            InsertionPoint("table", "attach", ("table.flange_a",), doc="the table (added mass)"),
+            InsertionPoint("coupling", "parameter", parameters=("coupling.c",), doc="coupling stiffness"),
+            InsertionPoint("structure", "all", doc="damping of every mode"),
+        ],
+        ground="ground.flange",
+        notes="motor angle and table position positive in the direction a positive voltage drives them "
+              "(table.s = r_g rotor.phi at low frequency, Eq 4.2)")
+
+
+INTERFACE = interface()
+"""The declarations of :func:`interface` (read-only reference; systems get their own copy)."""
+
+INPUT = INTERFACE.inputs[0]
+"""The system input: amplifier command voltage [V] (legacy; ``system.validation.inputs``)."""
+
+OUTPUTS = list(INTERFACE.outputs)
 """Measured outputs: motor angle [rad], motor speed [rad/s], table position [m] and acceleration [m/s^2]."""
 
+UNCERTAIN = [u.name for u in INTERFACE.uncertain]
+"""Parameters that are estimates rather than measurements (Appendix B), re-calibrated before diagnosis."""
+
 INSERTION_POINTS = {
-    "nut_table": ("nut.flange_b", "table.flange_a"),
+    "nut_table": INTERFACE.points["nut_table"].ports,
     "table_guide": ("table.flange_b", "guide.flange_a"),
-    "lead_axial": ("lead.flange_b", "axial.flange_a"),
-    "screw_nut": "axial",
-    "amplifier": ("amp.i", "kt.u"),
+    "lead_axial": INTERFACE.points["screw_support"].ports,
+    "screw_nut": INTERFACE.points["screw_nut"].ports[0],
+    "amplifier": INTERFACE.points["amplifier"].ports,
     "table": "table",
     "rotor": "rotor",
 }
-"""Named places where candidate effects are inserted (see the module docstring)."""
-
-UNCERTAIN = ["table.m", "coupling.c", "guide.d"]
-"""Parameters that are estimates rather than measurements (Appendix B), re-calibrated before diagnosis."""
+"""Legacy form of the insertion points (name -> connection or component) read by
+:mod:`bscomp.validate.candidates` until it reads ``system.validation``."""
 
 # lumped values tuned to Table 4.1 (first mode 117.7 Hz at 6 %, coupling mode damped ~10 %)
 K_AXIAL = 1.357e8
@@ -122,7 +170,8 @@ def validation_drive(k_axial: float = K_AXIAL) -> System:
     Returns
     -------
     System
-        With ``insertion_points``, ``uncertain``, ``input`` and ``outputs`` attributes for diagnosis.
+        With ``validation`` (:func:`interface`) and, derived from it for older code, the legacy
+        ``insertion_points``, ``uncertain``, ``input`` and ``outputs`` attributes.
     """
     P = load_parameters("fadal_vmc2216_x")
     J_rotor = get_value(P, "rotor.Izz")
@@ -165,9 +214,11 @@ def validation_drive(k_axial: float = K_AXIAL) -> System:
         "axial_loss.d": "tuned: ~6 % on the first mode (Table 4.1)", "nut.m": "Table 3.1",
         "table.m": "Table 3.1 (CAD estimate, Sec B.3)", "guide.d": "Table 5.2",
     }
+    s.validation = interface()
+    # legacy aliases (bscomp.validate.candidates / diagnose read these until they read s.validation)
     s.insertion_points = dict(INSERTION_POINTS)
-    s.uncertain = list(UNCERTAIN)
-    s.input = INPUT
-    s.outputs = list(OUTPUTS)
+    s.uncertain = [u.name for u in s.validation.uncertain]
+    s.input = s.validation.inputs[0]
+    s.outputs = list(s.validation.outputs)
     return s
 
