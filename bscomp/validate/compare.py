@@ -5,10 +5,12 @@
 FRF datasets (:class:`FrfComparison`)
     log-magnitude [dB] and phase [deg] error overall and per band (octaves or user bands) with each band's
     share of the squared residual; fit % per pair (MATLAB ``compare``, on the complex FRF, and on
-    log-magnitude); a **mode-pairing table** -- measured resonances from peak picking of :math:`|H|` with
-    half-power damping (:func:`peak_pick`) against the model's modes (:func:`bscomp.modal.modes`):
-    frequency error, damping, amplitude; measured resonances with no model counterpart and model modes
-    the measurement does not show; the phase error's slope as an apparent time delay.
+    log-magnitude); a **mode-pairing table** -- measured resonances, the poles of a local modal fit of the
+    complex FRF started from the peaks of :math:`|H|` (:func:`peak_pick`, :mod:`bscomp.validate.peaks`),
+    against the model's poles (:func:`bscomp.modal.modes`): frequency error, damping, amplitude; measured
+    resonances with no model counterpart and model modes the measurement does not show; the phase
+    error's slope as an apparent time delay. The model FRF's resonances are found by the same estimator
+    (they decide which model modes the measured pairs can show).
 Time series (:class:`TimeComparison`)
     fit % per channel, the residual over time and its worst windows, MATLAB ``resid``'s whiteness and
     input-independence tests (:func:`resid`) and the correlation of the residual with physically
@@ -29,10 +31,11 @@ from pathlib import Path
 import numpy as np
 
 from .measurements import FrfData, TimeData, load_all
-from .residuals import build_for, fit_percent, frf_errors, model_frf, simulate_for
+from .peaks import ModalFit, Resonance, merge_resonances, modal_fit, peak_pick
+from .residuals import build_for, fit_percent, frf_errors, simulate_at
 
 __all__ = ["compare", "Comparison", "FrfComparison", "TimeComparison", "Resonance", "ModePair", "ResidTest",
-           "peak_pick", "resid", "octave_bands", "SIGNATURES", "EVIDENCE"]
+           "peak_pick", "modal_fit", "ModalFit", "resid", "user_errors", "octave_bands", "SIGNATURES", "EVIDENCE"]
 
 #: names of :attr:`Comparison.signatures` and what each correlates the residual with
 SIGNATURES = {
@@ -57,155 +60,6 @@ EVIDENCE = {
 }
 
 
-# ---- peak picking ----------------------------------------------------------------------------------------
-@dataclass
-class Resonance:
-    """A resonance picked from a measured (or model) FRF.
-
-    ``f`` [Hz], ``zeta`` half-power damping ratio (NaN when neither half-power point is inside the data),
-    ``amplitude`` :math:`|H|` at the peak (SI), ``pair`` the (input, output) pair where it is most
-    prominent, ``prominence_db`` how far it stands out, ``pairs`` every pair that shows it.
-    ``f_peak`` and ``zeta_half_power`` are the raw peak-picking values; ``f`` and ``zeta`` are refined
-    by a local single-mode fit when it succeeds (``refined``).
-    """
-
-    f: float
-    zeta: float
-    amplitude: float
-    pair: tuple
-    prominence_db: float
-    pairs: list = field(default_factory=list)
-    f_peak: float = np.nan
-    zeta_half_power: float = np.nan
-    refined: bool = False
-    fit_residual: float = np.inf
-
-
-def _half_power(logf, L, k, level):
-    """Frequencies (log) where L falls to ``level`` on each side of index k (None if not reached)."""
-    def cross(indices):
-        prev = k
-        for j in indices:
-            if L[j] > L[prev] + 1e-9 and L[j] > level:   # rose again (next peak) before the half-power level
-                return None
-            if L[j] <= level:
-                a, b = L[prev], L[j]
-                w = (a - level) / (a - b) if a != b else 0.0
-                return logf[prev] + w * (logf[j] - logf[prev])
-            prev = j
-        return None
-
-    return cross(range(k - 1, -1, -1)), cross(range(k + 1, len(L)))
-
-
-def _sdof_fit(f, H, fp, zeta):
-    """Local single-mode fit ``H = (b0 + b1 s + b2 s^2) / (s^2 + a1 s + a0)`` over the half-power band
-    (Levy's linearised least squares); returns (f_n, zeta, relative misfit) or None."""
-    half = max(2.0 * zeta, 0.01) if np.isfinite(zeta) else 0.05
-    sel = (f >= fp * (1 - half)) & (f <= fp * (1 + half))
-    if sel.sum() < 6:
-        return None
-    s = 2j * np.pi * f[sel]
-    h = np.asarray(H)[sel]
-    sc = 2 * np.pi * fp                      # scale s for conditioning
-    sn = s / sc
-    A = np.column_stack([-h * sn, -h, np.ones_like(sn), sn, sn ** 2])
-    rhs = h * sn ** 2
-    wts = 1.0 / np.maximum(np.abs(h), 1e-300)
-    A, rhs = A * wts[:, None], rhs * wts
-    x, *_ = np.linalg.lstsq(np.vstack([A.real, A.imag]), np.concatenate([rhs.real, rhs.imag]), rcond=None)
-    a1, a0 = x[0], x[1]
-    if not (a0 > 0 and a1 > 0):
-        return None
-    wn = np.sqrt(a0)
-    fn, z = float(wn * sc / (2 * np.pi)), float(a1 / (2 * wn))
-    if not (0 < z < 1 and abs(fn - fp) < half * fp):
-        return None
-    D = sn ** 2 + a1 * sn + a0
-    Hfit = (x[2] + x[3] * sn + x[4] * sn ** 2) / D
-    return fn, z, float(np.linalg.norm(Hfit - h) / np.linalg.norm(h))
-
-
-def peak_pick(freqs, H, pair=("", ""), min_prominence_db: float = 3.0, coherence=None,
-              min_coherence: float = 0.5, refine: bool = True) -> list:
-    """Resonances of one FRF by peak picking with half-power damping estimates.
-
-    Peaks of :math:`20\\log_{10}|H|` standing out by at least ``min_prominence_db`` are refined by a
-    parabola through the three highest points (in log frequency); the damping ratio is
-    :math:`\\zeta = (f_2 - f_1) / (2 f_r)` from the frequencies where :math:`|H|` falls to
-    :math:`|H_r|/\\sqrt 2` (one-sided when only one half-power point is inside the data). Points with
-    coherence below ``min_coherence`` are ignored. With ``refine`` (and a complex ``H``), frequency and
-    damping are then refined by a single-mode rational fit over the half-power band, which removes the
-    bias of peak picking on velocity or acceleration FRFs and of neighbouring modes.
-
-    Returns
-    -------
-    list of Resonance, ascending in frequency.
-    """
-    from scipy.signal import find_peaks
-
-    f = np.asarray(freqs, float)
-    Hc = np.asarray(H)
-    a = np.abs(Hc)
-    ok = f > 0
-    if coherence is not None:
-        ok &= np.asarray(coherence) >= min_coherence
-    f, a, Hc = f[ok], a[ok], Hc[ok]
-    if f.size < 5 or not np.any(a > 0):
-        return []
-    L = 20 * np.log10(np.maximum(a, 1e-12 * a.max()))
-    logf = np.log(f)
-    idx, props = find_peaks(L, prominence=min_prominence_db)
-    out = []
-    for k, prom in zip(idx, props["prominences"]):
-        if 0 < k < len(L) - 1:
-            x, y = logf[k - 1:k + 2], L[k - 1:k + 2]
-            c2, c1, c0 = np.polyfit(x - x[1], y, 2)
-            xv = -c1 / (2 * c2) if c2 < 0 else 0.0
-            xv = float(np.clip(xv, x[0] - x[1], x[2] - x[1]))
-            lp, fp = c0 + c1 * xv + c2 * xv * xv, float(np.exp(x[1] + xv))
-        else:
-            lp, fp = L[k], f[k]
-        lo, hi = _half_power(logf, L, k, lp - 10 * np.log10(2.0))
-        if lo is not None and hi is not None:
-            zeta = (np.exp(hi) - np.exp(lo)) / (2 * fp)
-        elif hi is not None:
-            zeta = (np.exp(hi) - fp) / fp
-        elif lo is not None:
-            zeta = (fp - np.exp(lo)) / fp
-        else:
-            zeta = np.nan
-        fit = _sdof_fit(f, Hc, fp, zeta) if refine and np.iscomplexobj(Hc) else None
-        fr, zr, misfit = fit if fit is not None else (fp, float(zeta), np.inf)
-        out.append(Resonance(f=fr, zeta=zr, amplitude=float(10 ** (lp / 20)), pair=tuple(pair),
-                             prominence_db=float(prom), pairs=[tuple(pair)], f_peak=fp,
-                             zeta_half_power=float(zeta), refined=fit is not None, fit_residual=misfit))
-    return out
-
-
-def _merge_resonances(res_lists, rel_tol=0.05) -> list:
-    """One list of resonances from several pairs: peaks within ``rel_tol`` (or the half-power bandwidth) are
-    the same mode, estimated from the pair a single mode fits best."""
-    allr = sorted((r for rl in res_lists for r in rl), key=lambda r: r.f)
-    groups: list = []
-    for r in allr:
-        g0 = groups[-1][0] if groups else None
-        tol = max(rel_tol, np.nan_to_num(g0.zeta), np.nan_to_num(r.zeta)) if g0 else 0.0
-        if groups and abs(r.f - g0.f) <= tol * g0.f:
-            groups[-1].append(r)
-        else:
-            groups.append([r])
-    merged = []
-    for g in groups:
-        # the pair whose peak a single mode explains best (least disturbed by neighbours and zeros)
-        best = min(g, key=lambda r: (r.fit_residual, -r.prominence_db))
-        merged.append(Resonance(best.f, best.zeta, best.amplitude, best.pair, best.prominence_db,
-                                pairs=list(dict.fromkeys(p for r in g for p in r.pairs)), f_peak=best.f_peak,
-                                zeta_half_power=best.zeta_half_power, refined=best.refined,
-                                fit_residual=best.fit_residual))
-    return merged
-
-
 # ---- bands -----------------------------------------------------------------------------------------------
 def octave_bands(fmin: float, fmax: float) -> list:
     """Octave bands ``(lo, hi)`` [Hz] with centres 1000 * 2^k covering [fmin, fmax]."""
@@ -218,7 +72,13 @@ def octave_bands(fmin: float, fmax: float) -> list:
 # ---- results -----------------------------------------------------------------------------------------------
 @dataclass
 class ModePair:
-    """One row of the mode-pairing table; ``measured`` or ``model`` is None for an unpaired mode."""
+    """One row of the mode-pairing table; ``measured`` or ``model`` is None for an unpaired mode.
+
+    ``model_f`` [Hz] is the natural frequency :math:`|p|/2\\pi` of the model mode's damped pole pair
+    (:attr:`bscomp.modal.Modes.poles`; the undamped frequency when the pair is not available) and
+    ``model_zeta`` its damping ratio -- the quantities the modal fit of the measurement estimates.
+    ``model_amplitude`` is :math:`|H|` of the model at ``model_f`` in the measured resonance's pair.
+    """
 
     measured: Resonance | None
     model_f: float | None = None
@@ -277,6 +137,9 @@ class FrfComparison:
         Fit % on :math:`20\\log_{10}|H|`.
     rms_mag_db, rms_phase_deg : float
         Overall (coherence-weighted) RMS errors.
+    pair_errors : dict pair -> dict
+        The error as the user reads it, per pair (:func:`user_errors`): ``mag_mean_abs_dlog10`` (mean
+        :math:`|\\Delta\\log_{10}|H||`), ``mag_db_rms`` [dB] and ``phase_deg_rms`` [deg], coherence-weighted.
     bands : list of dict
         Per band (``lo``, ``hi`` [Hz]) and pair: RMS magnitude and phase error and ``share`` of the
         dataset's squared residual.
@@ -307,6 +170,12 @@ class FrfComparison:
     phase_delay_r2: float
     cost: float
     conditions: dict = field(default_factory=dict)
+    pair_errors: dict = field(default_factory=dict)
+    index: int | None = None
+
+    def user_errors(self) -> dict:
+        """``{"frf": [{"pair", "mag_mean_abs_dlog10", "mag_db_rms", "phase_deg_rms"}, ...], "time": []}``."""
+        return {"frf": [dict(pair=p, **e) for p, e in self.pair_errors.items()], "time": []}
 
     @property
     def paired(self):
@@ -346,6 +215,7 @@ class FrfComparison:
                                   "model_re": self.model[p].real.tolist(), "model_im": self.model[p].imag.tolist()}
                           for p in self.measured},
                 "rms_mag_db": self.rms_mag_db, "rms_phase_deg": self.rms_phase_deg,
+                "pair_errors": {pk(p): e for p, e in self.pair_errors.items()},
                 "bands": [dict(b, pair=pk(b["pair"])) for b in self.bands],
                 "modes": [m.to_dict() for m in self.modes],
                 "phase_delay_s": self.phase_delay_s, "phase_delay_r2": self.phase_delay_r2}
@@ -464,6 +334,11 @@ class TimeComparison:
     cost: float
     conditions: dict = field(default_factory=dict)
     delays: dict = field(default_factory=dict)
+    index: int | None = None
+
+    def user_errors(self) -> dict:
+        """``{"frf": [], "time": [{"channel", "fit_percent"}, ...]}``."""
+        return {"frf": [], "time": [{"channel": n, "fit_percent": float(v)} for n, v in self.fit.items()]}
 
     def worst_windows(self, share: float = 0.5) -> list:
         rows = sorted(self.windows, key=lambda w: -w["share"])
@@ -515,6 +390,11 @@ class Comparison:
     def datasets(self):
         return list(self.frf) + list(self.time)
 
+    def user_errors(self) -> dict:
+        """The errors as the user reads them, ``{dataset index: {"frf": [...], "time": [...]}}`` in the order
+        the datasets were given (as :func:`user_errors`)."""
+        return {c.index: c.user_errors() for c in sorted(self.datasets, key=lambda c: c.index or 0)}
+
     def summary(self) -> str:
         """Where the model fails, in words: bands, resonances and time windows carrying the error."""
         L = [f"Comparison of '{self.system}' with {len(self.datasets)} dataset(s): cost {self.cost:.4g} "
@@ -523,6 +403,10 @@ class Comparison:
             fits = ", ".join(f"{o}/{i} {c.fit[(i, o)]:.1f} %" for i, o in c.measured)
             L.append(f"FRF {c.source}: fit {fits}; magnitude error {c.rms_mag_db:.2f} dB rms, phase error "
                      f"{c.rms_phase_deg:.1f} deg rms")
+            if len(c.pair_errors) > 1:
+                L.append("  per pair: " + "; ".join(
+                    f"{o}/{i} magnitude {e['mag_db_rms']:.2f} dB rms (mean |dlog10| {e['mag_mean_abs_dlog10']:.3f}), "
+                    f"phase {e['phase_deg_rms']:.1f} deg rms" for (i, o), e in c.pair_errors.items()))
             wb = c.worst_bands()
             if wb and c.cost > 1e-12:
                 L.append("  error concentrated in " + ", ".join(f"{lo:.3g}-{hi:.3g} Hz ({100 * s:.0f} %)"
@@ -610,32 +494,67 @@ def _clean(o):
 
 
 # ---- FRF comparison --------------------------------------------------------------------------------------------
-def _model_modes(system, data, Hm, fmin, fmax):
-    """Model resonances in the band: exact (modal analysis) when available, else picked from the model FRF.
-
-    Returns a list of (f, zeta, index) of modes whose peak is visible in the model's FRF of the measured
-    pairs (a mode the pairs cannot see is neither expected nor missed).
-    """
+def _model_poles(dae, data, fmin, fmax):
+    """The model's elastic modes in the band, ``[(f, zeta, index, strong)]`` (``f`` = |p|/2 pi of the damped
+    pole pair, the undamped frequency without one), or None when the model has no second-order form."""
     from bscomp.errors import NotLinearError
+    from bscomp.modal import modes
 
-    fd = np.asarray(data.freqs)
-    peaks = _merge_resonances([peak_pick(fd, Hm[p], p, min_prominence_db=1.0) for p in data.H])
     try:
-        from bscomp.modal import modes
-
-        md = modes(system, inputs=data.inputs, outputs=data.outputs)
-        out = []
-        for k in np.flatnonzero(~md.rigid_body):
-            f = float(md.frequencies[k])
-            if not (fmin <= f <= fmax):
-                continue
-            seen = any(abs(p.f - f) <= 0.1 * f for p in peaks)
-            strong = np.max(np.abs(md.residues[k])) > 0 if md.residues.size else True
-            if seen or (strong and not peaks):
-                out.append((f, float(md.damping[k]), int(k)))
-        return out
+        md = modes(dae, inputs=data.inputs, outputs=data.outputs)
     except NotLinearError:
+        return None
+    out = []
+    for k in np.flatnonzero(~md.rigid_body):
+        pk = md.poles[k] if len(md.poles) > k else np.zeros(0)
+        f = float(np.sqrt(abs(np.prod(pk))) / (2 * np.pi)) if pk.size == 2 else float(md.frequencies[k])
+        if fmin <= f <= fmax:
+            strong = bool(np.max(np.abs(md.residues[k])) > 0) if md.residues.size else True
+            out.append((f, float(md.damping[k]), int(k), strong))
+    return out
+
+
+def _model_modes(poles, data, Hm):
+    """Model resonances the measured pairs can show: ``[(f, zeta, index)]``.
+
+    The model FRF's resonances are found by the same estimator as the measurement's (:func:`peak_pick`);
+    an exact mode (``poles`` from :func:`_model_poles`) counts when one of them lies within 10 % (a mode
+    the pairs cannot see is neither expected nor missed). Without exact modes, the estimates themselves.
+    """
+    peaks = merge_resonances([peak_pick(data.freqs, Hm[p], p, min_prominence_db=1.0) for p in data.H])
+    if poles is None:
         return [(p.f, p.zeta, None) for p in peaks]
+    return [(f, z, k) for f, z, k, strong in poles
+            if any(abs(p.f - f) <= 0.1 * f for p in peaks) or (strong and not peaks)]
+
+
+def _model_frf(dae, data, extra_freqs):
+    """Model FRF at the measured frequencies and at ``extra_freqs`` (one FRF evaluation):
+    ``({pair: H}, {pair: H at extra_freqs})``."""
+    from bscomp.frf import frf
+
+    n = data.freqs.size
+    res = frf(dae, input=data.inputs, output=data.outputs, freqs=np.concatenate([data.freqs, extra_freqs]))
+    H = {(i, o): res.H[:, res.outputs.index(o), res.inputs.index(i)] for i, o in data.H}
+    return {p: h[:n] for p, h in H.items()}, {p: h[n:] for p, h in H.items()}
+
+
+def _mode_rows(data, Hm, poles, Hx, tol) -> list:
+    """The mode-pairing table: measured resonances against the model's (see :class:`ModePair`)."""
+    meas = merge_resonances([peak_pick(data.freqs, data.H[p], p, coherence=data.coherence.get(p)) for p in data.H])
+    mm = _model_modes(poles, data, Hm)
+    pairs, used = _pair_modes(meas, mm, tol)
+    fx = [] if poles is None else [p[0] for p in poles]
+    rows = []
+    for i, r in enumerate(meas):
+        if i in pairs:
+            fmod, zmod, idx = mm[pairs[i]]
+            amp = float(abs(Hx[r.pair][fx.index(fmod)])) if fmod in fx else None
+            rows.append(ModePair(r, fmod, zmod, amp, idx))
+        else:
+            rows.append(ModePair(r))
+    rows += [ModePair(None, fmod, zmod, None, idx) for j, (fmod, zmod, idx) in enumerate(mm) if j not in used]
+    return rows
 
 
 def _pair_modes(measured, model_modes, tol):
@@ -658,11 +577,16 @@ def _pair_modes(measured, model_modes, tol):
 
 
 def _compare_frf(system, data: FrfData, bands, tol) -> FrfComparison:
-    from bscomp.frf import frf
+    from bscomp.flatten import flatten
 
-    Hm = model_frf(system, data)
-    errs = frf_errors(Hm, data)
+    from .residuals import _check_names
+
+    dae = flatten(system.linear_equivalent())     # once, for the FRF, the modes and the amplitudes
+    _check_names(dae, data, data.inputs, data.outputs)
     f = data.freqs
+    poles = _model_poles(dae, data, float(f.min()), float(f.max()))
+    Hm, Hx = _model_frf(dae, data, np.array([] if poles is None else [p[0] for p in poles]))
+    errs = frf_errors(Hm, data)
     mag_db = {p: 20 * e[0] for p, e in errs.items()}
     ph_deg = {p: np.degrees(e[1]) for p, e in errs.items()}
     wts = {p: e[2] for p, e in errs.items()}
@@ -706,33 +630,12 @@ def _compare_frf(system, data: FrfData, bands, tol) -> FrfComparison:
         resid_ = ecat * wcat - A @ sol
         ss = float(np.sum((ecat * wcat - np.mean(ecat * wcat)) ** 2))
         r2 = float(1 - np.sum(resid_ ** 2) / ss) if ss > 0 else np.nan
-    # resonances
-    fmin, fmax = float(f.min()), float(f.max())
-    meas = _merge_resonances([peak_pick(f, data.H[p], p, coherence=data.coherence.get(p)) for p in data.H])
-    mm = _model_modes(system, data, Hm, fmin, fmax)
-    pairs, used = _pair_modes(meas, mm, tol)
-    rows = []
-    fm = sorted({mm[j][0] for j in pairs.values()})
-    Hx = None
-    if fm:
-        fr = frf(system, input=data.inputs, output=data.outputs, freqs=np.array(fm))
-        Hx = {fv: fr.H[k] for k, fv in enumerate(fm)}
-        Hx_io = (fr.inputs, fr.outputs)
-    for i, r in enumerate(meas):
-        if i in pairs:
-            fmod, zmod, idx = mm[pairs[i]]
-            h = Hx[fmod]
-            amp = float(abs(h[Hx_io[1].index(r.pair[1]), Hx_io[0].index(r.pair[0])]))
-            rows.append(ModePair(r, fmod, zmod, amp, idx))
-        else:
-            rows.append(ModePair(r))
-    for j, (fmod, zmod, idx) in enumerate(mm):
-        if j not in used:
-            rows.append(ModePair(None, fmod, zmod, None, idx))
+    rows = _mode_rows(data, Hm, poles, Hx, tol)
     return FrfComparison(source=data.source, freqs=f, measured=dict(data.H), model=Hm, units=dict(data.units),
                          mag_error_db=mag_db, phase_error_deg=ph_deg, weights=wts, fit=fit, fit_logmag=fit_lm,
                          rms_mag_db=rms_mag, rms_phase_deg=rms_ph, bands=band_rows, modes=rows,
-                         phase_delay_s=delay, phase_delay_r2=r2, cost=cst, conditions=dict(data.conditions))
+                         phase_delay_s=delay, phase_delay_r2=r2, cost=cst, conditions=dict(data.conditions),
+                         pair_errors={r.pop("pair"): r for r in _frf_user_rows(errs)})
 
 
 # ---- time comparison ------------------------------------------------------------------------------------------
@@ -787,7 +690,7 @@ def _reversal_indicator(t, v):
 
 def _compare_time(system, data: TimeData, n_windows) -> TimeComparison:
     names = _signal_names(system)
-    res, _ = simulate_for(system, data, extra=list(names.values()))
+    res = simulate_at(system, data, extra=list(names.values()))
     t = data.t
     y_hat = {n: np.asarray(res[n], float) for n in data.outputs}
     e = {n: data.outputs[n] - y_hat[n] for n in data.outputs}
@@ -850,6 +753,63 @@ def _compare_time(system, data: TimeData, n_windows) -> TimeComparison:
                           delays=delays)
 
 
+# ---- the error as the user reads it --------------------------------------------------------------------------
+def _frf_user_rows(errs: dict) -> list:
+    """Rows of :func:`user_errors` from :func:`~bscomp.validate.residuals.frf_errors`' output."""
+    rows = []
+    for p, (e_mag, e_ph, w) in errs.items():
+        w2 = np.asarray(w, float) ** 2
+        sw = max(float(w2.sum()), 1e-300)
+        rows.append({"pair": p, "mag_mean_abs_dlog10": float(np.sum(w2 * np.abs(e_mag)) / sw),
+                     "mag_db_rms": float(20 * np.sqrt(np.sum(w2 * e_mag ** 2) / sw)),
+                     "phase_deg_rms": float(np.degrees(np.sqrt(np.sum(w2 * e_ph ** 2) / sw)))})
+    return rows
+
+
+def user_errors(model_outputs, datasets) -> dict:
+    """The errors as the user reads them, from model outputs already computed.
+
+    Parameters
+    ----------
+    model_outputs : sequence or dict
+        Per dataset (a sequence in dataset order, or a dict keyed by dataset index): ``{(input, output): H}``
+        (complex, at the dataset's frequencies) for an :class:`FrfData`, ``{channel: y}`` (at the
+        dataset's times) for a :class:`TimeData`. With a single dataset, its outputs directly.
+    datasets : sequence of FrfData / TimeData, or one dataset
+
+    Returns
+    -------
+    dict
+        ``{index: {"frf": [...], "time": [...]}}``. FRF rows ``{"pair": (input, output),
+        "mag_mean_abs_dlog10": mean |log10|H_m| - log10|H||, "mag_db_rms": rms of 20 log10 |H_m/H| [dB],
+        "phase_deg_rms": rms wrapped phase difference [deg]}``, coherence-weighted where coherence was
+        measured (each point by its coherence; plain means otherwise); time rows ``{"channel", "fit_percent"}``
+        (MATLAB ``compare`` fit, :func:`~bscomp.validate.residuals.fit_percent`). The same numbers as
+        :attr:`FrfComparison.pair_errors` and :attr:`TimeComparison.fit`.
+    """
+    if isinstance(datasets, (FrfData, TimeData)):
+        datasets, model_outputs = [datasets], [model_outputs]
+    datasets = list(datasets)
+    if isinstance(model_outputs, dict) and all(isinstance(k, (int, np.integer)) for k in model_outputs):
+        items = sorted(model_outputs.items())
+    else:
+        items = list(enumerate(model_outputs))
+    out = {}
+    for k, y in items:
+        d = datasets[k]
+        if isinstance(d, FrfData):
+            out[int(k)] = {"frf": _frf_user_rows(frf_errors(y, d)), "time": []}
+        elif isinstance(d, TimeData):
+            missing = [n for n in d.outputs if n not in y]
+            if missing:
+                raise KeyError(f"model response has no channel {missing[0]!r}; channels: {list(y)}")
+            out[int(k)] = {"frf": [], "time": [{"channel": n, "fit_percent": fit_percent(np.asarray(y[n], float), m)}
+                                             for n, m in d.outputs.items()]}
+        else:
+            raise TypeError(f"expected FrfData or TimeData, got {type(d).__name__}")
+    return out
+
+
 # ---- the analysis -----------------------------------------------------------------------------------------------
 def compare(system_or_build, datasets, params: dict | None = None, bands=None, pair_tolerance: float = 0.3,
             n_windows: int = 20) -> Comparison:
@@ -879,15 +839,15 @@ def compare(system_or_build, datasets, params: dict | None = None, bands=None, p
     datasets = load_all(datasets)
     frf_c, time_c = [], []
     name = getattr(system_or_build, "name", None) or getattr(system_or_build, "__name__", None) or str(system_or_build)
-    for d in datasets:
-        system = build_for(system_or_build, d.conditions, params)
-        name = system.name
-        if isinstance(d, FrfData):
-            frf_c.append(_compare_frf(system, d, bands, pair_tolerance))
-        elif isinstance(d, TimeData):
-            time_c.append(_compare_time(system, d, n_windows))
-        else:
+    for k, d in enumerate(datasets):
+        if not isinstance(d, (FrfData, TimeData)):
             raise TypeError(f"expected FrfData, TimeData or a file path, got {type(d).__name__}")
+        system = build_for(system_or_build, d.conditions, params, source=d.source)
+        name = system.name
+        c = _compare_frf(system, d, bands, pair_tolerance) if isinstance(d, FrfData) else _compare_time(system, d,
+                                                                                                        n_windows)
+        c.index = k
+        (frf_c if isinstance(d, FrfData) else time_c).append(c)
     all_c = frf_c + time_c
     cst = float(np.mean([c.cost for c in all_c])) if all_c else 0.0
     sigs: dict = {}

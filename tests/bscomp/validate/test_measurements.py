@@ -143,3 +143,31 @@ def test_bad_json_sidecar_names_its_line(tmp_path):
     with pytest.raises(MeasurementFileError) as ei:
         load(p)
     assert ei.value.path.endswith("s.csv.json") and ei.value.line == 3
+
+
+def test_file_conditions_as_documented(tmp_path, capsys):
+    # `# condition nut_position: 0.4` in a file compared with validation_drive (which has no nut position):
+    # dropped with a one-line warning; `# condition table.m: 260` is a parameter override
+    from bscomp.cli import main
+    from bscomp.systems import validation_drive
+    from bscomp.validate import compare, model_frf
+    from bscomp.validate.residuals import ConditionIgnoredWarning
+
+    pairs = {("amp.u", "rotor.w"): "rad/s/V", ("amp.u", "table.a"): "m/s^2/V"}
+    f = np.logspace(1, 3, 50)
+    d = FrfData(f, {p: np.zeros(f.size, complex) for p in pairs}, units=pairs)
+    d.H = model_frf(validation_drive().with_parameters({"table.m": 260.0}), d)
+    d.conditions = {"nut_position": 0.4, "table.m": 260.0}
+    path = write_frf_csv(d, tmp_path / "data.csv")
+    text = path.read_text()
+    assert "# condition nut_position: 0.4" in text and "# condition table.m: 260" in text
+    assert load(path).conditions == {"nut_position": 0.4, "table.m": 260.0}
+    with pytest.warns(ConditionIgnoredWarning) as rec:
+        c = compare("validation_drive", [path])
+    assert [str(w.message) for w in rec] == [
+        f"{path}: condition 'nut_position' ignored: not a build argument of system 'validation_drive' (build "
+        "arguments: k_axial) nor a parameter ('component.parameter')"]
+    assert c.cost < 1e-18                            # built with table.m = 260
+    with pytest.warns(ConditionIgnoredWarning):
+        assert main(["compare", "validation_drive", str(path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["cost"] < 1e-18
