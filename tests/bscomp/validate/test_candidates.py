@@ -17,7 +17,6 @@ from bscomp.interface import NotApplicable, ValidationInterface
 from bscomp.modal import modes
 from bscomp.systems import get
 from bscomp.systems.validation_drive import UNCERTAIN, validation_drive
-from bscomp.validate._edits import Edits, between, cut
 from bscomp.validate.candidates import (
     AddedModalDamping,
     AmplifierDelay,
@@ -34,6 +33,7 @@ from bscomp.validate.candidates import (
     TableSubassembly,
     default_candidates,
 )
+from bscomp.validate.candidates._edits import Edits, between, cut
 
 F = np.logspace(0, 3, 200)
 PAIRS = [("amp.u", "rotor.w"), ("amp.u", "table.a")]

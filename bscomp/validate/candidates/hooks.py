@@ -1,0 +1,160 @@
+"""Effects an evaluation engine can apply outside the model: extra modal damping and the amplifier delay.
+
+Both are also real model edits (:class:`AddedModalDamping` as the system damping, a Padé delay in the
+signal line), so an updated System carries them; :meth:`~.base.Candidate.engine_hooks` tells an engine
+to apply them exactly instead (``structure(..., for_engine=True)`` leaves the model unchanged).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from bscomp.interface import NotApplicable
+
+from ._edits import insert_series
+from .base import Candidate, CandidateParameter, _state
+
+__all__ = ["AddedModalDamping", "ExtraDamping", "AmplifierDelay"]
+
+
+class AddedModalDamping:
+    """System-level damping: a base option with ``modal_ratios`` plus ``zeta`` on every elastic mode.
+
+    Wraps e.g. :class:`~bscomp.systems.testbed.DriveModalDamping`; rigid-body modes stay undamped
+    (Sec 5.2.2.1). The matrix follows Eq A.10-A.15 (:func:`bscomp.damping.modal_damping_matrix`).
+    """
+
+    needs_coordinates = True
+
+    def __init__(self, base, zeta: float):
+        self.base = base
+        self.zeta = float(zeta)
+
+    def modal_ratios(self, lam, phi, M, coordinates=None) -> np.ndarray:
+        if getattr(self.base, "needs_coordinates", False):
+            z = np.asarray(self.base.modal_ratios(lam, phi, M, coordinates), float)
+        else:
+            z = np.asarray(self.base.modal_ratios(lam, phi, M), float)
+        rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
+        z = z + self.zeta
+        z[rigid] = 0.0
+        return z
+
+    def matrix(self, M, K, coordinates=None):
+        import scipy.linalg as sla
+
+        from bscomp.damping import modal_damping_matrix
+
+        Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
+        Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
+        lam, phi = sla.eigh(Kd, Md)
+        rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
+        z = self.modal_ratios(lam, phi, Md, coordinates)
+        return modal_damping_matrix(Md, Kd, z, n_rigid=int(rigid.sum()))
+
+    def __repr__(self):
+        return f"AddedModalDamping({self.base!r}, zeta={self.zeta:g})"
+
+
+class ExtraDamping(Candidate):
+    """Extra damping of every elastic mode (the ``structure`` point).
+
+    On a drive with system-level modal damping (``system.damping`` with ``modal_ratios``, e.g. the FE
+    test bed's :class:`~bscomp.systems.testbed.DriveModalDamping`): ``zeta`` added to every elastic
+    mode's ratio (:class:`AddedModalDamping`); an evaluation engine gets it as the hook
+    ``{"extra_modal_damping": zeta}``. Otherwise (lumped drive) stiffness-proportional: a damper
+    ``d = beta c`` beside every spring, so mode *i* gains ``zeta_i = zeta (f_i / f_1)`` with ``f_1`` the
+    first elastic mode of the nominal model.
+    """
+
+    def __init__(self, f1: float = 117.7):
+        super().__init__(
+            name="extra_damping", title="extra modal damping", role="structure",
+            parameters=[CandidateParameter("zeta", "1", 1e-3, 0.3, 0.02, 1.0, "added damping ratio (at f_1)")],
+            signature="resonance peaks lower and broader than modelled at unchanged frequencies; ringing after "
+                      "each step dies out faster than the model's",
+            group="damping", kinds=("all",))
+        self.f1 = f1
+
+    def _edit(self, e, point, vi, for_engine):
+        from bscomp.components import Damper, Spring, TorsionalDamper, TorsionalSpring
+
+        base = e.s.damping
+        if base is not None and hasattr(base, "modal_ratios"):
+            if not for_engine:
+                e.s.damping = AddedModalDamping(base, self.parameters[0].median)
+            return {"mode": "modal", "engine": bool(for_engine)}
+        effects = {n for st in (getattr(e.s, "_effect_state", {}) or {}).values() for n in st.get("added", ())}
+        springs = [(p, c) for p, c in e.s.leaves() if isinstance(c, (Spring, TorsionalSpring))
+                   and p.split(".")[0] not in effects]
+        if not springs:
+            raise NotApplicable(f"{self.name}: '{e.s.name}' has neither modal damping (system.damping with "
+                                "modal_ratios) nor springs to put dampers beside")
+        dampers = {}
+        for path, comp in springs:
+            name = e.unique(f"extra_loss_{path.replace('.', '_')}")
+            e.add(name, Damper if isinstance(comp, Spring) else TorsionalDamper, d=0.0)
+            e.connect(f"{name}.flange_a", f"{path}.flange_a")
+            e.connect(f"{name}.flange_b", f"{path}.flange_b")
+            dampers[name] = float(comp.get("c"))
+        return {"mode": "springs", "dampers": dampers}
+
+    def _overrides(self, values, state):
+        if state["mode"] == "modal":
+            return {}
+        beta = 2 * values["zeta"] / (2 * math.pi * self.f1)
+        return {f"{name}.d": beta * c for name, c in state["dampers"].items()}
+
+    def _assign_extra(self, system, values, state):
+        if state["mode"] == "modal" and isinstance(system.damping, AddedModalDamping):
+            system.damping.zeta = float(values["zeta"])
+
+    def _extra_code(self, values, state):
+        if state["mode"] != "modal":
+            return []
+        return ["from bscomp.validate.candidates import AddedModalDamping",
+                f"s.damping = AddedModalDamping(s.damping, zeta={values['zeta']:.10g})"]
+
+    def engine_hooks(self, values, system=None):
+        if system is not None and _state(system, self).get("mode") != "modal":
+            return {}
+        return {"extra_modal_damping": float(values["zeta"])}
+
+
+class AmplifierDelay(Candidate):
+    """D/A converter + amplifier latency ``T`` in the signal line of the ``amplifier`` point.
+
+    In the model: a Padé delay (:class:`~components.pade_delay.PadeDelay`, order 2) inserted in the line,
+    so an updated System runs anywhere. An evaluation engine applies the delay exactly instead
+    (``exact_delay``; ``e^{-j omega T}`` on FRFs, a shift of the input in time) from
+    :meth:`engine_hooks`, with ``structure(..., for_engine=True)`` leaving the model unchanged.
+    """
+
+    exact_delay = True
+
+    def __init__(self, order: int = 2):
+        super().__init__(
+            name="amplifier_delay", title="amplifier / D/A time delay", role="amplifier",
+            parameters=[CandidateParameter("T", "s", 1e-5, 5e-3, 3e-4, 1.2, "time delay")],
+            signature="phase lag growing linearly with frequency in every FRF at unchanged magnitude; the "
+                      "response to each voltage step starts late",
+            group="delay", kinds=("connection",))
+        self.order = order
+
+    def _edit(self, e, point, vi, for_engine):
+        from bscomp.components.pade_delay import PadeDelay
+
+        if for_engine:
+            return {"delay": None}
+        a, b = point.ports[:2]
+        name = e.unique("delay")
+        insert_series(e, name, PadeDelay, {"order": self.order, "T": 3e-4}, a, b, ports=("u", "y"))
+        return {"delay": name}
+
+    def _overrides(self, values, state):
+        return {} if state["delay"] is None else {f"{state['delay']}.T": values["T"]}
+
+    def engine_hooks(self, values, system=None):
+        return {"input_delay": float(values["T"])}

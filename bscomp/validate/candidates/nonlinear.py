@@ -1,0 +1,142 @@
+"""Nonlinear effects (time series only): guideway friction (Eq 5.6/5.7) and screw-nut backlash (Eq 5.8/5.9)."""
+
+from __future__ import annotations
+
+from ._edits import between, connected, insert_series
+from .base import Candidate, CandidateParameter
+
+__all__ = ["GuidewayFriction", "StribeckGuidewayFriction", "ScrewNutBacklash", "V_REG"]
+
+
+V_REG = 5e-4
+"""Regularisation velocity [m/s] of the friction candidates (see components/coulomb_friction.py)."""
+
+
+def _ground(e, point, vi) -> str:
+    g = point.ground or (vi.ground if vi is not None else None)
+    if g is not None:
+        return g
+    from bscomp.components import Fixed
+
+    return e.add(e.unique("effect_ground"), Fixed) + ".flange"
+
+
+class GuidewayFriction(Candidate):
+    """Coulomb friction at the guideways (thesis Eq 5.7, Table 5.2: 2066 N) between the ``table_guide``
+    node and the ground; the drive's own viscous term ``B v`` stays where it is (on the table or the
+    motor), so the friction element adds only ``F_c``."""
+
+    def __init__(self):
+        super().__init__(
+            name="guideway_friction", title="Coulomb friction at the guideways", role="table_guide",
+            parameters=[CandidateParameter("F_c", "N", 10.0, 2e4, 1000.0, 1.5, "Coulomb force")],
+            signature="residual correlates with sign(table velocity): the model moves too far and too fast, "
+                      "errors jump at every velocity reversal and the table position drifts",
+            nonlinear=True, group="guideway_friction", kinds=("attach", "connection"))
+
+    def _edit(self, e, point, vi, for_engine):
+        from bscomp.components import CoulombFriction
+
+        g = _ground(e, point, vi)
+        name = e.add(e.unique("friction"), CoulombFriction, F_c_pos=1000.0, F_c_neg=1000.0, v_reg=V_REG)
+        e.connect(f"{name}.flange_a", g)
+        e.connect(f"{name}.flange_b", point.ports[0])
+        return {"friction": name}
+
+    def _overrides(self, values, state):
+        f = state["friction"]
+        return {f"{f}.F_c_pos": values["F_c"], f"{f}.F_c_neg": values["F_c"]}
+
+
+class StribeckGuidewayFriction(GuidewayFriction):
+    """Stribeck friction at the guideways (Eq 5.6): a static term ``F_s`` decaying over ``v1 = 5 mm/s``
+    above the Coulomb level ``F_c``; same place and group as :class:`GuidewayFriction`."""
+
+    def __init__(self):
+        Candidate.__init__(
+            self, name="guideway_stribeck", title="Stribeck friction at the guideways", role="table_guide",
+            parameters=[CandidateParameter("F_c", "N", 10.0, 2e4, 1000.0, 1.5, "Coulomb force"),
+                        CandidateParameter("F_s", "N", 1.0, 2e4, 300.0, 1.5,
+                                           "static term F_stat of Eq 5.6 (decays over v1 = 5 mm/s)")],
+            signature="as Coulomb friction, plus extra force at low sliding speed (a breakaway jerk after "
+                      "each reversal)",
+            nonlinear=True, group="guideway_friction", kinds=("attach", "connection"))
+
+    def _edit(self, e, point, vi, for_engine):
+        from bscomp.components import StribeckFriction
+
+        g = _ground(e, point, vi)
+        name = e.add(e.unique("friction"), StribeckFriction, F_s_pos=300.0, F_s_neg=300.0, F_c_pos=1000.0,
+                     F_c_neg=1000.0, v1_pos=5e-3, v1_neg=5e-3, v2_pos=V_REG, v2_neg=V_REG, v_reg=V_REG)
+        e.connect(f"{name}.flange_a", g)
+        e.connect(f"{name}.flange_b", point.ports[0])
+        return {"friction": name}
+
+    def _overrides(self, values, state):
+        f = state["friction"]
+        return {f"{f}.F_c_pos": values["F_c"], f"{f}.F_c_neg": values["F_c"],
+                f"{f}.F_s_pos": values["F_s"], f"{f}.F_s_neg": values["F_s"]}
+
+
+class ScrewNutBacklash(Candidate):
+    """Backlash at the screw-nut (Eq 5.8-5.9): an elastic dead zone of total width ``b``.
+
+    ``joint`` point naming two **components** (lumped drive, ``("axial", "axial_loss")``): the axial
+    spring becomes a :class:`~components.backlash.Backlash` with its stiffness and the damper's damping
+    in contact (the damper is removed). ``joint`` point naming two **ports** ``(a, b)`` (FE drive: the
+    nut--table line; with a 1.49 kg nut on a 250 kg table the screw-nut clearance acts on the table the
+    same way): a backlash element in series, contact stiffness ``contact_stiffness`` (default 1e11 N/m,
+    ~100x the screw-nut axial stiffness, so the drive in contact changes by ~1 %; or the value of the
+    point's first ``parameters`` entry) and small contact damping. If a joint spring already sits on
+    that line (:class:`NutTableJoint`), that spring becomes the backlash (same name and stiffness) --
+    a dead zone on the joint's axial deformation; its damper stays beside it.
+
+    The gap starts closed on one flank: ``s_rel0 = -b/2``, so at rest the contact is just engaged with
+    zero force (the linearisation at rest -- and the modal damping computed from it -- is that of the
+    drive in contact) and the first reversal of the screw force opens the gap. ``eps_fraction`` (default
+    0: sharp corners) smooths the dead zone's corners over ``eps = eps_fraction b``; note that with
+    ``eps > 0`` the rest position carries a preload ``c eps / 8``.
+    """
+
+    def __init__(self, contact_stiffness: float = 1e11, contact_damping: float = 1e3, eps_fraction: float = 0.0):
+        super().__init__(
+            name="screw_nut_backlash", title="backlash at the screw-nut", role="screw_nut",
+            parameters=[CandidateParameter("b", "m", 2e-7, 1e-4, 3e-6, 1.5,
+                                           "total axial clearance (Table 5.2: 0.001885 rad x r_g = 3.0 um)")],
+            signature="a delay and an impact after every reversal of the screw force (each voltage step): the "
+                      "table acceleration rings late, the error correlates with reversals, not with velocity",
+            nonlinear=True, group="backlash", kinds=("joint",))
+        self.contact_stiffness = float(contact_stiffness)
+        self.contact_damping = float(contact_damping)
+        self.eps_fraction = float(eps_fraction)
+
+    def _gap(self, b):
+        return {"b": b, "s_rel0": -b / 2, "eps": self.eps_fraction * b}
+
+    def _edit(self, e, point, vi, for_engine):
+        from bscomp.components import Backlash, Spring
+
+        b0 = self.parameters[0].median
+        ports = point.ports
+        if len(ports) >= 2 and all("." in p for p in ports[:2]):
+            a, b = ports[:2]
+            inner = [] if connected(e.s, a, b) else between(e.s, a, b)
+            springs = [n for n in inner if type(e.s.component(n)) is Spring]
+            if springs:   # a dead zone on the joint already there
+                name = springs[0]
+                e.replace(name, Backlash, c=float(e.s.get(f"{name}.c")), d=0.0, **self._gap(b0))
+                return {"element": name}
+            c = float(e.s.get(point.parameters[0])) if point.parameters else self.contact_stiffness
+            name = e.unique("sn_backlash")
+            insert_series(e, name, Backlash, {"c": c, "d": self.contact_damping, **self._gap(b0)}, a, b)
+            return {"element": name}
+        name = ports[0]
+        c = float(e.s.get(f"{name}.c"))
+        d = float(e.s.get(f"{ports[1]}.d")) if len(ports) > 1 else 0.0
+        e.replace(name, Backlash, c=c, d=d, **self._gap(b0))
+        if len(ports) > 1:
+            e.remove(ports[1])
+        return {"element": name}
+
+    def _overrides(self, values, state):
+        return {f"{state['element']}.{k}": v for k, v in self._gap(values["b"]).items()}
