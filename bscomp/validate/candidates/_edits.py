@@ -26,7 +26,13 @@ def _lit(v) -> str:
     if isinstance(v, (int, np.integer)):
         return str(int(v))
     if isinstance(v, (float, np.floating)):
-        return f"{float(v):.10g}"
+        t = f"{float(v):.10g}"
+        if any(ch in t for ch in ".en"):                 # 0.0005, 5e-06, inf/nan
+            return t
+        if abs(v) < 1e5:
+            return t + ".0"
+        mant, _, exp = f"{float(v):.9e}".partition("e")  # 270000000 -> 2.7e+08
+        return f"{mant.rstrip('0').rstrip('.')}e{exp}"
     if isinstance(v, np.ndarray):
         return repr(v.tolist())
     return repr(v)
