@@ -13,7 +13,7 @@ import numpy as np
 from .plotting import _finish, _plt
 
 __all__ = ["comparison_plots", "frf_comparison_plot", "band_error_plot", "time_comparison_plot", "resid_plot",
-           "signature_plot"]
+           "signature_plot", "plot_diagnosis"]
 
 
 def _slug(text):
@@ -166,3 +166,43 @@ def comparison_plots(comparison, out_dir) -> list:
         signature_plot(comparison.signatures, p)
         paths.append(p)
     return paths
+
+
+def plot_diagnosis(diag, directory):
+    """The error staircase and the round-1 candidate ranking of a Diagnosis, as two PNGs in ``directory``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    labels = [lbl for lbl, _ in diag.staircase]
+    errs = [e for _, e in diag.staircase]
+    ax.step(range(len(errs)), errs, where="mid", lw=2)
+    ax.plot(range(len(errs)), errs, "o")
+    ax.axhline(1.0, color="0.5", ls="--", lw=1, label="noise floor")
+    ax.set_xticks(range(len(errs)))
+    ax.set_xticklabels(labels, rotation=20, ha="right")
+    ax.set_yscale("log")
+    ax.set_ylabel("error (mean chi^2, 1 = noise floor)")
+    ax.set_title("error staircase: effects added one after another")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="upper right")
+    fig.tight_layout()
+    p1 = d / "error_staircase.png"
+    fig.savefig(p1, dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    names = [r.name for r in diag.ranked][::-1]
+    drops = [100 * r.drop for r in diag.ranked][::-1]
+    colors = ["tab:green" if any(a.name == n for a in diag.accepted) else "tab:gray" for n in names]
+    ax.barh(names, drops, color=colors)
+    ax.set_xlabel("error reduction in round 1 [%]")
+    ax.set_title("candidate effects (green: accepted)")
+    fig.tight_layout()
+    p2 = d / "candidates.png"
+    fig.savefig(p2, dpi=110)
+    plt.close(fig)
+    return [p1, p2]

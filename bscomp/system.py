@@ -143,6 +143,13 @@ class System:
                 owner.remove(path.rpartition(".")[2])
             else:
                 owner.replace(path.rpartition(".")[2], rep)
+        # a ground that only anchored a removed element (friction to ground) goes with it
+        for path, comp in list(new.leaves()):
+            owner = new.component(path.rpartition(".")[0]) if "." in path else new
+            leaf = path.rpartition(".")[2]
+            if type(comp).__name__ in ("Fixed", "FixedRotational") and not any(
+                    leaf in (a.split(".")[0], b.split(".")[0]) for a, b in owner._connections):
+                owner.remove(leaf)
         return new
 
     def expose(self, outer: str, inner) -> None:

@@ -1,0 +1,232 @@
+"""Results of :func:`~bscomp.validate.diagnose.diagnose`: fitted effects and the diagnosis."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["EffectFit", "Diagnosis", "Skipped"]
+
+
+@dataclass
+class Skipped:
+    """A candidate that was not tried, and why (not applicable to this drive, or re-calibrated instead)."""
+
+    name: str
+    title: str
+    reason: str
+
+    def to_dict(self):
+        return {"candidate": self.name, "title": self.title, "reason": self.reason}
+
+
+@dataclass
+class EffectFit:
+    """One candidate effect fitted in one round.
+
+    Attributes
+    ----------
+    candidate : Candidate
+    values, std : dict
+        Fitted free parameters and their standard deviations (after polishing, if accepted).
+    error_before, error_after : float
+        Normalised fitting error (mean chi^2 over datasets, 1 = at the noise floor) without / with it.
+    heldout_before, heldout_after : float or None
+        The same on the held-out halves of the time series.
+    delta_bic : float
+        BIC with the effect minus BIC without (negative = better).
+    accepted : bool
+    verdict : str
+        Why it was accepted or rejected (plain words).
+    evidence : str
+        Which errors fell, the candidate's signature.
+    user_before, user_after : dict
+        The errors as the user reads them (FRF magnitude/phase per pair, fit % per time channel).
+    refined : bool
+        False when only screened (not fitted by least squares).
+    """
+
+    candidate: object
+    values: dict
+    std: dict
+    error_before: float
+    error_after: float
+    delta_bic: float
+    heldout_before: float | None = None
+    heldout_after: float | None = None
+    accepted: bool = False
+    verdict: str = ""
+    evidence: str = ""
+    refined: bool = True
+    per_dataset: tuple = ()
+    round: int = 1
+    user_before: dict = field(default_factory=dict)
+    user_after: dict = field(default_factory=dict)
+    _start: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def name(self):
+        return self.candidate.name
+
+    @property
+    def drop(self) -> float:
+        """Relative error reduction ``1 - after/before``."""
+        return 1.0 - self.error_after / self.error_before if self.error_before > 0 else 0.0
+
+    def to_dict(self):
+        return {"candidate": self.name, "title": self.candidate.title, "where": self.candidate.where,
+                "values": self.values, "std": self.std, "error_before": self.error_before,
+                "error_after": self.error_after, "drop": self.drop, "delta_bic": self.delta_bic,
+                "heldout_before": self.heldout_before, "heldout_after": self.heldout_after,
+                "accepted": self.accepted, "verdict": self.verdict, "refined": self.refined, "round": self.round,
+                "evidence": self.evidence, "signature": self.candidate.signature,
+                "user_before": self.user_before, "user_after": self.user_after}
+
+
+def _fmt_user(u: dict) -> str:
+    parts = []
+    for d in u.get("per_dataset", []):
+        for item in d.get("frf", []):
+            i, o = item["pair"]
+            parts.append(f"{i}->{o} |H| {item['mag_mean_abs_dlog10']:.3g} dec, phase {item['phase_deg_rms']:.3g} deg")
+        for item in d.get("time", []):
+            parts.append(f"{item['channel']} fit {item['fit_percent']:.1f} %")
+    return "; ".join(parts)
+
+
+@dataclass
+class Diagnosis:
+    """Result of :func:`~bscomp.validate.diagnose.diagnose`.
+
+    Attributes
+    ----------
+    ranked : list of EffectFit
+        First-round fits of every candidate tried, best (lowest BIC) first; screened-only ones last.
+    accepted : list of EffectFit
+        Effects accepted one after another (greedy), each with its polished values.
+    skipped : list of Skipped
+        Candidates not tried (not applicable to this drive, or re-calibrated instead), with the reason.
+    rounds : list of list of EffectFit
+    recalibrated : dict
+        Re-calibrated uncertain parameters ``{name: (value, std)}``.
+    staircase : list of (label, error)
+        Nominal, re-calibrated, then after each accepted effect (normalised error, 1 = noise floor).
+    user_errors : list of (label, dict)
+        The errors as the user reads them at each step of the staircase.
+    message : str
+    """
+
+    system: object
+    uncertain: list
+    recalibrated: dict
+    ranked: list
+    accepted: list
+    rounds: list
+    staircase: list
+    message: str
+    skipped: list = field(default_factory=list)
+    user_errors: list = field(default_factory=list)
+    noise: list = field(default_factory=list)
+    final_values: dict = field(default_factory=dict)
+    stats: dict = field(default_factory=dict)
+
+    @property
+    def found(self) -> bool:
+        return bool(self.accepted)
+
+    def table(self) -> str:
+        """Ranked candidates of the first round, skipped ones, the accepted effects, as text."""
+        lines = [self.message, "",
+                 "round 1 ranking (error = mean chi^2 over datasets, 1 = at the noise floor; held-out = second "
+                 "halves of the time series):",
+                 f"  {'#':>2} {'candidate':<26} {'error':>9} {'held-out':>9} {'dBIC':>10}  fitted parameters"]
+        for i, r in enumerate(self.ranked, 1):
+            vals = ", ".join(f"{k}={v:.4g}" for k, v in r.values.items())
+            flag = "" if r.refined else " (screened)"
+            held = f"{r.heldout_after:9.4g}" if r.heldout_after is not None else f"{'-':>9}"
+            lines.append(f"  {i:>2} {r.name:<26} {r.error_after:9.4g} {held} {r.delta_bic:10.1f}  {vals}{flag}")
+            if r.verdict and not r.accepted:
+                lines.append(f"     not accepted: {r.verdict}")
+        if self.skipped:
+            lines += ["", "not tried:"] + [f"  {s.name:<26} {s.reason}" for s in self.skipped]
+        if self.recalibrated:
+            lines += ["", "re-calibrated:"] + [f"  {k} = {v:.6g} +- {s:.2g}" for k, (v, s) in self.recalibrated.items()]
+        if self.accepted:
+            lines += ["", "accepted effects:"]
+            for r in self.accepted:
+                vals = ", ".join(f"{k} = {v:.4g} +- {r.std.get(k, float('nan')):.2g}" for k, v in r.values.items())
+                lines.append(f"  {r.round}. {r.candidate.title}: {vals}; error {r.error_before:.4g} -> "
+                             f"{r.error_after:.4g} ({100 * r.drop:.1f} % less)")
+                lines.append(f"     why: {r.evidence}")
+        lines += ["", "error staircase: " + " -> ".join(f"{lbl} {e:.4g}" for lbl, e in self.staircase)]
+        if self.user_errors:
+            lines += ["", "errors as measured (magnitude: mean |log10 error| [decades], phase rms, fit %):"]
+            lines += [f"  {lbl}: {_fmt_user(u)}" for lbl, u in self.user_errors]
+        return "\n".join(lines)
+
+    def __str__(self):
+        return self.table()
+
+    def apply(self, system=None, linear: bool = False):
+        """The updated System: re-calibrated values set and the accepted effects added.
+
+        ``linear=True`` leaves out the nonlinear effects (friction, backlash): the model for FRFs.
+        """
+        s = (self.system if system is None else system).copy()
+        for k, (v, _) in self.recalibrated.items():
+            s.set(k, v)
+        for r in self.accepted:
+            if linear and r.candidate.nonlinear:
+                continue
+            s = r.candidate.apply(s, **r.values)
+        return s
+
+    def code(self) -> str:
+        """Python lines to add to a system file (``s`` is the System being built)."""
+        lines = ["# --- changes found by bscomp diagnose ---"]
+        for k, (v, sd) in self.recalibrated.items():
+            lines.append(f's.set("{k}", {v:.6g})  # re-calibrated, +- {sd:.2g}')
+        s = self.system.copy()
+        for k, (v, _) in self.recalibrated.items():
+            s.set(k, v)
+        for r in self.accepted:
+            lines.append(f"# {r.candidate.title} (error -{100 * r.drop:.0f} %)")
+            lines += r.candidate.code_lines(r.values, s)
+            s = r.candidate.apply(s, **r.values)
+        if not self.accepted:
+            lines.append("# no missing effect found")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        return {"message": self.message, "uncertain": self.uncertain,
+                "recalibrated": {k: {"value": v, "std": s} for k, (v, s) in self.recalibrated.items()},
+                "ranked": [r.to_dict() for r in self.ranked], "accepted": [r.to_dict() for r in self.accepted],
+                "skipped": [s.to_dict() for s in self.skipped],
+                "staircase": [[lbl, e] for lbl, e in self.staircase],
+                "user_errors": [[lbl, u] for lbl, u in self.user_errors], "noise": self.noise,
+                "code": self.code(), "stats": self.stats}
+
+    def to_json(self, path=None) -> str:
+        text = json.dumps(self.to_dict(), indent=2, default=_json_default)
+        if path is not None:
+            Path(path).write_text(text)
+        return text
+
+    def plot(self, directory):
+        """Write ``error_staircase.png`` and ``candidates.png`` to ``directory``; returns the paths."""
+        from bscomp.plotting_validate import plot_diagnosis
+
+        return plot_diagnosis(self, directory)
+
+
+def _json_default(o):
+    import numpy as np
+
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, tuple):
+        return list(o)
+    return str(o)

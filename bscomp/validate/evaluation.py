@@ -1,0 +1,247 @@
+r"""A model structure evaluated on a set of measurements: whitened residuals, noise floors, fits.
+
+Used by :func:`~bscomp.validate.diagnose.diagnose` (and calibration). The model is evaluated by the
+library's shared engine :class:`bscomp.compiled.CompiledModel` (one per model structure and measurement
+condition: one flattening, then FRFs and time series per parameter vector in modal coordinates).
+
+Residuals are *whitened*: each block -- the log10-magnitude or the phase error of one FRF pair, one time
+channel -- is divided by that block's **noise level** :math:`\hat\sigma`, estimated from the data alone
+(robust second differences: a white error of variance :math:`\sigma^2` gives second differences of
+variance :math:`6\sigma^2`, whereas a smooth model-form error gives almost none; the median ignores the
+few samples at resonances and input steps)::
+
+    sigma = median(|y[k+1] - 2 y[k] + y[k-1]|) / 0.6745 / sqrt(6)
+
+so magnitude and phase, accelerations and angles, weigh by what the measurement can resolve: the
+normalised error :math:`\chi^2` of a block is 1 at the noise floor. A model that explains the data
+has :math:`\chi^2 \approx 1` in every block.
+
+Time series are split in two halves in time: the first half is *fitted*, the second is *held out*
+to confirm an effect (an effect that only fits noise or stands in for another one does not carry over).
+FRFs are fitted whole; a linear effect fitted to them is confirmed by the time series.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .measurements import FrfData, TimeData
+from .residuals import frf_errors
+
+__all__ = ["Evaluator", "noise_levels", "Problem", "Free", "block_stats"]
+
+_MAD = 0.6744897501960817
+
+
+def _robust_sigma(y, floor):
+    y = np.asarray(y, float)
+    if y.size < 5:
+        return floor
+    d2 = y[2:] - 2 * y[1:-1] + y[:-2]
+    s = float(np.median(np.abs(d2))) / _MAD / math.sqrt(6.0)
+    return max(s, floor)
+
+
+def noise_levels(data) -> list:
+    """Noise level of every residual block of a dataset, from the data alone (module docstring).
+
+    FRF: per pair ``[sigma(log10 |H|), sigma(phase)]``; time: per channel ``sigma(y)`` in its unit.
+    """
+    if isinstance(data, FrfData):
+        out = []
+        for h in data.H.values():
+            h = np.asarray(h, complex)
+            mag = np.log10(np.maximum(np.abs(h), 1e-300))
+            ph = np.unwrap(np.angle(h))
+            out += [_robust_sigma(mag, 1e-4), _robust_sigma(ph, 1e-4)]
+        return out
+    out = []
+    for y in data.outputs.values():
+        y = np.asarray(y, float)
+        rms = float(np.sqrt(np.mean(y * y))) if y.size else 1.0
+        out.append(_robust_sigma(y, 1e-6 * max(rms, 1e-300)))
+    return out
+
+
+def _blocks(model_out, data, sigmas):
+    """Whitened residual blocks (measured minus model) of one dataset."""
+    if isinstance(data, FrfData):
+        blocks = []
+        for (e_mag, e_ph, w), (s_m, s_p) in zip(frf_errors(model_out, data).values(),
+                                                zip(sigmas[0::2], sigmas[1::2])):
+            blocks += [w * e_mag / s_m, w * e_ph / s_p]
+        return blocks
+    return [(np.asarray(y, float) - np.asarray(model_out[n], float)) / s
+            for (n, y), s in zip(data.outputs.items(), sigmas)]
+
+
+def block_stats(blocks) -> float:
+    """Normalised error of a dataset: mean over its blocks of the mean squared whitened residual."""
+    vals = [float(np.mean(np.where(np.isfinite(b), b, 1e6) ** 2)) for b in blocks if b.size]
+    return float(np.mean(vals)) if vals else 0.0
+
+
+class Evaluator:
+    """One model structure (the base system plus effects) on every dataset.
+
+    Parameters
+    ----------
+    systems : dict
+        ``{condition key: System}`` -- the model at each measurement condition (already with the effects).
+    datasets : list of FrfData / TimeData
+    keys : list
+        Condition key of each dataset.
+    free : list of str
+        Dotted parameters that will be varied (structural ones get their sensitivities measured once).
+    """
+
+    def __init__(self, systems: dict, datasets, keys, free=(), f_keep: float = 6000.0, n_sub: int = 2):
+        from bscomp.compiled import CompiledModel
+
+        self.datasets, self.keys, self.n_sub = list(datasets), list(keys), int(n_sub)
+        self.models = {}
+        for key, system in systems.items():
+            ds = [d for d, k in zip(self.datasets, self.keys) if k == key]
+            ins = list(dict.fromkeys([i for d in ds for i in d.inputs]))
+            outs = list(dict.fromkeys([o for d in ds for o in d.outputs]))
+            cm = CompiledModel(system, ins, outs, f_keep=f_keep)
+            for f in free:
+                if cm.has_parameter(f):
+                    cm.prepare(f)
+            self.models[key] = cm
+        self.split = []
+        for d in self.datasets:
+            if isinstance(d, TimeData):
+                dt = np.diff(d.t)
+                if np.max(np.abs(dt - dt[0])) > 1e-6 * dt[0]:
+                    raise ValueError(f"{d.source}: diagnose needs uniformly sampled time series")
+                self.split.append(d.t.size // 2)
+            else:
+                self.split.append(None)
+        self.n_evaluations = 0
+
+    def outputs(self, overrides: dict, hooks: dict | None = None) -> list:
+        """Model outputs per dataset: ``{(input, output): H}`` or ``{name: y}``."""
+        hooks = hooks or {}
+        delay = float(hooks.get("input_delay", 0.0))
+        zeta = float(hooks.get("extra_modal_damping", 0.0))
+        out = []
+        modal = {}
+        for d, key in zip(self.datasets, self.keys):
+            cm = self.models[key]
+            mine = {k: v for k, v in overrides.items() if cm.has_parameter(k)}
+            if key not in modal:
+                modal[key] = cm.modal(mine, extra_damping=zeta, delay=delay)
+            mm = modal[key]
+            if isinstance(d, FrfData):
+                out.append(cm.frf(mine, d.freqs, list(d.H), delay=delay, mm=mm))
+            else:
+                out.append(cm.simulate(mine, d.t, dict(d.inputs), outputs=list(d.outputs), delay=delay, mm=mm,
+                                       n_sub=self.n_sub if cm.elements else 1))
+        self.n_evaluations += 1
+        return out
+
+    def blocks(self, overrides, hooks, sigmas) -> list:
+        """Whitened residual blocks per dataset (a list of lists of arrays)."""
+        return [_blocks(y, d, s) for y, d, s in zip(self.outputs(overrides, hooks), self.datasets, sigmas)]
+
+
+# ---- a fit problem: free parameters (log space) mapped to overrides -------------------------------------
+class Free:
+    """A fitted parameter: ``label`` (``"table.m"`` or ``"nut_table_joint.k"``), bounds and start."""
+
+    def __init__(self, label, lower, upper, start):
+        self.label, self.lower, self.upper, self.start = label, float(lower), float(upper), float(start)
+
+
+class Problem:
+    """Least squares over the uncertain parameters and the free parameters of some effects.
+
+    ``effects``: list of ``(candidate, values, fit)``; ``uncertain``: list of ``(name, (lo, hi, start))``;
+    ``fixed``: dotted overrides held fixed. The residual is the fitted part of every dataset (time series:
+    the first half), each dataset scaled by ``1/sqrt(n_d)`` so datasets weigh alike.
+    """
+
+    def __init__(self, evaluator, sigmas, fixed, uncertain, effects, systems):
+        self.ev, self.sigmas, self.fixed = evaluator, sigmas, dict(fixed)
+        self.uncertain, self.effects, self.systems = list(uncertain), effects, systems
+        self.free = [Free(name, lo, hi, v) for name, (lo, hi, v) in self.uncertain]
+        for cand, values, fit in effects:
+            if fit:
+                self.free += [Free(f"{cand.name}.{p.name}", p.lower, p.upper, values.get(p.name, p.median))
+                              for p in cand.parameters]
+        self.nfev = 0
+
+    def values(self, theta) -> dict:
+        return dict(zip([f.label for f in self.free], np.exp(theta).tolist()))
+
+    def overrides(self, theta):
+        """(dotted overrides, engine hooks) at ``theta``."""
+        vals = self.values(theta)
+        ov, hooks = dict(self.fixed), {}
+        for name, _ in self.uncertain:
+            ov[name] = vals[name]
+        ref = next(iter(self.systems.values()))
+        for cand, values, fit in self.effects:
+            v = dict(values)
+            if fit:
+                v.update({p.name: vals[f"{cand.name}.{p.name}"] for p in cand.parameters})
+            ov.update(cand.overrides(v, ref))
+            for k, h in cand.engine_hooks(v, ref).items():
+                hooks[k] = hooks.get(k, 0.0) + h
+        return ov, hooks
+
+    def all_blocks(self, theta):
+        ov, hooks = self.overrides(theta)
+        return self.ev.blocks(ov, hooks, self.sigmas)
+
+    def fit_vector(self, blocks):
+        parts = []
+        for b, cut in zip(blocks, self.ev.split):
+            bb = [x[:cut] for x in b] if cut else b
+            n = sum(x.size for x in bb)
+            parts += [np.where(np.isfinite(x), x, 1e6) / math.sqrt(max(n, 1)) for x in bb]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def residual(self, theta):
+        self.nfev += 1
+        return self.fit_vector(self.all_blocks(theta))
+
+    def bounds(self):
+        return (np.log([f.lower for f in self.free]), np.log([f.upper for f in self.free]))
+
+    def theta0(self):
+        lo, hi = self.bounds()
+        return np.clip(np.log([f.start for f in self.free]), lo + 1e-9, hi - 1e-9)
+
+    def fit(self, theta0=None, max_nfev=None):
+        from scipy.optimize import least_squares
+
+        theta0 = self.theta0() if theta0 is None else np.asarray(theta0, float)
+        if not self.free:
+            return theta0, None
+        lo, hi = self.bounds()
+        sol = least_squares(self.residual, np.clip(theta0, lo + 1e-9, hi - 1e-9), bounds=(lo, hi), method="trf",
+                            diff_step=1e-4, x_scale=1.0, max_nfev=max_nfev, xtol=1e-6, ftol=1e-8)
+        return sol.x, sol
+
+    def uncertainty(self, theta, sol) -> dict:
+        """Standard deviations (``cov = (J^T J)^-1`` on whitened residuals, delta method from logs)."""
+        if sol is None or sol.jac is None:
+            return {}
+        J = np.asarray(sol.jac)
+        r = np.asarray(sol.fun)
+        dof = max(r.size - J.shape[1], 1)
+        s2 = float(r @ r) / dof * r.size           # residuals were scaled by 1/sqrt(n_d)
+        cov = s2 / r.size * np.linalg.pinv(J.T @ J)
+        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        return {f.label: float(math.exp(t) * s) for f, t, s in zip(self.free, theta, sd)}
+
+    def at_bound(self, theta, names, tol=0.02) -> list:
+        """Free parameters among ``names`` that ended within ``tol`` (in log) of a hard bound."""
+        lo, hi = self.bounds()
+        return [f.label for f, t, a, b in zip(self.free, theta, lo, hi)
+                if f.label in names and (t - a < tol or b - t < tol)]
+
