@@ -26,6 +26,7 @@ from typing import Callable
 import casadi as ca
 import numpy as np
 
+from ._native import quiet_native_stderr
 from .errors import BscompError, UnknownNameError
 from .linear import resolve_model
 
@@ -312,13 +313,15 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         u_prev = u_k
         try:
             try:
-                r = I(x0=x_cur, z0=np.concatenate([w_cur, z_cur]), p=np.concatenate([u_k, p]))
+                with quiet_native_stderr():
+                    r = I(x0=x_cur, z0=np.concatenate([w_cur, z_cur]), p=np.concatenate([u_k, p]))
             except RuntimeError:
                 # IDACalcIC can fail on an already consistent point: retry without it, handing IDAS
                 # the consistent derivatives directly
                 retry = dict(opts, calc_ic=False, init_xdot=[float(v) for v in w_cur])
-                r = _integrator(dae, h, n, retry, {})(x0=x_cur, z0=np.concatenate([w_cur, z_cur]),
-                                                      p=np.concatenate([u_k, p]))
+                with quiet_native_stderr():
+                    r = _integrator(dae, h, n, retry, {})(x0=x_cur, z0=np.concatenate([w_cur, z_cur]),
+                                                          p=np.concatenate([u_k, p]))
                 n_retries += 1
         except RuntimeError as exc:
             big = int(np.argmax(np.abs(x_cur))) if dae.nx else 0

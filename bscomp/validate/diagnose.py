@@ -354,7 +354,11 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
             else:
                 grid = p0.starts(n_screen)
             starts = [tuple([v] + meds[1:]) for v in grid]
-            if len(cand.parameters) > 1:
+            if len(cand.parameters) == 2 and not cand.nonlinear:
+                # linear two-parameter effects (a mass on a spring, a joint's stiffness and damping): a
+                # grid over both priors -- evaluations are cheap and the cost is far from convex
+                starts = [(a, b) for a in grid for b in cand.parameters[1].starts(n_screen)]
+            elif len(cand.parameters) > 1:
                 starts += list(zip(*[p.starts(n_screen) for p in cand.parameters]))[1:3]
             scores = []
             for stv in starts:

@@ -31,8 +31,8 @@ backlash whose contact stiffness is the joint's (see :class:`ScrewNutBacklash`),
 from __future__ import annotations
 
 from .base import Candidate, CandidateParameter
-from .hooks import AddedModalDamping, AmplifierDelay, ExtraDamping
-from .nonlinear import V_REG, GuidewayFriction, ScrewNutBacklash, StribeckGuidewayFriction
+from .hooks import AddedModalDamping, AmplifierDelay, DetachedBodyDamping, ExtraDamping
+from .nonlinear import V_REG, CompliantBacklash, GuidewayFriction, ScrewNutBacklash, StribeckGuidewayFriction
 from .structural import (
     BearingHousing,
     CouplingStiffness,
@@ -45,12 +45,13 @@ from .structural import (
 
 __all__ = ["CandidateParameter", "Candidate", "NutTableJoint", "TableSubassembly", "BearingHousing",
            "ParameterScale", "CouplingStiffness", "MissingInertia", "MissingMass", "GuidewayFriction",
-           "StribeckGuidewayFriction", "ScrewNutBacklash", "AmplifierDelay", "ExtraDamping",
-           "AddedModalDamping", "default_candidates", "V_REG"]
+           "StribeckGuidewayFriction", "ScrewNutBacklash", "CompliantBacklash", "AmplifierDelay", "ExtraDamping",
+           "AddedModalDamping", "DetachedBodyDamping", "default_candidates", "V_REG"]
 
 
 def default_candidates() -> list:
     """The library of missing effects (the thesis's Sec 3.5 guesses), in a fixed order."""
     return [NutTableJoint(), TableSubassembly(), BearingHousing(), CouplingStiffness(), MissingInertia(),
-            MissingMass(), GuidewayFriction(), StribeckGuidewayFriction(), ScrewNutBacklash(), AmplifierDelay(),
+            MissingMass(), GuidewayFriction(), StribeckGuidewayFriction(), ScrewNutBacklash(), CompliantBacklash(),
+            AmplifierDelay(),
             ExtraDamping()]

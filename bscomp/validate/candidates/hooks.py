@@ -16,7 +16,7 @@ from bscomp.interface import NotApplicable
 from ._edits import insert_series
 from .base import Candidate, CandidateParameter, _state
 
-__all__ = ["AddedModalDamping", "ExtraDamping", "AmplifierDelay"]
+__all__ = ["AddedModalDamping", "DetachedBodyDamping", "ExtraDamping", "AmplifierDelay"]
 
 
 class AddedModalDamping:
@@ -56,6 +56,54 @@ class AddedModalDamping:
 
     def __repr__(self):
         return f"AddedModalDamping({self.base!r}, zeta={self.zeta:g})"
+
+
+class DetachedBodyDamping:
+    """System-level damping of a drive to which an effect attached a body on its own joint.
+
+    The drive's damping (e.g. the modal ratios of Tables 4.1/4.2) describes the drive as measured, the
+    body part of the drive; a body the effect adds on its own spring and dashpot (a table sub-assembly)
+    is damped by that dashpot alone. So the base option's matrix is computed on the drive with each body
+    lumped rigidly on the coordinate its joint attaches it to (the joint removed), and embedded with no
+    damping on the body's own coordinate: the added mode neither takes the place of the drive's first or
+    second mode nor changes the damping forces among the drive's coordinates.
+    """
+
+    needs_coordinates = True
+
+    def __init__(self, base, bodies):
+        self.base = base
+        self.bodies = list(bodies)
+
+    def matrix(self, M, K, coordinates=None):
+        from bscomp.damping import system_damping_matrix
+
+        M = M.toarray() if hasattr(M, "toarray") else np.array(M, float)
+        K = K.toarray() if hasattr(K, "toarray") else np.array(K, float)
+        names = list(coordinates)
+        drop = []
+        M2, K2 = M.copy(), K.copy()
+        for b in self.bodies:
+            i = names.index(b)
+            row = K[i].copy()
+            row[i] = 0.0
+            j = np.flatnonzero(row)
+            if j.size > 1 or np.any(np.delete(M[i], i) != 0.0):
+                raise ValueError(f"DetachedBodyDamping: {b} must be joined by one spring to one coordinate "
+                                 f"(found {[names[n] for n in j]})")
+            if j.size:                       # (none: linearized inside a clearance, the body is free)
+                j = int(j[0])
+                M2[j, j] += M[i, i]          # the body rides rigidly on coordinate j (direction +-1)
+                K2[j, j] -= abs(row[j])      # ... and its joint's stiffness leaves the drive
+            drop.append(i)
+        keep = [n for n in range(len(names)) if n not in drop]
+        C = np.zeros_like(M)
+        C[np.ix_(keep, keep)] = np.asarray(system_damping_matrix(
+            self.base, M2[np.ix_(keep, keep)], K2[np.ix_(keep, keep)], [names[n] for n in keep]), float)
+        return C
+
+    def __repr__(self):
+        return f"DetachedBodyDamping({self.base!r}, bodies={self.bodies!r})"
 
 
 class ExtraDamping(Candidate):

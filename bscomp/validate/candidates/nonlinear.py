@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from bscomp.interface import NotApplicable
+
 from ._edits import between, connected, insert_series
 from .base import Candidate, CandidateParameter
 
@@ -129,7 +131,14 @@ class ScrewNutBacklash(Candidate):
             c = float(e.s.get(point.parameters[0])) if point.parameters else self.contact_stiffness
             name = e.unique("sn_backlash")
             insert_series(e, name, Backlash, {"c": c, "d": self.contact_damping, **self._gap(b0)}, a, b)
-            return {"element": name}
+            body = f"{b.split('.')[0]}.s"
+            detached = e.s.damping is not None and hasattr(e.s.damping, "modal_ratios") and \
+                type(e.s.component(b.split(".")[0])).__name__ == "Mass"
+            if detached:   # no modal damping force across the clearance: the contact's own damping only
+                from .hooks import DetachedBodyDamping
+
+                e.s.damping = DetachedBodyDamping(e.s.damping, [body])
+            return {"element": name, "detached": body if detached else None}
         name = ports[0]
         c = float(e.s.get(f"{name}.c"))
         d = float(e.s.get(f"{ports[1]}.d")) if len(ports) > 1 else 0.0
@@ -140,3 +149,48 @@ class ScrewNutBacklash(Candidate):
 
     def _overrides(self, values, state):
         return {f"{state['element']}.{k}": v for k, v in self._gap(values["b"]).items()}
+
+    def _extra_code(self, values, state):
+        if not state.get("detached"):
+            return []
+        return ["from bscomp.validate.candidates import DetachedBodyDamping",
+                f"s.damping = DetachedBodyDamping(s.damping, [{state['detached']!r}])"]
+
+
+class CompliantBacklash(ScrewNutBacklash):
+    """Backlash at the screw-nut with a **compliant** contact: clearance ``b`` and contact stiffness ``k``.
+
+    A worn or lightly preloaded nut has both: a gap, and in contact an axial stiffness well below the
+    rigid-contact value -- the FRF (measured in contact) sees the stiffness, the time series around
+    every reversal the gap. Only where the ``screw_nut`` point is a connection (the FE drive's nut--table
+    line): a :class:`~components.backlash.Backlash` in series with contact stiffness ``k`` (prior
+    1e7..1e11 N/m). Same group as :class:`ScrewNutBacklash`: the better of the two is kept.
+    """
+
+    def __init__(self, contact_damping: float = 1e3):
+        super().__init__(contact_damping=contact_damping)
+        self.name = "compliant_backlash"
+        self.title = "backlash at the screw-nut with a compliant contact"
+        self.parameters = [self.parameters[0],
+                           CandidateParameter("k", "N/m", 1e7, 1e11, 3e9, 1.5, "axial contact stiffness")]
+        self.signature = ("as backlash, and the drive's axial mode lower than modelled (the contact is softer "
+                          "than the rigid nut-table bolting)")
+
+    def applicable(self, system):
+        point = super().applicable(system)
+        if not (len(point.ports) >= 2 and all("." in p for p in point.ports[:2])):
+            raise NotApplicable(f"{self.name}: the screw_nut point of '{system.name}' names components, not a "
+                                "connection to put a compliant clearance in")
+        return point
+
+    def _edit(self, e, point, vi, for_engine):
+        state = super()._edit(e, point, vi, for_engine)
+        # on a joint already accepted the clearance takes that joint's stiffness (fitted there)
+        state["merged"] = not state["element"].startswith("sn_backlash")
+        return state
+
+    def _overrides(self, values, state):
+        out = super()._overrides(values, state)
+        if not state.get("merged"):
+            out[f"{state['element']}.c"] = values["k"]
+        return out

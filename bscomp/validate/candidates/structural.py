@@ -94,12 +94,23 @@ class TableSubassembly(Candidate):
         for part in (spring, loss):
             e.connect(node, f"{part}.flange_a")
             e.connect(f"{part}.flange_b", f"{mass}.flange_a")
-        return {"spring": spring, "damper": loss, "mass": mass}
+        detached = e.s.damping is not None and hasattr(e.s.damping, "modal_ratios")
+        if detached:   # the drive's modal damping does not reach the added body: its dashpot damps it
+            from .hooks import DetachedBodyDamping
+
+            e.s.damping = DetachedBodyDamping(e.s.damping, [f"{mass}.s"])
+        return {"spring": spring, "damper": loss, "mass": mass, "detached": detached}
 
     def _overrides(self, values, state):
         m, k = values["m"], values["k"]
         return {f"{state['mass']}.m": m, f"{state['spring']}.c": k,
                 f"{state['damper']}.d": _zeta_damper(self.zeta, k, m)}
+
+    def _extra_code(self, values, state):
+        if not state.get("detached"):
+            return []
+        return ["from bscomp.validate.candidates import DetachedBodyDamping",
+                f"s.damping = DetachedBodyDamping(s.damping, [{state['mass'] + '.s'!r}])"]
 
 
 class BearingHousing(Candidate):
