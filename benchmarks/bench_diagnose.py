@@ -6,9 +6,10 @@
    ``systems/data/validation``) -- goal <= 15 s. Wall clock of the whole call, and what it found.
 2. One evaluation of the FE test bed with Table 5.2 guideway friction (the kind a fit repeats hundreds of
    times): the shared engine :class:`bscomp.compiled.CompiledModel` (modal coordinates, exact ZOH, Newton
-   on the friction law) against the old private engine of ``validate/_evaluate.py`` (3-stage Radau on the
-   full 196-state DAE, ``fast_newton`` per step) -- which is timed on the first 0.02 s and extrapolated,
-   since a whole run did not finish in 900 s -- and against ``bscomp.simulate`` (IDAS, rtol 1e-6).
+   on the friction law) against the old private engine (``benchmarks/_old_evaluate.py``, moved out of the
+   library; 3-stage Radau on the full 196-state DAE, ``fast_newton`` per step) -- which is timed on the
+   first 0.02 s and extrapolated, since a whole run did not finish in 900 s -- and against
+   ``bscomp.simulate`` (IDAS, rtol 1e-6).
    Also one FRF evaluation (2 pairs x 300 frequencies): CompiledModel (modal, truncated + residual
    flexibility) against the old ``FrfEvaluator`` (a dense 196x196 solve per frequency).
 
@@ -68,8 +69,9 @@ def bench_diagnose(cases):
 
 
 def bench_evaluation(t_old: float = 0.02):
+    from _old_evaluate import FrfEvaluator, TimeSimulator
+
     from bscomp.simulate import simulate
-    from bscomp.validate._evaluate import FrfEvaluator, TimeSimulator
 
     s = get("testbed_axial_torsional")
     s.add("friction", CoulombFriction(F_c=2066.0, v_reg=5e-4))

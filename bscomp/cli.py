@@ -11,66 +11,65 @@ import numpy as np
 
 
 def _demo(args) -> int:
-    from bscomp.systems import small_drive
+    """Modes and FRFs of the thesis test bed (FE, axial + torsional), then the validation story."""
+    from bscomp.systems import get
 
-    from . import flatten, linearize
     from .modal import modes
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    system = small_drive()
-    dae = flatten(system)
+    system = get("testbed_axial_torsional")
     print(f"bscomp demo: {system.description}")
-    print(f"  flattened: {dae.nx} states {dae.x_names}, inputs {dae.u_names} "
-          f"({dae.stats['flatten_s'] * 1e3:.1f} ms)")
-    lin = linearize(dae, inputs=["motor.tau"], outputs=["rotor.w", "table.a"])
-    so = lin.second_order
-    md = modes(so)
+    md = modes(system, inputs=["amp.u"], outputs=["rotor.w", "table.a"], n=6)
     print("  modes (undamped K phi = w^2 M phi; damping from the damped poles):")
     print("    " + md.table("rotor.phi").replace("\n", "\n    "))
-    # J reflected at the motor (thesis Eq 4.2): the rigid-body modal mass at the motor angle
-    J = md.reflected_inertia("rotor.phi")
-    print(f"  J reflected at the motor = {J:.4e} kg m^2 (thesis Eq 4.2: 8.55e-3 for the full test bed), "
-          f"B = {md.reflected_damping('rotor.phi'):.4g} N m s/rad")
+    from .frf import frf
+
     f = np.logspace(0, np.log10(2000), 600)
-    H = so.frf(f)
+    res = frf(system, input="amp.u", output=["rotor.w", "table.a"], freqs=f)
     from .plotting import bode_plot
+
     png = out / "demo_bode.png"
-    bode_plot(f, H[:, :, 0],
-              labels=["motor.tau -> rotor.w [rad/s/(N m)]", "motor.tau -> table.a [m/s^2/(N m)]"],
-              title="small_drive: open-loop FRF", path=png)
+    bode_plot(f, res.H[:, :, 0], labels=["amp.u -> rotor.w [rad/s/V]", "amp.u -> table.a [m/s^2/V]"],
+              title="thesis test bed (FE, axial + torsional): open-loop FRF", path=png)
     print(f"  Bode plot written to {png}")
     if args.no_validation:
         return 0
     return _demo_validation(out)
 
 
+DEMO_CASE = ("axial_torsional", "joint_friction")
+"""The bundled measurements of the demo: an FE test-bed truth with two hidden effects
+(``systems/data/truths/axial_torsional/joint_friction``, made by :mod:`bscomp.systems.truths`)."""
+
+
 def _demo_validation(out: Path) -> int:
-    """The headline story on the bundled (synthetic) measurements: compare, diagnose, add, compare."""
+    """The headline story on bundled measurements of the FE test bed: compare, diagnose, add, explain."""
+    import json
     from importlib import resources
 
-    from .systems import get
     from .validate.compare import compare
     from .validate.diagnose import diagnose
     from .validate.measurements import load_all
     from .validate.report import write_report
 
-    data_dir = resources.files("bscomp.systems") / "data" / "validation"
-    files = [str(data_dir / "frf.csv"), str(data_dir / "time.csv")]
-    datasets = load_all(files)
-    nominal = get("validation_drive")
-    print("\nbscomp demo, part 2: model vs measurements (bundled synthetic test-bed data, "
-          "systems/data/validation/README.md)")
-    comp = compare(nominal, datasets)
+    root = resources.files("bscomp.systems") / "data" / "truths" / DEMO_CASE[0] / DEMO_CASE[1]
+    datasets = load_all([str(root / "frf.csv"), str(root / "time.csv")])
+    print("\nbscomp demo, part 2: the FE model meets measurements it did not make (synthetic, from an "
+          "independent truth with another mesh, the moving nut, noise and hidden effects: "
+          f"systems/data/truths/{'/'.join(DEMO_CASE)})")
+    comp = compare("testbed_axial_torsional", datasets)
     print("  " + comp.summary().replace("\n", "\n  "))
-    print("  diagnosing: re-calibrate uncertain parameters, then rank candidate effects (a few minutes)...",
+    print("  diagnosing: re-calibrate the uncertain parameters, then fit and confirm the candidate effects...",
           flush=True)
-    diag = diagnose(nominal, datasets, verbose=True)
+    diag = diagnose("testbed_axial_torsional", datasets, max_effects=3)
     print("  " + diag.table().replace("\n", "\n  "))
     if diag.accepted:
         print("  lines to add to the system file:\n    " + diag.code().replace("\n", "\n    "))
+    truth = json.loads((root / "truth.json").read_text())
+    print(f"  (the truth, which diagnose did not see: {json.dumps(truth['hidden'])})")
     rep = out / "validation"
-    path = write_report([comp, diag], rep, title="bscomp demo: the nominal drive meets the measurements")
+    path = write_report([comp, diag], rep, title="bscomp demo: the FE test bed meets the measurements")
     diag.to_json(rep / "diagnosis.json")
     print(f"  report written to {path}")
     return 0
@@ -161,17 +160,38 @@ def _compare(args) -> int:
     return 0
 
 
+def _parse_uncertain(items):
+    """``--uncertain NAME[=SPREAD][,NAME...]`` -> ``{name: spread}`` (None when not given)."""
+    from .errors import ParameterError
+
+    if not items:
+        return None
+    out = {}
+    for item in items:
+        for tok in (t for t in item.split(",") if t.strip()):
+            name, eq, spread = tok.partition("=")
+            try:
+                out[name.strip()] = float(spread) if eq else 0.2
+            except ValueError as exc:
+                raise ParameterError(f"--uncertain expects NAME or NAME=SPREAD (relative, e.g. table.m=0.2), got "
+                                     f"{tok!r}") from exc
+    return out
+
+
 def _diagnose(args) -> int:
-    """``bscomp diagnose SYSTEM DATA...``: re-calibrate, rank candidate effects, accept the ones that pay."""
+    """``bscomp diagnose SYSTEM DATA...``: re-calibrate, fit candidate effects, accept the confirmed ones."""
     from .validate.diagnose import diagnose
     from .validate.measurements import load_all
 
-    system = _build(args)
+    overrides = _parse_set(args.set)
+    if args.position is not None:
+        from .sweep import build_system, position_parameter
+
+        overrides[position_parameter(build_system(args.system, overrides))] = float(args.position)
     datasets = load_all(args.data)
-    uncertain = None
-    if args.uncertain:
-        uncertain = [u for item in args.uncertain for u in item.split(",") if u]
-    diag = diagnose(system, datasets, uncertain=uncertain, max_effects=args.max_effects, verbose=args.verbose)
+    diag = diagnose(args.system, datasets, uncertain=_parse_uncertain(args.uncertain), max_effects=args.max_effects,
+                    verbose=args.verbose, overrides=overrides or None,
+                    progress=None if not args.json else False)
     if args.json:
         print(diag.to_json())
     else:
@@ -186,17 +206,6 @@ def _diagnose(args) -> int:
         (out / "diagnosis.txt").write_text(diag.table() + "\n\n" + diag.code() + "\n")
         if not args.json:
             print(f"report written to {out} ({', '.join(p.name for p in paths)}, diagnosis.json, diagnosis.txt)")
-    if args.apply and diag.accepted:
-        try:
-            from .validate.residuals import cost
-
-            before = cost(system, datasets)
-            after = cost(diag.apply(system), datasets)
-            if not args.json:
-                print(f"compare: error {before:.4g} -> {after:.4g} on the updated system")
-        except Exception as exc:  # the fast engine's numbers above stand; report the simulator problem
-            print(f"bscomp: note: re-running compare on the updated system failed ({type(exc).__name__}: "
-                  f"{str(exc)[:200]})", file=sys.stderr)
     return 0
 
 
@@ -212,8 +221,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="bscomp",
                                      description="Ballscrew feed drives as acausal components.")
     sub = parser.add_subparsers(dest="cmd", required=True)
-    p = sub.add_parser("demo", help="modes and Bode plot of a small drive, then the validation story on "
-                                    "bundled data (compare, diagnose, report)")
+    p = sub.add_parser("demo", help="modes and Bode plot of the thesis test bed, then the validation story on "
+                                    "bundled measurements (compare, diagnose, report)")
     p.add_argument("--no-validation", action="store_true", help="only the modes and Bode plot (seconds)")
     p.add_argument("--out", default="out", help="folder for figures (default: out)")
     p.set_defaults(func=_demo)
@@ -253,13 +262,14 @@ def main(argv=None) -> int:
     p = sub.add_parser("diagnose", help="find the physical effects a model is missing, from measurements")
     _add_system_args(p)
     p.add_argument("data", nargs="+", help="measurement files (FRF or time-series CSV, see docs/measurements.md)")
-    p.add_argument("--uncertain", action="append", metavar="NAME[,NAME]",
-                   help="parameters to re-calibrate first (default: the system's own list)")
+    p.add_argument("--uncertain", action="append", metavar="NAME[=SPREAD][,...]",
+                   help="parameters to re-calibrate first, each with its relative spread (default 0.2); default: "
+                        "the drive's declared uncertain parameters")
     p.add_argument("--max-effects", type=int, default=3, help="most effects accepted one after another")
-    p.add_argument("--apply", action="store_true", help="print the system-file lines and the error after applying")
+    p.add_argument("--apply", action="store_true", help="print the lines to add to the system file")
     p.add_argument("--report", metavar="DIR", help="write the staircase figure, JSON and text to DIR")
     p.add_argument("--json", action="store_true", help="print the diagnosis as JSON")
-    p.add_argument("--verbose", action="store_true", help="print progress")
+    p.add_argument("--verbose", action="store_true", help="print each round's fits (debug lines)")
     p.set_defaults(func=_diagnose)
 
     args = parser.parse_args(argv)

@@ -31,8 +31,7 @@ def _overlay(data, systems, linear_systems, labels, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bscomp.flatten import flatten
-    from bscomp.validate._evaluate import FrfEvaluator, TimeSimulator
+    from bscomp.compiled import CompiledModel
 
     frf, tim = data.frf, data.time
     fig, ax = plt.subplots(2, 1, figsize=(8, 7))
@@ -40,11 +39,9 @@ def _overlay(data, systems, linear_systems, labels, path):
     ax[0].loglog(frf.freqs, np.abs(frf.H[pair]), "k.", ms=3, label="measured")
     ax[1].plot(tim.t, tim.outputs["table.a"], "k", lw=0.8, label="measured")
     for s, s_lin, lbl in zip(systems, linear_systems, labels):
-        lin = flatten(s_lin)
-        H = FrfEvaluator(lin, [pair])(frf.freqs, lin.p0)[pair]
+        H = CompiledModel(s_lin, ["amp.u"], ["table.a"]).frf({}, frf.freqs, [pair])[pair]
         ax[0].loglog(frf.freqs, np.abs(H), label=lbl)
-        dae = flatten(s)
-        y = TimeSimulator(dae, tim.t[1] - tim.t[0], ["table.a"]).run(tim.inputs["amp.u"][None, :], dae.p0)[0]
+        y = CompiledModel(s, ["amp.u"], ["table.a"]).simulate({}, tim.t, {"amp.u": tim.inputs["amp.u"]})["table.a"]
         ax[1].plot(tim.t, y, lw=0.8, label=lbl)
     ax[0].set_xlabel("f [Hz]")
     ax[0].set_ylabel("|table.a / amp.u| [m/s^2/V]")

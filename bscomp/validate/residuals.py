@@ -255,7 +255,13 @@ def simulate_at(system, data: TimeData, extra=(), rtol=1e-7, atol=1e-10):
     _check_names(dae, data, list(data.inputs), list(data.outputs))
     obs = set(dae.output_names())
     names = list(data.outputs) + [n for n in dict.fromkeys(extra) if n in obs and n not in data.outputs]
-    return simulate(dae, data.t, inputs=dict(data.inputs), outputs=names, rtol=rtol, atol=atol)
+    # a linear model driven by held inputs is stepped exactly (zero-order hold, as the data were sampled);
+    # friction, backlash or controller states need the nonlinear integrator
+    from bscomp.compiled import nonlinear_elements
+
+    linear = not nonlinear_elements(system) and not dae.mech.has_internal_states and dae.nz == 0
+    method = "lti" if linear else "idas"
+    return simulate(dae, data.t, inputs=dict(data.inputs), outputs=names, rtol=rtol, atol=atol, method=method)
 
 
 def model_time(system_or_build, data: TimeData, params: dict | None = None) -> dict:

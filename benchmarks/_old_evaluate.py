@@ -1,4 +1,4 @@
-"""Fast model evaluation for fitting (private engine of :mod:`bscomp.validate.diagnose` and ``generate``).
+"""The OLD private evaluation engine of validate/ (kept only as the baseline of bench_diagnose.py).
 
 A candidate fit evaluates one model structure hundreds of times with different parameter values, so
 the structure is flattened **once** and the free parameters stay symbolic in the Dae's ``p``:
