@@ -150,15 +150,18 @@ class CompiledModel:
         Parameters that will be varied (structural ones get their sensitivities measured here).
     f_keep : float
         Modes up to this frequency [Hz] are kept dynamically, the others statically.
+    participation : float
+        Modes whose (normalised) input participation times output visibility is below this are also
+        taken statically (bending modes of the 6-DOF screw seen by an axial/torsional test).
     """
 
-    def __init__(self, system, inputs, outputs, free=(), f_keep: float = 6000.0):
+    def __init__(self, system, inputs, outputs, free=(), f_keep: float = 6000.0, participation: float = 1e-9):
         from .flatten import flatten
         from .linear import second_order
 
         self.system = system
         self.inputs, self.outputs = list(inputs), list(outputs)
-        self.f_keep = float(f_keep)
+        self.f_keep, self.participation = float(f_keep), float(participation)
         self.elements = [_Element(p, c) for p, c in nonlinear_elements(system)]
         self._el_of = {}
         for i, el in enumerate(self.elements):
@@ -193,6 +196,7 @@ class CompiledModel:
         for name in free:
             self.prepare(name)
         self._steps = {}
+        self._runs = {}
         self._modal_cache = {}
         self.stats = {"evaluations": 0}
 
@@ -403,11 +407,20 @@ class CompiledModel:
         if extra_damping:
             c = c + np.where(rigid, 0.0, 2.0 * extra_damping * np.sqrt(lam))
         w_keep = 2 * np.pi * self.f_keep
-        keep = np.flatnonzero(lam <= w_keep ** 2)
-        trunc = np.flatnonzero(lam > w_keep ** 2)
+        # modes the inputs (measured and element forces) cannot excite or the outputs cannot see -- e.g.
+        # the bending modes of the 6-DOF screw for an axial/torsional drive -- enter statically too
+        om = np.sqrt(lam)
+        b = np.max(np.abs(phi.T @ _dense(so.B)), axis=1) if so.B.shape[1] else np.zeros(lam.size)
+        g = np.max(np.abs(_dense(so.Cq) @ phi) + om * np.abs(_dense(so.Cv) @ phi)
+                   + om ** 2 * np.abs(_dense(so.Ca) @ phi), axis=0) if so.Cq.shape[0] else np.zeros(lam.size)
+        seen = (b / max(b.max(), 1e-300)) * (g / max(g.max(), 1e-300)) > self.participation
+        keep = np.flatnonzero((lam <= w_keep ** 2) & (seen | (lam == 0.0)))
+        trunc = np.setdiff1d(np.arange(lam.size), keep)
         pk = phi[:, keep]
         Ckk = np.diag(c[keep]) + pk.T @ csd @ pk
         pt = phi[:, trunc]
+        if np.any(lam[trunc] == 0.0):
+            raise CompiledModelError("a rigid-body mode is not excited by the inputs: check the model's inputs")
         Rt = (pt / lam[trunc]) @ pt.T if trunc.size else np.zeros_like(Md)
         self.stats["evaluations"] += 1
         return ModalModel(lam, phi, Ckk, Rt, so, keep, delay, self.f_keep)
@@ -587,7 +600,10 @@ class CompiledModel:
             Y = _linear_run(Phi, Ga, Gb, Cy, Dyu, up_seq, uc_seq, n_sub)
             bad = 0.0
         else:
-            F = f.mapaccum("run", nt - 1, [0], [0])
+            mkey = (id(f), nt - 1)
+            if mkey not in self._runs:
+                self._runs[mkey] = f.mapaccum("run", nt - 1, [0], [0])
+            F = self._runs[mkey]
             X0 = np.zeros(n2 + r)
             Xs, Y, bad = F(X0, up_seq[:, :nt - 1], uc_seq[:, :nt - 1], Phi, *Ga, *Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Dsw,
                            Cy, Dyu, Dyw, plaw)
