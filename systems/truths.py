@@ -1,0 +1,567 @@
+"""Truth systems for testing a diagnosis on data the candidates did not make (issue 13, point 6).
+
+A *truth* is the FE test bed of :mod:`bscomp.systems.testbed` (``"axial_torsional"`` or ``"full"``) as
+the real drive would differ from the model a user has:
+
+* **mis-set uncertain parameters**: the table mass heavier and the coupling stiffness off by a few per
+  cent (drawn per seed, recorded);
+* **another FE mesh**: the threaded section C meshed with 30, 34, 45 or 52 elements instead of the
+  parameter file's 39 (a modified copy of ``fadal_vmc2216_x.toml`` in a temporary folder);
+* **the moving nut** (``nut_joint="moving"``): the nut travels with the table in the time series;
+* and at most two **hidden effects**, each with a structure of its own (no class of
+  :mod:`bscomp.validate.candidates` is used here):
+
+  ``joint``
+      a part of the table (20-60 kg, taken out of the table so the total mass stays) on its own axial
+      spring and dashpot beside the nut (3-5 % of critical), the spring chosen so that the truth has an
+      undamped mode at a frequency drawn between the drive's first two modes.
+  ``friction``
+      guideway friction with its own smoothing, ``f = F_c (2/pi) atan(v / v_s) + d v``
+      (:class:`AtanFriction`; F_c 800-3000 N, v_s 20-100 um/s, d 500-2000 N s/m).
+  ``backlash``
+      a clearance of total width b = 5-40 um on the nut-table line, with a finite contact stiffness
+      (1e9-3e9 N/m) switched in smoothly (softplus over a width of 5 % of b, :class:`SoftBacklash`).
+  ``delay``
+      an amplifier / D-A delay T = 0.1-1.0 ms, applied exactly: ``e^{-j omega T}`` on the FRF, the input
+      shifted on the integration grid (8 points per sample) in the time series.
+  ``joint_friction``
+      ``joint`` and ``friction`` together.
+
+  ``control`` has none of them (mis-set parameters, mesh and moving nut only).
+
+Every random value comes from ``numpy.random.default_rng([seed, stream])``: the same seed gives the
+same truth and the same noise. Values are drawn uniformly (the stiffnesses log-uniformly) within
+physical ranges, not at the prior medians of any candidate.
+
+Measurements (:func:`make_frf`, :func:`make_time`) use the amplifier voltage ``amp.u`` [V] as the
+input and the channels and sign convention of the test bed (``table.s`` positive in the direction a
+positive voltage moves the table). :func:`generate_case` writes ``frf.csv``, ``time.csv`` (with
+:func:`bscomp.validate.measurements.write_frf_csv` / ``write_time_csv``, condition ``nut_position``)
+and ``truth.json``; ``examples/make_truth_data.py`` writes the bundled set in ``systems/data/truths``.
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import math
+import re
+import tempfile
+import time as _time
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from bscomp.component import Parameter
+from bscomp.components import Damper, Fixed, Mass, Spring
+from bscomp.partials import PartialCompliant
+
+from ._params import DATA_DIR, get_value
+from .testbed import drive_fraction, testbed, thesis_parameters
+
+__all__ = ["CASES", "MODELS", "AtanFriction", "SoftBacklash", "RigidJointDamping", "draw", "truth_system",
+           "make_frf", "make_time", "generate_case", "default_seed", "square_wave", "TIME_NOISE", "FRF_NOISE"]
+
+CASES = ("control", "joint", "friction", "backlash", "delay", "joint_friction")
+MODELS = ("axial_torsional", "full")
+HIDDEN = {"control": (), "joint": ("joint",), "friction": ("friction",), "backlash": ("backlash",),
+          "delay": ("delay",), "joint_friction": ("joint", "friction")}
+
+#: Ranges of the random draws (uniform; ``log`` = log-uniform).
+RANGES = {
+    "nut_position": (0.153, 0.712),        # L..R, toml table.nut_position_L/R [m]
+    "mesh_C": (30, 34, 45, 52),            # elements of section C (the model: 39)
+    "table_mass_factor": (1.05, 1.10),     # truth / nominal (250 kg, a CAD estimate, Sec B.3)
+    "coupling_factor": (0.05, 0.08),       # |truth / nominal - 1|, sign drawn (k_T from one test, Sec B.4)
+    "joint_mass": (20.0, 60.0),            # kg
+    "joint_frequency": (0.2, 0.8),         # position of the target between the drive's first two modes
+    "joint_zeta": (0.03, 0.05),
+    "friction_F_c": (800.0, 3000.0),       # N (Table 5.2: 2066)
+    "friction_v_s": (2.0e-5, 1.0e-4),      # m/s, log
+    "friction_d": (500.0, 2000.0),         # N s/m, extra guideway viscous part
+    "backlash_b": (5.0e-6, 40.0e-6),       # m, total gap
+    "backlash_c": (1.0e9, 3.0e9),          # N/m, log (screw-nut axial stiffness: 1.7e9)
+    "delay_T": (1.0e-4, 1.0e-3),           # s
+}
+BACKLASH_WIDTH = 0.05                      # softplus width / b
+
+FRF_NOISE = 0.02                           # complex multiplicative, relative standard deviation
+TIME_NOISE = {"rotor.phi": 2.0e-4, "rotor.w": 0.01, "table.s": 3.0e-7, "table.a": 0.05}
+OUTPUTS = ("rotor.phi", "rotor.w", "table.s", "table.a")
+DT, DURATION, FINE = 2.0e-4, 0.6, 8        # 5 kHz, 0.6 s, integration grid 8x finer (25 us)
+AMPLITUDE, FREQUENCY = 2.125, 5.0          # Sec 5.3.1: 4.25 V peak-to-peak, 5 Hz
+
+
+# ---- hidden-effect components --------------------------------------------------------------------------
+class AtanFriction(PartialCompliant):
+    """Guideway friction smoothed by an arc tangent: ``f = F_c (2/pi) atan(v_rel / v_s) + d v_rel``.
+
+    A truth's friction law, deliberately not the ``tanh`` regularisation of
+    :class:`~components.coulomb_friction.CoulombFriction`: the Coulomb part approaches ``F_c`` only as
+    ``1 - 2 v_s / (pi |v|)`` (an algebraic, not exponential, tail). The limit ``v_s -> 0`` is Eq (5.7).
+
+    # Parameters
+    - ``F_c`` [N]: Coulomb force magnitude (symmetric)
+    - ``v_s`` [m/s]: smoothing velocity (> 0)
+    - ``d`` [N.s/m]: viscous coefficient
+
+    # Connectors
+    - ``flange_a``, ``flange_b`` (``flange_a`` to a :class:`Fixed` for friction to ground)
+    """
+
+    F_c = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude")
+    v_s = Parameter(unit="m/s", positive=True, doc="smoothing velocity of atan(v / v_s)")
+    d = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient")
+
+    def force_law(self, s_rel, v_rel):
+        """Friction force [N] at sliding velocity ``v_rel`` (CasADi expression or float)."""
+        return self.F_c * (2.0 / math.pi) * ca.atan(v_rel / self.v_s) + self.d * v_rel
+
+    def equations(self):
+        return [self.f - self.force_law(self.s_rel, self.v_rel)]
+
+    def linear_equivalent(self):
+        """For an FRF: the viscous part (the Coulomb part has no tangent while sliding)."""
+        return Damper(d=self.d) if self.d > 0 else None
+
+
+def softplus(x, w):
+    """``w log(1 + e^(x/w))``, written so that it does not overflow (CasADi or float)."""
+    return ca.fmax(x, 0) + w * ca.log1p(ca.exp(-ca.fabs(x) / w))
+
+
+class SoftBacklash(PartialCompliant):
+    """Clearance of total width ``b`` with a contact of stiffness ``c`` switched in over a width ``w``.
+
+    ``f = c [softplus(delta - b/2) - softplus(-delta - b/2)]``, ``delta = s_rel``, ``softplus(x) =
+    w log(1 + e^{x/w})``: C-infinity, zero force in the middle of the gap (``c w e^{-b/2w}``, 5e-9 of
+    ``c b`` for ``w = 0.05 b``), slope ``c`` in contact with the clearance shifted by ``w log 2`` at the edge.
+    Not the dead zone with bounded damping of :class:`~components.backlash.Backlash`: no contact damping
+    (the table is damped through the drive, :class:`RigidJointDamping`).
+
+    # Parameters
+    - ``b`` [m]: total clearance; ``c`` [N/m]: contact stiffness; ``w`` [m]: transition width
+    """
+
+    b = Parameter(unit="m", min=0.0, doc="total clearance")
+    c = Parameter(unit="N/m", positive=True, doc="contact stiffness")
+    w = Parameter(unit="m", positive=True, doc="width of the smooth contact transition")
+
+    def force_law(self, s_rel, v_rel):
+        return self.c * (softplus(s_rel - self.b / 2, self.w) - softplus(-s_rel - self.b / 2, self.w))
+
+    def equations(self):
+        return [self.f - self.force_law(self.s_rel, self.v_rel)]
+
+    def linear_equivalent(self):
+        """For an FRF (excitation large against the gap, contact engaged): the contact spring."""
+        return Spring(c=self.c)
+
+
+class RigidJointDamping:
+    """The drive's modal damping computed with a detached body joined rigidly to what it is attached to.
+
+    Modal damping (:class:`~bscomp.systems.testbed.DriveModalDamping`, Tables 4.1/4.2) describes the drive
+    as measured with the table bolted to the nut. A truth whose table part rides on its own spring
+    (``joint``) or whose table is separated from the nut by a clearance (``backlash``) keeps that damping
+    for the drive, evaluated with the body's mass lumped on the coordinate it is attached to and the joint
+    between them removed; the joint's own dashpot (or nothing, in the gap) is all that acts between them.
+    So no damping force crosses an open clearance, and an extra mode is damped by its own dashpot.
+    """
+
+    needs_coordinates = True
+
+    def __init__(self, base, body: str):
+        self.base, self.body = base, body
+
+    def matrix(self, M, K, coordinates=None):
+        M = M.toarray() if hasattr(M, "toarray") else np.array(M, float)
+        K = K.toarray() if hasattr(K, "toarray") else np.array(K, float)
+        names = list(coordinates)
+        i = names.index(self.body)
+        row = K[i].copy()
+        row[i] = 0.0
+        if np.any(np.delete(M[i], i) != 0.0):
+            raise ValueError(f"RigidJointDamping: {self.body} is inertially coupled to other coordinates")
+        nz = np.flatnonzero(row)
+        if nz.size != 1:
+            raise ValueError(f"RigidJointDamping: {self.body} must be joined to exactly one coordinate, found "
+                             f"{[names[n] for n in nz]}")
+        j = int(nz[0])
+        keep = [n for n in range(len(names)) if n != i]
+        M2, K2 = M[np.ix_(keep, keep)].copy(), K[np.ix_(keep, keep)].copy()
+        jj = keep.index(j)
+        M2[jj, jj] += M[i, i]                       # the body rides rigidly on coordinate j (direction +-1)
+        K2[jj, jj] -= abs(K[i, j])                  # ... and the joint between them is removed
+        C = np.zeros_like(M)
+        C[np.ix_(keep, keep)] = np.asarray(
+            self.base.matrix(M2, K2, coordinates=[names[n] for n in keep]), float)
+        return C
+
+    def __repr__(self):
+        return f"RigidJointDamping({self.base!r}, body={self.body!r})"
+
+
+# ---- random draws ------------------------------------------------------------------------------------
+def default_seed(case: str, model: str = "axial_torsional") -> int:
+    """The seed of the bundled data set: ``1300 + 10 * model index + case index``."""
+    return 1300 + 10 * MODELS.index(model) + CASES.index(case)
+
+
+def draw(seed: int) -> dict:
+    """Every random value of a truth, drawn in a fixed order (a case uses those of its effects)."""
+    rng = np.random.default_rng([int(seed), 0])
+    R = RANGES
+    u = lambda key: float(rng.uniform(*R[key]))                                    # noqa: E731
+    logu = lambda key: float(np.exp(rng.uniform(*np.log(R[key]))))                 # noqa: E731
+    d = {"nut_position": round(u("nut_position"), 4), "mesh_C": int(rng.choice(R["mesh_C"])),
+         "table_mass_factor": u("table_mass_factor")}
+    d["coupling_factor"] = 1.0 + float(rng.choice([-1.0, 1.0])) * u("coupling_factor")
+    d["joint"] = {"m": u("joint_mass"), "frequency_position": u("joint_frequency"), "zeta": u("joint_zeta")}
+    d["friction"] = {"F_c": u("friction_F_c"), "v_s": logu("friction_v_s"), "d": u("friction_d")}
+    d["backlash"] = {"b": u("backlash_b"), "c": logu("backlash_c")}
+    d["backlash"]["w"] = BACKLASH_WIDTH * d["backlash"]["b"]
+    step = DT / FINE                             # the exact delay is a whole number of integration steps
+    d["delay"] = {"T": round(u("delay_T") / step) * step}
+    return d
+
+
+# ---- the truth system --------------------------------------------------------------------------------
+def _mesh_params(n_C: int) -> Path:
+    """A copy of the thesis parameter file with ``n_C`` elements in section C (in a temporary folder)."""
+    src = (DATA_DIR / "fadal_vmc2216_x.toml").read_text()
+    head, sep, tail = src.partition("[screw.sections.C]")
+    body, nxt, rest = tail.partition("\n[")
+    body, n = re.subn(r"n_elements = \{ value = \d+,", f"n_elements = {{ value = {int(n_C)},", body)
+    if n != 1:
+        raise RuntimeError("truths: could not find n_elements of [screw.sections.C] in the parameter file")
+    total = 1 + 1 + int(n_C) + 2 + 2 + 2
+    head = re.sub(r"(\nn_elements = \{ value = )47,", rf"\g<1>{total},", head)
+    folder = Path(tempfile.gettempdir()) / "bscomp_truths"
+    folder.mkdir(exist_ok=True)
+    path = folder / f"fadal_vmc2216_x_C{int(n_C)}.toml"
+    text = head + sep + body + nxt + rest
+    if not path.is_file() or path.read_text() != text:
+        path.write_text(text)
+    return path
+
+
+def _voltage_input() -> bool:
+    return "drive_input" in inspect.signature(testbed).parameters
+
+
+def _base(model, x, mesh_C, misset, nut_joint="moving"):
+    """The test bed at nut position ``x`` with the truth's mesh and mis-set parameters (no hidden effect)."""
+    kw = {"drive_input": "voltage"} if _voltage_input() else {}
+    s = testbed(model, nut_position=x, nut_joint=nut_joint, params=str(_mesh_params(mesh_C)), **kw)
+    for k, f in misset.items():
+        s.set(k, float(s.get(k)) * f)
+    return s
+
+
+def _modes_hz(so):
+    import scipy.linalg as sla
+
+    lam, phi = sla.eigh(so.K.toarray(), so.M.toarray())
+    return np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi), phi
+
+
+def _drive_modes(s) -> np.ndarray:
+    """Undamped frequencies [Hz] of the first two elastic axial/torsional modes (drive_fraction > 0.5)."""
+    from bscomp import flatten, second_order
+
+    so = second_order(flatten(s), inputs=[], outputs=[])
+    f, phi = _modes_hz(so)
+    el = np.flatnonzero(f > 1.0)                   # elastic: rigid-body modes are at 0 Hz
+    frac = drive_fraction(phi[:, el], so.M, so.coordinates)
+    return f[el][frac > 0.5][:2]
+
+
+def _joint_stiffness(s, m_p, f_target) -> float:
+    """Spring constant of the table part that puts an undamped mode of ``s`` at ``f_target`` [Hz].
+
+    ``s`` has the part on a spring ``part_spring``; K is linear in its constant, so one linearization and
+    a bisection on the number of modes below the target (monotone: every eigenvalue grows with k) do.
+    """
+    import scipy.linalg as sla
+
+    from bscomp import flatten, second_order
+
+    so = second_order(flatten(s), inputs=[], outputs=[], params={"part_spring.c": 1.0})
+    M, K1 = so.M.toarray(), so.K.toarray()
+    i = so.coordinates.index("table_part.s")
+    row = K1[i].copy()
+    row[i] = 0.0
+    (j,) = np.flatnonzero(row)                     # the table coordinate the part's spring acts on
+    E = np.zeros_like(K1)                          # the unit spring: K(k) = K1 + (k - 1) E
+    E[i, i] = E[j, j] = 1.0
+    E[i, j] = E[j, i] = K1[i, j]                   # -1 or +1 (the flange's direction on the coordinate)
+
+    def below(k):
+        lam = sla.eigh(K1 + (k - 1.0) * E, M, eigvals_only=True)
+        return int(np.sum(np.sqrt(np.clip(lam, 0, None)) / (2 * np.pi) < f_target))
+
+    lo, hi = 1.0e3, 1.0e11
+    n_lo, n_hi = below(lo), below(hi)
+    if n_lo == n_hi:
+        raise RuntimeError(f"truths: no spring puts a mode at {f_target:.1f} Hz (table part {m_p:.1f} kg)")
+    for _ in range(80):
+        mid = math.sqrt(lo * hi)
+        if below(mid) == n_lo:
+            lo = mid
+        else:
+            hi = mid
+        if hi / lo - 1.0 < 1e-12:
+            break
+    return math.sqrt(lo * hi)
+
+
+def truth_system(case: str, model: str = "axial_torsional", seed: int | None = None, *, linear: bool = False,
+                 nut_joint: str = "moving"):
+    """The truth of ``case`` on the test bed ``model``, drawn with ``seed``.
+
+    Parameters
+    ----------
+    case : str
+        One of :data:`CASES`.
+    model : {"axial_torsional", "full"}
+    seed : int, optional
+        Default :func:`default_seed` ``(case, model)``.
+    linear : bool
+        Return :meth:`System.linear_equivalent` (friction: its viscous part; backlash: the contact spring).
+    nut_joint : {"moving", "point"}
+        The nut joint of the truth (the bundled time series use ``"moving"``; linearized at rest both agree).
+
+    Returns
+    -------
+    (System, dict)
+        The truth and ``info``: case, model, seed, nut position, mesh, mis-set factors, the hidden values
+        (``joint``: spring ``k`` [N/m], moving mass ``m`` [kg], dashpot ``d``, ``zeta``, target and the
+        drive's first two modes; ``friction``: ``F_c``, ``v_s``, ``d``; ``backlash``: ``b``, ``c``,
+        ``w``; ``delay``: ``T`` [s], not in the system: apply it exactly as :func:`make_frf` and
+        :func:`make_time` do) and the input name.
+    """
+    if case not in CASES:
+        raise ValueError(f"truths: unknown case {case!r}; use one of {CASES}")
+    if model not in MODELS:
+        raise ValueError(f"truths: unknown model {model!r}; use one of {MODELS}")
+    seed = default_seed(case, model) if seed is None else int(seed)
+    dr = draw(seed)
+    x = dr["nut_position"]
+    p = thesis_parameters()
+    m_total = get_value(p, "table.mass") * dr["table_mass_factor"]
+    misset = {"table.m": dr["table_mass_factor"], "coupling.k_T": dr["coupling_factor"]}
+    s = _base(model, x, dr["mesh_C"], misset, nut_joint)
+    hidden = {}
+    base_damping = s.damping
+    if "joint" in HIDDEN[case]:
+        j = dr["joint"]
+        f12 = _drive_modes(s)                       # the drive's first two modes, table rigid on the nut
+        s.set("table.m", m_total - j["m"])
+        s.add("table_part", Mass(m=j["m"]))
+        s.add("part_spring", Spring(c=1.0))        # k -> 0 first: the table-on-drive mode without the part
+        s.add("part_damper", Damper(d=1.0))
+        for el in ("part_spring", "part_damper"):
+            s.connect("table.flange_a", f"{el}.flange_a")
+            s.connect(f"{el}.flange_b", "table_part.flange_a")
+        s.damping = RigidJointDamping(base_damping, "table_part.s")
+        f0 = _drive_modes(s)[0]
+        lo = max(f12[0], f0)
+        f_t = lo + j["frequency_position"] * (f12[1] - lo)
+        k = _joint_stiffness(s, j["m"], f_t)
+        d = 2.0 * j["zeta"] * math.sqrt(k * j["m"])
+        s.set("part_spring.c", k)
+        s.set("part_damper.d", d)
+        hidden["joint"] = {"k": k, "m": j["m"], "d": d, "zeta": j["zeta"], "f_target": f_t,
+                           "f_drive": [float(v) for v in f12], "table_m": m_total - j["m"]}
+    if "friction" in HIDDEN[case]:
+        fr = dr["friction"]
+        s.add("guide_ground", Fixed())
+        s.add("guide_friction", AtanFriction(F_c=fr["F_c"], v_s=fr["v_s"], d=fr["d"]))
+        s.connect("guide_ground.flange", "guide_friction.flange_a")
+        s.connect("guide_friction.flange_b", "table.flange_b")
+        hidden["friction"] = dict(fr)
+    if "backlash" in HIDDEN[case]:
+        bl = dr["backlash"]
+        s.insert("clearance", SoftBacklash(b=bl["b"], c=bl["c"], w=bl["w"]),
+                 between=("table_joint.flange", "table.flange_a"))
+        s.damping = RigidJointDamping(base_damping, "table.s")
+        hidden["backlash"] = dict(bl)
+    if "delay" in HIDDEN[case]:
+        hidden["delay"] = dict(dr["delay"])
+    s.name = f"truth_{case}_{model}"
+    info = {"case": case, "model": model, "seed": seed, "nut_position": x, "nut_joint": nut_joint,
+            "mesh": {"section_C_elements": dr["mesh_C"],
+                     "model_section_C_elements": int(get_value(p, "screw.sections.C.n_elements"))},
+            "misset": {"table.m": {"factor": dr["table_mass_factor"], "truth": m_total},
+                       "coupling.k_T": {"factor": dr["coupling_factor"],
+                                        "truth": get_value(p, "coupling.kT") * dr["coupling_factor"]}},
+            "hidden": hidden, "input": "amp.u" if _voltage_input() else "motor.tau"}
+    return (s.linear_equivalent() if linear else s), info
+
+
+# ---- measurements ------------------------------------------------------------------------------------
+def _convert(inp: str) -> tuple[float, float]:
+    """(input scale to volts, table-channel sign) for a test bed without the voltage input: the torque
+    input with tau = K_a K_t u (Eq 4.1) and, as that version had it, the table along the screw's +z."""
+    if inp == "amp.u":
+        return 1.0, 1.0
+    p = thesis_parameters()
+    return get_value(p, "electrical.K_a") * get_value(p, "electrical.K_t"), -1.0
+
+
+def _source(seed: int, what: str) -> str:
+    return f"synthetic {what} of an FE test-bed truth (bscomp.systems.truths, seed {seed}; see truth.json)"
+
+
+def make_frf(case: str, model: str = "axial_torsional", seed: int | None = None, *, freqs=None,
+             noise: float = FRF_NOISE):
+    """FRF data of a truth: ``amp.u`` -> ``rotor.w`` and -> ``table.a`` at the truth's nut position.
+
+    From the truth's linear equivalent (:func:`bscomp.frf.frf`), times ``e^{-j omega T}`` for a hidden
+    delay, times ``1 + eps`` with ``eps`` complex normal of relative standard deviation ``noise``
+    (seeded, stream ``[seed, 1]``); coherence 1.
+
+    Returns
+    -------
+    (FrfData, dict)
+        The data (condition ``nut_position``) and the truth's ``info`` with ``frf_noise_free``
+        ``{(input, output): H}``.
+    """
+    from bscomp.frf import frf
+    from bscomp.validate.measurements import FrfData
+
+    s, info = truth_system(case, model, seed, linear=True)
+    seed = info["seed"]
+    f = np.logspace(np.log10(2.0), 3.0, 300) if freqs is None else np.asarray(freqs, float)
+    inp = info["input"]
+    scale, sign = _convert(inp)
+    r = frf(s, inp, ["rotor.w", "table.a"], freqs=f)
+    T = info["hidden"].get("delay", {}).get("T", 0.0)
+    lag = np.exp(-2j * np.pi * f * T)
+    rng = np.random.default_rng([seed, 1])
+    H, H0, coh = {}, {}, {}
+    for j, (out, sg) in enumerate((("rotor.w", 1.0), ("table.a", sign))):
+        h = r.H[:, j, 0] * scale * sg * lag
+        eps = noise / math.sqrt(2.0) * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size))
+        H0[("amp.u", out)] = h
+        H[("amp.u", out)] = h * (1.0 + eps)
+        coh[("amp.u", out)] = np.ones(f.size)
+    units = {("amp.u", "rotor.w"): "rad/s/V", ("amp.u", "table.a"): "m/s^2/V"}
+    data = FrfData(freqs=f, H=H, units=units, conditions={"nut_position": info["nut_position"]}, coherence=coh,
+                   source=_source(seed, "FRF"))
+    info["frf_noise_free"] = H0
+    info["frf"] = {"freqs_hz": [float(f[0]), float(f[-1]), int(f.size)], "spacing": "log",
+                   "noise": f"complex multiplicative, relative std {noise} (re, im each {noise}/sqrt 2)",
+                   "coherence": 1.0, "from": "linear equivalent of the truth at rest (System.linear_equivalent)"}
+    return data, info
+
+
+def square_wave(n: int, dt: float = DT, amplitude: float = AMPLITUDE, frequency: float = FREQUENCY):
+    """The Sec 5.3.1 command at samples ``k = 0..n-1``: +amplitude first, switching every half period
+    (a whole number of samples)."""
+    half = int(round(0.5 / (frequency * dt)))
+    k = np.arange(n)
+    return amplitude * np.where((k // half) % 2 == 0, 1.0, -1.0)
+
+
+def make_time(case: str, model: str = "axial_torsional", seed: int | None = None, *, duration: float = DURATION,
+              dt: float = DT, fine: int = FINE, method: str = "idas", rtol: float = 1e-7, atol: float = 1e-10,
+              noise: dict | None = None, nut_joint: str = "moving", progress: bool = False):
+    """Square-wave time series of a truth (Sec 5.3.1: +-2.125 V, 5 Hz) from rest at the nut position.
+
+    The truth (moving nut) is integrated by :func:`bscomp.simulate.simulate` on a grid ``fine`` times the
+    sample rate, the command held per sample (D/A) and delayed by a hidden ``T`` (a whole number of grid
+    steps: exact); outputs ``rotor.phi``, ``rotor.w``, ``table.s``, ``table.a`` are sampled at ``dt`` and
+    get white noise of standard deviations :data:`TIME_NOISE` (seeded, stream ``[seed, 2]``).
+
+    Returns
+    -------
+    (TimeData, dict)
+        The data (input ``amp.u``, condition ``nut_position``) and ``info`` with ``time`` (method,
+        tolerances, wall time) and ``time_noise_free``.
+    """
+    from bscomp.simulate import simulate
+    from bscomp.validate.measurements import TimeData
+
+    s, info = truth_system(case, model, seed, nut_joint=nut_joint)
+    seed = info["seed"]
+    n = int(round(duration / dt))
+    t = np.round(np.arange(n + 1) * dt, 12)
+    u = square_wave(n + 1, dt)
+    tf = np.arange(n * fine + 1) * (dt / fine)
+    shift = int(round(info["hidden"].get("delay", {}).get("T", 0.0) / (dt / fine)))
+    kf = np.arange(n * fine) - shift                 # fine interval k holds the command of sample (k - shift) // fine
+    uf = np.where(kf >= 0, u[np.clip(kf, 0, None) // fine], 0.0)
+    inp = info["input"]
+    scale, sign = _convert(inp)
+    kw = {"rtol": rtol, "atol": atol} if method == "idas" else {}
+    t0 = _time.perf_counter()
+    r = simulate(s, tf, inputs={inp: uf * scale}, outputs=list(OUTPUTS), method=method, max_num_steps=10**7,
+                 progress=progress, **kw)
+    wall = _time.perf_counter() - t0
+    sig = dict(TIME_NOISE, **(noise or {}))
+    rng = np.random.default_rng([seed, 2])
+    Y0, Y = {}, {}
+    for name in OUTPUTS:
+        y = np.asarray(r[name], float)[::fine] * (sign if name.startswith("table.") else 1.0)
+        Y0[name] = y
+        Y[name] = y + sig[name] * rng.standard_normal(y.size)
+    units = {"amp.u": "V", "rotor.phi": "rad", "rotor.w": "rad/s", "table.s": "m", "table.a": "m/s^2"}
+    data = TimeData(t=t, inputs={"amp.u": u}, outputs=Y, units=units,
+                    conditions={"nut_position": info["nut_position"]}, source=_source(seed, "square-wave run"))
+    info["time_noise_free"] = Y0
+    info["time"] = {"duration_s": duration, "dt_s": dt, "integration_grid_s": dt / fine, "method": method,
+                    **({"rtol": rtol, "atol": atol} if method == "idas" else {}), "wall_s": wall,
+                    "nut_joint": nut_joint, "noise_std": sig,
+                    "input": f"square wave +-{AMPLITUDE} V, {FREQUENCY} Hz, positive first, held per sample",
+                    "stats": {k: float(v) for k, v in r.stats.items() if isinstance(v, (int, float))}}
+    return data, info
+
+
+def _rounded(a, digits):
+    return np.array([float(f"{v:.{digits}g}") for v in np.asarray(a, float)])
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    return x
+
+
+def generate_case(case: str, model: str, out_dir, seed: int | None = None, *, time: bool = True,
+                  **time_kw) -> dict:
+    """Write ``frf.csv``, ``time.csv`` (unless ``time=False``) and ``truth.json`` of one truth into
+    ``out_dir/model/case``; returns ``{"frf": path, "time": path, "truth": path, "info": info}``."""
+    from dataclasses import replace
+
+    from bscomp.validate.measurements import write_frf_csv, write_time_csv
+
+    folder = Path(out_dir) / model / case
+    folder.mkdir(parents=True, exist_ok=True)
+    out = {}
+    t0 = _time.perf_counter()
+    frf_data, info = make_frf(case, model, seed)
+    frf_wall = _time.perf_counter() - t0
+    info.pop("frf_noise_free")
+    frf_data = replace(frf_data, H={k: _rounded(v.real, 9) + 1j * _rounded(v.imag, 9) for k, v in frf_data.H.items()})
+    out["frf"] = write_frf_csv(frf_data, folder / "frf.csv")
+    info["frf"]["wall_s"] = frf_wall
+    info["files"] = {"frf": "frf.csv"}
+    if time:
+        time_data, tinfo = make_time(case, model, info["seed"], **time_kw)
+        info["time"] = tinfo["time"]
+        time_data = replace(time_data, outputs={k: _rounded(v, 8) for k, v in time_data.outputs.items()})
+        out["time"] = write_time_csv(time_data, folder / "time.csv")
+        info["files"]["time"] = "time.csv"
+    info["generator"] = "bscomp.systems.truths.generate_case"
+    info["draw_ranges"] = {k: list(v) for k, v in RANGES.items()}
+    path = folder / "truth.json"
+    path.write_text(json.dumps(_jsonable(info), indent=2) + "\n")
+    out["truth"], out["info"] = path, info
+    return out

@@ -1,0 +1,155 @@
+"""Truth systems (systems/truths.py) and the bundled truth data (systems/data/truths): the hidden effect
+is there and of the declared size, the data load with their conditions, seeds reproduce."""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bscomp import flatten, second_order
+from bscomp.systems import truths
+from bscomp.systems.testbed import drive_fraction
+from bscomp.validate.measurements import load, load_all
+
+DATA = Path(truths.__file__).resolve().parent / "data" / "truths"
+AT = "axial_torsional"
+
+
+def _drive_frequencies(system, f_max):
+    """Undamped frequencies [Hz] of the elastic axial/torsional modes below f_max."""
+    import scipy.linalg as sla
+
+    so = second_order(flatten(system), inputs=[], outputs=[])
+    lam, phi = sla.eigh(so.K.toarray(), so.M.toarray())
+    f = np.sqrt(np.clip(lam, 0, None)) / (2 * np.pi)
+    el = np.flatnonzero((f > 1.0) & (f < f_max))
+    return f[el][drive_fraction(phi[:, el], so.M, so.coordinates) > 0.5]
+
+
+def test_draws_are_seeded_and_within_the_ranges():
+    a, b, c = truths.draw(7), truths.draw(7), truths.draw(8)
+    assert a == b and a != c
+    for seed in range(20):
+        d = truths.draw(seed)
+        assert truths.RANGES["nut_position"][0] <= d["nut_position"] <= truths.RANGES["nut_position"][1]
+        assert d["mesh_C"] != 39
+        assert 800 <= d["friction"]["F_c"] <= 3000 and 5e-6 <= d["backlash"]["b"] <= 40e-6
+        assert 1e9 <= d["backlash"]["c"] <= 3e9 and 20 <= d["joint"]["m"] <= 60
+        T = d["delay"]["T"]
+        assert 1e-4 - 2e-5 <= T <= 1e-3 + 2e-5
+        assert abs(T / (truths.DT / truths.FINE) - round(T / (truths.DT / truths.FINE))) < 1e-9
+
+
+def test_truths_do_not_use_the_candidates():
+    import ast
+
+    tree = ast.parse(Path(truths.__file__).read_text())
+    names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    names += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    assert names and not [n for n in names if "validate.candidates" in n or "validate.generate" in n]
+
+
+@pytest.mark.parametrize("model", truths.MODELS)
+def test_joint_truth_has_an_extra_mode_between_the_first_two(model):
+    seed = truths.default_seed("joint", model)
+    s, info = truths.truth_system("joint", model, seed)
+    c, _ = truths.truth_system("control", model, seed)
+    j = info["hidden"]["joint"]
+    f1, f2 = j["f_drive"]
+    assert f1 < j["f_target"] < f2
+    f_truth = _drive_frequencies(s, 1.05 * f2)
+    f_ctrl = _drive_frequencies(c, 1.05 * f2)
+    assert np.allclose(f_ctrl, [f1, f2], rtol=1e-9)
+    assert f_truth.size == 3 and np.sum((f_truth > f1) & (f_truth < f2)) >= 1
+    assert np.min(np.abs(f_truth - j["f_target"])) < 1e-6 * j["f_target"]
+    # the part is taken out of the (mis-set) table: the total mass stays
+    assert s.get("table.m") + s.get("table_part.m") == pytest.approx(c.get("table.m"), rel=1e-12)
+    assert s.get("part_spring.c") == pytest.approx(j["k"]) and 20 <= j["m"] <= 60
+    assert j["d"] == pytest.approx(2 * j["zeta"] * math.sqrt(j["k"] * j["m"])) and 0.03 <= j["zeta"] <= 0.05
+
+
+def test_friction_force_at_10_mm_per_s_is_the_coulomb_force():
+    s, info = truths.truth_system("friction", AT)
+    fr = info["hidden"]["friction"]
+    comp = s.component("guide_friction")
+    for v in (0.01, -0.01):
+        coulomb = comp.force_law(0.0, v) - fr["d"] * v
+        assert coulomb == pytest.approx(math.copysign(fr["F_c"], v), rel=0.01)
+    assert comp.force_law(0.0, 0.0) == 0.0
+    # the FRF sees the viscous part only
+    lin, _ = truths.truth_system("friction", AT, linear=True)
+    assert lin.component("guide_friction").d == pytest.approx(fr["d"])
+
+
+def test_backlash_gap_has_the_declared_total_width():
+    s, info = truths.truth_system("backlash", AT)
+    bl = info["hidden"]["backlash"]
+    comp = s.component("clearance")
+    b, c, w = bl["b"], bl["c"], bl["w"]
+    # the softplus contact passes c w log 2 exactly at +-b/2: the gap between those points is b
+    assert comp.force_law(b / 2, 0.0) == pytest.approx(c * w * math.log(2), rel=1e-6)
+    assert comp.force_law(-b / 2, 0.0) == pytest.approx(-c * w * math.log(2), rel=1e-6)
+    assert abs(comp.force_law(0.3 * b, 0.0)) < 1e-3 * c * b           # (nearly) free inside
+    assert comp.force_law(b / 2 + 20 * w, 0.0) == pytest.approx(c * 20 * w, rel=1e-6)  # slope c in contact
+    assert 5e-6 <= b <= 40e-6 and 1e9 <= c <= 3e9
+
+
+def test_delay_frf_is_the_control_frf_times_the_exact_delay():
+    seed = 4242
+    d, info = truths.make_frf("delay", AT, seed, noise=0.0)
+    c, _ = truths.make_frf("control", AT, seed, noise=0.0)
+    T = info["hidden"]["delay"]["T"]
+    lag = np.exp(-2j * np.pi * d.freqs * T)
+    for pair in d.H:
+        assert np.allclose(d.H[pair], c.H[pair] * lag, rtol=1e-12, atol=0)
+
+
+def test_frf_sign_convention_and_noise_level():
+    d, info = truths.make_frf("control", AT)
+    H0 = info["frf_noise_free"]
+    # positive voltage moves the table forward: low-frequency acceleration in phase with the command
+    assert H0[("amp.u", "table.a")][0].real > 0 and H0[("amp.u", "rotor.w")][0].real > 0
+    for pair, h in d.H.items():
+        rel = np.abs(h / H0[pair] - 1.0)
+        assert 0.01 < np.sqrt(np.mean(rel ** 2)) < 0.03       # 2 % complex noise
+
+
+@pytest.mark.parametrize("case", truths.CASES)
+def test_bundled_data_load_with_their_conditions(case):
+    for model in truths.MODELS:
+        folder = DATA / model / case
+        info = json.loads((folder / "truth.json").read_text())
+        files = sorted(folder.glob("*.csv"))
+        assert files, f"no data in {folder}"
+        for data in load_all(files):
+            assert data.conditions["nut_position"] == pytest.approx(info["nut_position"])
+        frf = load(folder / "frf.csv")
+        assert frf.pairs == [("amp.u", "rotor.w"), ("amp.u", "table.a")] and frf.freqs.size == 300
+        assert info["case"] == case and info["model"] == model and info["seed"] == truths.default_seed(case, model)
+        if (folder / "time.csv").is_file():
+            tm = load(folder / "time.csv")
+            assert list(tm.inputs) == ["amp.u"] and set(tm.outputs) == set(truths.OUTPUTS)
+            assert tm.t.size == 3001 and np.max(np.abs(tm.inputs["amp.u"])) == pytest.approx(2.125)
+            assert np.mean(tm.outputs["table.s"][200:300]) > 0          # positive command, table forward
+
+
+@pytest.mark.parametrize("model, case", [(AT, "control"), (AT, "joint"), (AT, "delay"), ("full", "control")])
+def test_bundled_frf_reproduces_from_its_seed(model, case):
+    folder = DATA / model / case
+    info = json.loads((folder / "truth.json").read_text())
+    frf = load(folder / "frf.csv")
+    again, _ = truths.make_frf(case, model, info["seed"])
+    for pair in frf.H:
+        assert np.allclose(frf.H[pair], again.H[pair], rtol=1e-8, atol=0)
+
+
+def test_bundled_delay_time_series_starts_late():
+    folder = DATA / AT / "delay"
+    info = json.loads((folder / "truth.json").read_text())
+    tm = load(folder / "time.csv")
+    T = info["hidden"]["delay"]["T"]
+    w = tm.outputs["rotor.w"]
+    moving = np.flatnonzero(np.abs(w) > 8 * truths.TIME_NOISE["rotor.w"])[0]
+    assert tm.t[moving] >= T and tm.t[moving] <= T + 3 * truths.DT
