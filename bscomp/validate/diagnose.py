@@ -281,6 +281,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     ref = systems[keys[0]]
     unc = _uncertain(ref, uncertain, default_spread)
     sigmas = [noise_levels(d) for d in datasets]
+    has_frf = any(isinstance(d, FrfData) for d in datasets)
     structures = _Structures(systems, datasets, keys, list(unc))
     thresholds = (bic_threshold, min_drop, min_heldout_drop, noise_tolerance)
 
@@ -345,6 +346,9 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
             effects = fixed_effects + [(cand, cand.medians(), True)]
             ev, st = structures.get(effects)
             pr0 = Problem(ev, sigmas, dict(unc_start), [], effects, st)
+            # a linear effect must show in the FRFs: screen it there (the time series of a drive with an
+            # accepted nonlinear effect is dominated by that effect's fitted parameters)
+            pr0.only_frf = has_frf and not cand.nonlinear and rnd > 1
             p0 = cand.parameters[0]
             meds = [p.median for p in cand.parameters]
             if cand.nonlinear:
@@ -375,20 +379,25 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         results = []
         for i, (_e, cand, effects, scores) in enumerate(screened):
             ev, st = structures.get(effects)
-            pr = Problem(ev, sigmas, {}, _specs(ref, unc, unc_start), effects, st)
+            # the effects accepted before are re-fitted with the candidate: an early one was fitted while
+            # this one was still missing (friction fitted without the joint absorbs part of it)
+            effects_free = [(c, v, True) for c, v, _ in effects]
+            pr = Problem(ev, sigmas, {}, _specs(ref, unc, unc_start), effects_free, st)
             if i < n_refine:
                 prog.step(f"fit {cand.name}")
                 pr0 = Problem(ev, sigmas, dict(unc_start), [], effects, st)
+                pr0.only_frf = has_frf and not cand.nonlinear and rnd > 1
                 th0 = scores[0][1]
                 if cand.nonlinear:
                     th0 = _line_search(pr0, th0, scores)
                 th0, _ = pr0.fit(th0, max_nfev=8 if cand.nonlinear else 15)
-                th_unc = pr.theta0()[:len(unc)]
-                th, sl = pr.fit(np.r_[th_unc, th0], max_nfev=6 if cand.nonlinear else 20)
+                th_prev = pr.theta0()[:len(pr.free) - len(cand.parameters)]   # uncertain + earlier effects
+                slow = cand.nonlinear or any(c.nonlinear for c, _, _ in effects_free)
+                th, sl = pr.fit(np.r_[th_prev, th0], max_nfev=(12 if rnd > 1 else 6) if slow else 20)
                 n_evals += pr.nfev + pr0.nfev
                 refined = True
             else:
-                th = np.r_[pr.theta0()[:len(unc)], scores[0][1]]
+                th = np.r_[pr.theta0()[:len(pr.free) - len(cand.parameters)], scores[0][1]]
                 sl, refined = None, False
             after = _summary(pr, th, k_now + len(cand.parameters))
             vals_all = pr.values(th)

@@ -148,6 +148,14 @@ class Diagnosis:
             lines.append(f"  {i:>2} {r.name:<26} {r.error_after:9.4g} {held} {r.delta_bic:10.1f}  {vals}{flag}")
             if r.verdict and not r.accepted:
                 lines.append(f"     not accepted: {r.verdict}")
+        for k, rr in enumerate(self.rounds[1:], 2):
+            lines += ["", f"round {k} (with the effects accepted before), best three:"]
+            for r in [r for r in rr if r.refined][:3]:
+                vals = ", ".join(f"{kk}={v:.4g}" for kk, v in r.values.items())
+                held = f", held-out {r.heldout_after:.4g}" if r.heldout_after is not None else ""
+                lines.append(f"  {r.name:<26} error {r.error_after:.4g}{held}; {vals}")
+                if r.verdict and not r.accepted:
+                    lines.append(f"     not accepted: {r.verdict}")
         if self.skipped:
             lines += ["", "not tried:"] + [f"  {s.name:<26} {s.reason}" for s in self.skipped]
         if self.recalibrated:

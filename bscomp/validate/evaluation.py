@@ -122,8 +122,9 @@ class Evaluator:
                 self.split.append(None)
         self.n_evaluations = 0
 
-    def outputs(self, overrides: dict, hooks: dict | None = None) -> list:
-        """Model outputs per dataset: ``{(input, output): H}`` or ``{name: y}``."""
+    def outputs(self, overrides: dict, hooks: dict | None = None, only_frf: bool = False) -> list:
+        """Model outputs per dataset: ``{(input, output): H}`` or ``{name: y}`` (None for time series
+        when ``only_frf``)."""
         hooks = hooks or {}
         delay = float(hooks.get("input_delay", 0.0))
         zeta = float(hooks.get("extra_modal_damping", 0.0))
@@ -137,15 +138,18 @@ class Evaluator:
             mm = modal[key]
             if isinstance(d, FrfData):
                 out.append(cm.frf(mine, d.freqs, list(d.H), delay=delay, mm=mm))
+            elif only_frf:
+                out.append(None)
             else:
                 out.append(cm.simulate(mine, d.t, dict(d.inputs), outputs=list(d.outputs), delay=delay, mm=mm,
                                        n_sub=self.n_sub if cm.elements else 1))
         self.n_evaluations += 1
         return out
 
-    def blocks(self, overrides, hooks, sigmas) -> list:
-        """Whitened residual blocks per dataset (a list of lists of arrays)."""
-        return [_blocks(y, d, s) for y, d, s in zip(self.outputs(overrides, hooks), self.datasets, sigmas)]
+    def blocks(self, overrides, hooks, sigmas, only_frf: bool = False) -> list:
+        """Whitened residual blocks per dataset (a list of lists of arrays; empty for skipped series)."""
+        return [[] if y is None else _blocks(y, d, s)
+                for y, d, s in zip(self.outputs(overrides, hooks, only_frf), self.datasets, sigmas)]
 
 
 # ---- a fit problem: free parameters (log space) mapped to overrides -------------------------------------
@@ -173,6 +177,7 @@ class Problem:
                 self.free += [Free(f"{cand.name}.{p.name}", p.lower, p.upper, values.get(p.name, p.median))
                               for p in cand.parameters]
         self.nfev = 0
+        self.only_frf = False          # True: fit the FRF datasets alone (linear evidence)
 
     def values(self, theta) -> dict:
         return dict(zip([f.label for f in self.free], np.exp(theta).tolist()))
@@ -195,11 +200,15 @@ class Problem:
 
     def all_blocks(self, theta):
         ov, hooks = self.overrides(theta)
+        if self.only_frf:
+            return self.ev.blocks(ov, hooks, self.sigmas, only_frf=True)
         return self.ev.blocks(ov, hooks, self.sigmas)
 
     def fit_vector(self, blocks):
         parts = []
         for b, cut in zip(blocks, self.ev.split):
+            if self.only_frf and cut is not None:
+                continue
             bb = [x[:cut] for x in b] if cut else b
             n = sum(x.size for x in bb)
             parts += [np.where(np.isfinite(x), x, 1e6) / math.sqrt(max(n, 1)) for x in bb]

@@ -24,14 +24,15 @@ def _ground(e, point, vi) -> str:
 
 
 class GuidewayFriction(Candidate):
-    """Coulomb friction at the guideways (thesis Eq 5.7, Table 5.2: 2066 N) between the ``table_guide``
-    node and the ground; the drive's own viscous term ``B v`` stays where it is (on the table or the
-    motor), so the friction element adds only ``F_c``."""
+    """Coulomb + viscous friction at the guideways (thesis Eq 5.7, Table 5.2: 2066 N, B v) between the
+    ``table_guide`` node and the ground: ``F_c`` and a viscous coefficient ``d`` *added* to the drive's
+    own ``B`` (which stays where it is, on the table or the motor)."""
 
     def __init__(self):
         super().__init__(
-            name="guideway_friction", title="Coulomb friction at the guideways", role="table_guide",
-            parameters=[CandidateParameter("F_c", "N", 10.0, 2e4, 1000.0, 1.5, "Coulomb force")],
+            name="guideway_friction", title="Coulomb + viscous friction at the guideways", role="table_guide",
+            parameters=[CandidateParameter("F_c", "N", 10.0, 2e4, 1000.0, 1.5, "Coulomb force"),
+                        CandidateParameter("d", "N.s/m", 1.0, 1e5, 1000.0, 1.5, "added viscous coefficient")],
             signature="residual correlates with sign(table velocity): the model moves too far and too fast, "
                       "errors jump at every velocity reversal and the table position drifts",
             nonlinear=True, group="guideway_friction", kinds=("attach", "connection"))
@@ -47,7 +48,10 @@ class GuidewayFriction(Candidate):
 
     def _overrides(self, values, state):
         f = state["friction"]
-        return {f"{f}.F_c_pos": values["F_c"], f"{f}.F_c_neg": values["F_c"]}
+        out = {f"{f}.F_c_pos": values["F_c"], f"{f}.F_c_neg": values["F_c"]}
+        if "d" in values:
+            out.update({f"{f}.d_pos": values["d"], f"{f}.d_neg": values["d"]})
+        return out
 
 
 class StribeckGuidewayFriction(GuidewayFriction):
