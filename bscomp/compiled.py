@@ -344,11 +344,12 @@ class CompiledModel:
             vals = {n: law.get(f"{el.path}.{n}", el.values[n]) for n in el.pnames}
             lv = el.lin_values(vals)
             kind = type(el.lin).__name__ if el.lin is not None else None
-            if kind not in (None, "Spring", "Damper"):
-                raise CompiledModelError(f"{el.path}: small-signal equivalent {kind} is not supported (Spring, Damper)")
-            k_lin = lv.get("c", 0.0) if kind == "Spring" else 0.0
-            s0 = lv.get("s_rel0", 0.0) if kind == "Spring" else 0.0
-            d_lin = lv.get("d", 0.0) if kind == "Damper" else 0.0
+            if kind not in (None, "Spring", "Damper", "SpringDamper"):
+                raise CompiledModelError(f"{el.path}: small-signal equivalent {kind} is not supported (Spring, "
+                                         "Damper, SpringDamper)")
+            k_lin = lv.get("c", 0.0) if kind in ("Spring", "SpringDamper") else 0.0
+            s0 = lv.get("s_rel0", 0.0) if kind in ("Spring", "SpringDamper") else 0.0
+            d_lin = lv.get("d", 0.0) if kind in ("Damper", "SpringDamper") else 0.0
             out += [vals[n] for n in el.pnames] + [k_lin, s0, d_lin]
         return np.array(out if out else [0.0], float)
 

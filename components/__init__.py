@@ -43,6 +43,7 @@ from .screw_nut_shape_function import ScrewNutShapeFunction
 from .second_order_block import SecondOrderBlock
 from .speed_sensor import SpeedSensor
 from .spring import Spring
+from .spring_damper import SpringDamper
 from .stribeck_friction import StribeckFriction  # noqa: E402
 from .tachometer import Tachometer  # noqa: E402
 from .torque import Torque
@@ -57,7 +58,7 @@ __all__ = [
     "MovingScrewNut",
     "AccelerationSensor", "AngleSensor", "Damper", "Fixed", "FixedRotational", "Force", "Gain",
     "IdealLeadScrew", "Inertia", "Mass", "PositionSensor", "SpeedSensor", "Spring", "Torque",
-    "TorsionalDamper", "TorsionalSpring", "VelocitySensor", "ForceBetween",
+    "TorsionalDamper", "TorsionalSpring", "VelocitySensor", "ForceBetween", "SpringDamper",
     "Ballscrew", "Bearing", "BoltedFastener", "Bushing", "Coupling", "FixedNode", "LinearGuide",
     "NodeToFlange", "NodeToRotFlange", "RigidBody", "ScrewNut",
 ]

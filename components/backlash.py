@@ -92,7 +92,12 @@ class Backlash(PartialCompliant):
     eps = Parameter(0.0, unit="m", min=0.0, doc="width of the smoothed dead-zone corners (0: sharp)")
 
     def linear_equivalent(self):
-        """Small-signal equivalent for FRFs: the contact in engagement (spring ``c``, damper ``d``)."""
+        """Small-signal equivalent for FRFs: the contact in engagement (spring ``c``, with the contact
+        damper ``d`` beside it when there is one)."""
+        if self.d > 0:
+            from .spring_damper import SpringDamper
+
+            return SpringDamper(c=self.c, d=self.d)
         from .spring import Spring
 
         return Spring(c=self.c)

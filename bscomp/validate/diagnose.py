@@ -339,19 +339,26 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
             break
         k_now = len(unc) + sum(len(c.parameters) for c, _, _ in accepted_effects)
         fixed_effects = [(c, v, False) for c, v, _ in accepted_effects]
-        unc_start = {k: float(ref.get(k)) for k in unc} if rnd == 1 else dict(unc_values)
+        # screening at the current (re-calibrated) values: with the nominal ones a mis-set table mass
+        # dominates the time series; the joint fits below restart the uncertain parameters from nominal
+        unc_start = dict(unc_values)
+        unc_nominal = {k: float(ref.get(k)) for k in unc} if rnd == 1 else dict(unc_values)
         screened = []
         for cand in pool:
             prog.step(cand.name)
             effects = fixed_effects + [(cand, cand.medians(), True)]
-            ev, st = structures.get(effects)
+            try:
+                ev, st = structures.get(effects)
+            except NotApplicable as exc:   # on top of the effects accepted so far (e.g. damping replaced)
+                skipped.append(Skipped(cand.name, cand.title, f"not applicable in round {rnd}: {exc}"))
+                continue
             pr0 = Problem(ev, sigmas, dict(unc_start), [], effects, st)
             # a linear effect must show in the FRFs: screen it there (the time series of a drive with an
             # accepted nonlinear effect is dominated by that effect's fitted parameters)
             pr0.only_frf = has_frf and not cand.nonlinear and rnd > 1
             p0 = cand.parameters[0]
             meds = [p.median for p in cand.parameters]
-            if cand.nonlinear:
+            if cand.nonlinear or len(cand.parameters) == 1:   # one-parameter effects: a dense scan is cheap
                 lo = max(math.log(p0.lower), math.log(p0.median) - 2.5 * p0.sigma_log)
                 hi = min(math.log(p0.upper), math.log(p0.median) + 2.5 * p0.sigma_log)
                 grid = np.exp(np.linspace(lo, hi, n_scan))
@@ -382,7 +389,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
             # the effects accepted before are re-fitted with the candidate: an early one was fitted while
             # this one was still missing (friction fitted without the joint absorbs part of it)
             effects_free = [(c, v, True) for c, v, _ in effects]
-            pr = Problem(ev, sigmas, {}, _specs(ref, unc, unc_start), effects_free, st)
+            pr = Problem(ev, sigmas, {}, _specs(ref, unc, unc_nominal), effects_free, st)
             if i < n_refine:
                 prog.step(f"fit {cand.name}")
                 pr0 = Problem(ev, sigmas, dict(unc_start), [], effects, st)

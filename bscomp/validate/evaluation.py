@@ -61,7 +61,12 @@ def noise_levels(data) -> list:
     for y in data.outputs.values():
         y = np.asarray(y, float)
         rms = float(np.sqrt(np.mean(y * y))) if y.size else 1.0
-        out.append(_robust_sigma(y, 1e-6 * max(rms, 1e-300)))
+        # a quantised channel (encoder counts, an ADC) has at least the quantisation noise q / sqrt(12),
+        # which second differences of a slowly varying signal do not see (most of them are 0)
+        dy = np.abs(np.diff(y))
+        nz = dy[dy > 1e-12 * max(rms, 1e-300)]
+        q = float(np.percentile(nz, 5)) if nz.size > 10 else 0.0
+        out.append(_robust_sigma(y, max(1e-6 * max(rms, 1e-300), q / math.sqrt(12.0))))
     return out
 
 
@@ -75,6 +80,22 @@ def _blocks(model_out, data, sigmas):
         return blocks
     return [(np.asarray(y, float) - np.asarray(model_out[n], float)) / s
             for (n, y), s in zip(data.outputs.items(), sigmas)]
+
+
+def _split_point(data, min_events: int = 2):
+    """Index splitting a time series into fitted and held-out halves, or None when a half would see fewer
+    than ``min_events`` input steps (a 0.2 s record of a 5 Hz square wave: its first half has no reversal,
+    so backlash or friction could neither be fitted nor confirmed)."""
+    n = data.t.size
+    mid = n // 2
+    steps = np.zeros(n - 1, bool)
+    for u in data.inputs.values():
+        du = np.abs(np.diff(np.asarray(u, float)))
+        steps |= du > 0.1 * max(float(np.max(du)) if du.size else 0.0, 1e-300)
+    k = np.flatnonzero(steps)
+    if np.sum(k < mid) >= min_events and np.sum(k >= mid) >= min_events:
+        return mid
+    return None
 
 
 def block_stats(blocks) -> float:
@@ -117,7 +138,7 @@ class Evaluator:
                 dt = np.diff(d.t)
                 if np.max(np.abs(dt - dt[0])) > 1e-6 * dt[0]:
                     raise ValueError(f"{d.source}: diagnose needs uniformly sampled time series")
-                self.split.append(d.t.size // 2)
+                self.split.append(_split_point(d))
             else:
                 self.split.append(None)
         self.n_evaluations = 0
@@ -207,8 +228,6 @@ class Problem:
     def fit_vector(self, blocks):
         parts = []
         for b, cut in zip(blocks, self.ev.split):
-            if self.only_frf and cut is not None:
-                continue
             bb = [x[:cut] for x in b] if cut else b
             n = sum(x.size for x in bb)
             parts += [np.where(np.isfinite(x), x, 1e6) / math.sqrt(max(n, 1)) for x in bb]

@@ -142,7 +142,7 @@ def test_bundled_frf_reproduces_from_its_seed(model, case):
     frf = load(folder / "frf.csv")
     again, _ = truths.make_frf(case, model, info["seed"])
     for pair in frf.H:
-        assert np.allclose(frf.H[pair], again.H[pair], rtol=1e-8, atol=0)
+        assert np.allclose(frf.H[pair], again.H[pair], rtol=1e-6, atol=0)  # 2 % noise; CSV digits
 
 
 def test_bundled_delay_time_series_starts_late():

@@ -31,7 +31,7 @@ backlash whose contact stiffness is the joint's (see :class:`ScrewNutBacklash`),
 from __future__ import annotations
 
 from .base import Candidate, CandidateParameter
-from .hooks import AddedModalDamping, AmplifierDelay, DetachedBodyDamping, ExtraDamping
+from .hooks import AddedDampingOnMatrix, AddedModalDamping, AmplifierDelay, DetachedBodyDamping, ExtraDamping
 from .nonlinear import V_REG, CompliantBacklash, GuidewayFriction, ScrewNutBacklash, StribeckGuidewayFriction
 from .structural import (
     BearingHousing,
@@ -46,7 +46,7 @@ from .structural import (
 __all__ = ["CandidateParameter", "Candidate", "NutTableJoint", "TableSubassembly", "BearingHousing",
            "ParameterScale", "CouplingStiffness", "MissingInertia", "MissingMass", "GuidewayFriction",
            "StribeckGuidewayFriction", "ScrewNutBacklash", "CompliantBacklash", "AmplifierDelay", "ExtraDamping",
-           "AddedModalDamping", "DetachedBodyDamping", "default_candidates", "V_REG"]
+           "AddedModalDamping", "AddedDampingOnMatrix", "DetachedBodyDamping", "default_candidates", "V_REG"]
 
 
 def default_candidates() -> list:

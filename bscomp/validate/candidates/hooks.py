@@ -16,7 +16,7 @@ from bscomp.interface import NotApplicable
 from ._edits import insert_series
 from .base import Candidate, CandidateParameter, _state
 
-__all__ = ["AddedModalDamping", "DetachedBodyDamping", "ExtraDamping", "AmplifierDelay"]
+__all__ = ["AddedModalDamping", "AddedDampingOnMatrix", "DetachedBodyDamping", "ExtraDamping", "AmplifierDelay"]
 
 
 class AddedModalDamping:
@@ -56,6 +56,33 @@ class AddedModalDamping:
 
     def __repr__(self):
         return f"AddedModalDamping({self.base!r}, zeta={self.zeta:g})"
+
+
+class AddedDampingOnMatrix:
+    """A base system damping given only as a matrix (e.g. :class:`DetachedBodyDamping`) plus ``zeta`` of
+    modal damping on every elastic mode (Eq A.10-A.15); rigid-body modes stay undamped."""
+
+    needs_coordinates = True
+
+    def __init__(self, base, zeta: float):
+        self.base = base
+        self.zeta = float(zeta)
+
+    def matrix(self, M, K, coordinates=None):
+        import scipy.linalg as sla
+
+        from bscomp.damping import modal_damping_matrix, system_damping_matrix
+
+        Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
+        Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
+        lam = sla.eigh(Kd, Md, eigvals_only=True)
+        rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
+        z = np.where(rigid, 0.0, self.zeta)
+        return (np.asarray(system_damping_matrix(self.base, Md, Kd, coordinates), float)
+                + np.asarray(modal_damping_matrix(Md, Kd, z, n_rigid=int(rigid.sum())), float))
+
+    def __repr__(self):
+        return f"AddedDampingOnMatrix({self.base!r}, zeta={self.zeta:g})"
 
 
 class DetachedBodyDamping:
@@ -130,9 +157,10 @@ class ExtraDamping(Candidate):
         from bscomp.components import Damper, Spring, TorsionalDamper, TorsionalSpring
 
         base = e.s.damping
-        if base is not None and hasattr(base, "modal_ratios"):
+        if base is not None and (hasattr(base, "modal_ratios") or hasattr(base, "matrix")):
             if not for_engine:
-                e.s.damping = AddedModalDamping(base, self.parameters[0].median)
+                cls = AddedModalDamping if hasattr(base, "modal_ratios") else AddedDampingOnMatrix
+                e.s.damping = cls(base, self.parameters[0].median)
             return {"mode": "modal", "engine": bool(for_engine)}
         effects = {n for st in (getattr(e.s, "_effect_state", {}) or {}).values() for n in st.get("added", ())}
         springs = [(p, c) for p, c in e.s.leaves() if isinstance(c, (Spring, TorsionalSpring))
@@ -156,14 +184,15 @@ class ExtraDamping(Candidate):
         return {f"{name}.d": beta * c for name, c in state["dampers"].items()}
 
     def _assign_extra(self, system, values, state):
-        if state["mode"] == "modal" and isinstance(system.damping, AddedModalDamping):
+        if state["mode"] == "modal" and isinstance(system.damping, (AddedModalDamping, AddedDampingOnMatrix)):
             system.damping.zeta = float(values["zeta"])
 
     def _extra_code(self, values, state):
         if state["mode"] != "modal":
             return []
-        return ["from bscomp.validate.candidates import AddedModalDamping",
-                f"s.damping = AddedModalDamping(s.damping, zeta={values['zeta']:.10g})"]
+        return ["from bscomp.validate.candidates import AddedModalDamping, AddedDampingOnMatrix",
+                "s.damping = (AddedModalDamping if hasattr(s.damping, 'modal_ratios') else AddedDampingOnMatrix)("
+                f"s.damping, zeta={values['zeta']:.10g})"]
 
     def engine_hooks(self, values, system=None):
         if system is not None and _state(system, self).get("mode") != "modal":

@@ -70,10 +70,13 @@ def test_no_effect_control_claims_nothing():
 def test_two_effects_found_one_after_another():
     _, diag = run_case("two", {"nut_table_joint": {}, "guideway_friction": {}})
     names = {a.name for a in diag.accepted}
-    assert names == {"nut_table_joint", "guideway_friction"}, diag.table()
+    # on the 3-coordinate lumped drive a joint in series at the nut and a housing spring in series at the
+    # screw's support (with a housing mass small against the 1.49 kg nut) are the same series compliance
+    series = {"nut_table_joint", "bearing_housing"}
+    assert len(names) == 2 and "guideway_friction" in names and names & series, diag.table()
     errs = [e for _, e in diag.staircase]
     assert all(b < a for a, b in zip(errs[1:], errs[2:])), diag.staircase  # a staircase down
-    joint = next(a for a in diag.accepted if a.name == "nut_table_joint")
+    joint = next(a for a in diag.accepted if a.name in series)
     fric = next(a for a in diag.accepted if a.name == "guideway_friction")
     assert abs(joint.values["k"] / TRUTH_VALUES["nut_table_joint"]["k"] - 1) < 0.15
     assert abs(fric.values["F_c"] / TRUTH_VALUES["guideway_friction"]["F_c"] - 1) < 0.15
