@@ -38,6 +38,8 @@ import time
 
 import numpy as np
 
+from bscomp.interface import NotApplicable
+
 from .candidates import default_candidates
 from .diagnosis import Diagnosis, EffectFit, Skipped
 from .evaluation import Evaluator, Problem, block_stats, noise_levels
@@ -285,23 +287,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     structures = _Structures(systems, datasets, keys, list(unc))
     thresholds = (bic_threshold, min_drop, min_heldout_drop, noise_tolerance)
 
-    # candidates that apply to this drive; the others are listed with the reason
-    cands, skipped = [], []
-    from bscomp.interface import NotApplicable
-
-    for c in (default_candidates() if candidates is None else candidates):
-        if not c.is_effect:
-            continue
-        deg = sorted(c.degenerate(ref) & set(unc))
-        if deg:
-            skipped.append(Skipped(c.name, c.title, f"re-calibrated instead ({', '.join(deg)} uncertain)"))
-            continue
-        try:
-            c.applicable(ref)
-        except NotApplicable as exc:
-            skipped.append(Skipped(c.name, c.title, f"not applicable: {exc}"))
-            continue
-        cands.append(c)
+    cands, skipped = _applicable(candidates, ref, unc)
     prog = _Progress(progress, 2 + max_effects * (len(cands) + n_refine))
 
     # nominal, re-calibration
@@ -343,101 +329,14 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         # dominates the time series; the joint fits below restart the uncertain parameters from nominal
         unc_start = dict(unc_values)
         unc_nominal = {k: float(ref.get(k)) for k in unc} if rnd == 1 else dict(unc_values)
-        screened = []
-        for cand in pool:
-            prog.step(cand.name)
-            effects = fixed_effects + [(cand, cand.medians(), True)]
-            try:
-                ev, st = structures.get(effects)
-            except NotApplicable as exc:   # on top of the effects accepted so far (e.g. damping replaced)
-                skipped.append(Skipped(cand.name, cand.title, f"not applicable in round {rnd}: {exc}"))
-                continue
-            pr0 = Problem(ev, sigmas, dict(unc_start), [], effects, st)
-            # a linear effect must show in the FRFs: screen it there (the time series of a drive with an
-            # accepted nonlinear effect is dominated by that effect's fitted parameters)
-            pr0.only_frf = has_frf and not cand.nonlinear and rnd > 1
-            p0 = cand.parameters[0]
-            meds = [p.median for p in cand.parameters]
-            if cand.nonlinear or len(cand.parameters) == 1:   # one-parameter effects: a dense scan is cheap
-                lo = max(math.log(p0.lower), math.log(p0.median) - 2.5 * p0.sigma_log)
-                hi = min(math.log(p0.upper), math.log(p0.median) + 2.5 * p0.sigma_log)
-                grid = np.exp(np.linspace(lo, hi, n_scan))
-            else:
-                grid = p0.starts(n_screen)
-            starts = [tuple([v] + meds[1:]) for v in grid]
-            if len(cand.parameters) == 2 and not cand.nonlinear:
-                # linear two-parameter effects (a mass on a spring, a joint's stiffness and damping): a
-                # grid over both priors -- evaluations are cheap and the cost is far from convex
-                starts = [(a, b) for a in grid for b in cand.parameters[1].starts(n_screen)]
-            elif len(cand.parameters) > 1:
-                starts += list(zip(*[p.starts(n_screen) for p in cand.parameters]))[1:3]
-            scores = []
-            for stv in starts:
-                th = np.log(np.array(stv, float))
-                try:
-                    e = float(np.sum(pr0.residual(th) ** 2))
-                except RuntimeError:
-                    e = np.inf
-                scores.append((e, th))
-            scores.sort(key=lambda x: x[0])
-            n_evals += pr0.nfev
-            screened.append((scores[0][0], cand, effects, scores))
-        screened.sort(key=lambda x: x[0])
-        results = []
-        for i, (_e, cand, effects, scores) in enumerate(screened):
-            ev, st = structures.get(effects)
-            # the effects accepted before are re-fitted with the candidate: an early one was fitted while
-            # this one was still missing (friction fitted without the joint absorbs part of it)
-            effects_free = [(c, v, True) for c, v, _ in effects]
-            pr = Problem(ev, sigmas, {}, _specs(ref, unc, unc_nominal), effects_free, st)
-            if i < n_refine:
-                prog.step(f"fit {cand.name}")
-                pr0 = Problem(ev, sigmas, dict(unc_start), [], effects, st)
-                pr0.only_frf = has_frf and not cand.nonlinear and rnd > 1
-                th0 = scores[0][1]
-                if cand.nonlinear:
-                    th0 = _line_search(pr0, th0, scores)
-                th0, _ = pr0.fit(th0, max_nfev=8 if cand.nonlinear else 15)
-                th_prev = pr.theta0()[:len(pr.free) - len(cand.parameters)]   # uncertain + earlier effects
-                slow = cand.nonlinear or any(c.nonlinear for c, _, _ in effects_free)
-                th, sl = pr.fit(np.r_[th_prev, th0], max_nfev=(12 if rnd > 1 else 6) if slow else 20)
-                n_evals += pr.nfev + pr0.nfev
-                refined = True
-            else:
-                th = np.r_[pr.theta0()[:len(pr.free) - len(cand.parameters)], scores[0][1]]
-                sl, refined = None, False
-            after = _summary(pr, th, k_now + len(cand.parameters))
-            vals_all = pr.values(th)
-            vals = {lbl.split(".", 1)[1]: v for lbl, v in vals_all.items() if lbl.startswith(cand.name + ".")}
-            std = {lbl.split(".", 1)[1]: s for lbl, s in pr.uncertainty(th, sl).items()
-                   if lbl.startswith(cand.name + ".")}
-            r = EffectFit(candidate=cand, values=vals, std=std, error_before=current["error"],
-                          error_after=after["error"], delta_bic=after["bic"] - current["bic"],
-                          heldout_before=current["heldout"], heldout_after=after["heldout"], refined=refined,
-                          round=rnd, per_dataset=(current["per_dataset"], after["per_dataset"]),
-                          _start=vals_all)
-            r._after, r._problem, r._theta = after, pr, th
-            results.append(r)
-        # refined candidates by their predictive error: the mean of the fitted and the held-out error (a
-        # candidate that only fits the fitted half, e.g. by absorbing noise or a smoothing detail, drops)
+        ctx = dict(structures=structures, sigmas=sigmas, ref=ref, unc=unc, has_frf=has_frf, n_scan=n_scan,
+                   n_screen=n_screen, n_refine=n_refine, prog=prog, skipped=skipped)
+        results, n = _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, **ctx)
+        n_evals += n
         results.sort(key=lambda r: (not r.refined, _score(r), r.delta_bic))
         rounds.append(results)
         log(f"round {rnd}: " + ", ".join(f"{r.name} {r.error_after:.3g} dBIC {r.delta_bic:.0f}" for r in results))
-        chosen = None
-        user_now = _user(current["outputs"], datasets)
-        for r in results:
-            if not r.refined:
-                r.verdict = "screened only"
-                continue
-            bound = r._problem.at_bound(r._theta, [f"{r.name}.{p.name}" for p in r.candidate.parameters])
-            r.user_before, r.user_after = user_now, _user(r._after["outputs"], datasets)
-            ok, why = _verdict(current, r._after, r.delta_bic, bound, _clearly_worse(user_now, r.user_after),
-                               thresholds)
-            r.verdict = "accepted" if ok else why
-            r.evidence = _evidence(current, r._after, datasets, r.candidate)
-            if ok:
-                chosen = r
-                break
+        chosen = _choose(results, current, datasets, thresholds)
         if chosen is None:
             break
         # accept and polish: the uncertain parameters and every accepted effect re-fitted together
@@ -454,7 +353,8 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         accepted_effects = [(c, {p.name: vals_all[f"{c.name}.{p.name}"] for p in c.parameters}, True)
                             for c, _, _ in effects]
         chosen.values = dict(accepted_effects[-1][1])
-        chosen.std = {p.name: std_all.get(f"{chosen.name}.{p.name}", float("nan")) for p in chosen.candidate.parameters}
+        chosen.std = {p.name: std_all.get(f"{chosen.name}.{p.name}", float("nan"))
+                      for p in chosen.candidate.parameters}
         chosen.error_after, chosen.heldout_after = new["error"], new["heldout"]
         chosen.delta_bic = new["bic"] - current["bic"]
         chosen.accepted = True
@@ -480,21 +380,181 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     elif not message:
         message = ("no missing effect found: no candidate explains the remaining error well enough (see why "
                    "each was not accepted)")
-    final_system = structures.get(accepted_effects)[1][keys[0]] if accepted_effects else ref
     return Diagnosis(system=ref, uncertain=list(unc),
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
                      ranked=ranked, accepted=accepted, rounds=rounds, staircase=staircase, message=message,
                      skipped=skipped, user_errors=user_errs,
                      noise=[list(map(float, s)) for s in sigmas],
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
-                            "model_states": final_system is not None and len(keys)})
+                            "conditions": len(systems)})
+
+
+def _applicable(candidates, ref, unc):
+    """(candidates that apply to this drive, [Skipped]): the others are listed with the reason."""
+    cands, skipped = [], []
+    for c in (default_candidates() if candidates is None else candidates):
+        if not c.is_effect:
+            continue
+        deg = sorted(c.degenerate(ref) & set(unc))
+        if deg:
+            skipped.append(Skipped(c.name, c.title, f"re-calibrated instead ({', '.join(deg)} uncertain)"))
+            continue
+        try:
+            c.applicable(ref)
+        except NotApplicable as exc:
+            skipped.append(Skipped(c.name, c.title, f"not applicable: {exc}"))
+            continue
+        cands.append(c)
+    return cands, skipped
+
+
+def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, structures, sigmas, ref, unc,
+           has_frf, n_scan, n_screen, n_refine, prog, skipped):
+    """One round: screen every candidate of the pool on top of the effects accepted so far, refine the
+    best ``n_refine``; returns ([EffectFit], evaluations)."""
+    n_evals = 0
+    # each screening score is the improvement over the model without the candidate at the same
+    # uncertain values: a candidate that can do nothing (a joint made rigid) then does not outrank the
+    # one that explains the data but needs the re-calibration undone (a table part taken from the table)
+    base_ev, base_st = structures.get(fixed_effects)
+    base = {}
+    for u in (unc_nominal, unc_start):
+        for frf_only in {False, has_frf and rnd > 1}:
+            key = (tuple(sorted(u.items())), frf_only)
+            if key not in base:
+                pb = Problem(base_ev, sigmas, dict(u), [], fixed_effects, base_st)
+                pb.only_frf = frf_only
+                base[key] = float(np.sum(pb.residual(np.zeros(0)) ** 2))
+                n_evals += pb.nfev
+    screened = []
+    for cand in pool:
+        prog.step(cand.name)
+        effects = fixed_effects + [(cand, cand.medians(), True)]
+        try:
+            ev, st = structures.get(effects)
+        except NotApplicable as exc:   # on top of the effects accepted so far (e.g. damping replaced)
+            skipped.append(Skipped(cand.name, cand.title, f"not applicable in round {rnd}: {exc}"))
+            continue
+        scores, n = _screen(cand, effects, ev, st, sigmas, [unc_nominal, unc_start], has_frf and rnd > 1,
+                            n_scan, n_screen, base)
+        n_evals += n
+        screened.append((scores[0][0], cand, effects, scores))  # (error, theta, uncertain values)
+    screened.sort(key=lambda x: x[0])
+    results = []
+    for i, (_e, cand, effects, scores) in enumerate(screened):
+        ev, st = structures.get(effects)
+        # the effects accepted before are re-fitted with the candidate: an early one was fitted while
+        # this one was still missing (friction fitted without the joint absorbs part of it)
+        effects_free = [(c, v, True) for c, v, _ in effects]
+        pr = Problem(ev, sigmas, {}, _specs(ref, unc, unc_nominal), effects_free, st)
+        if i < n_refine:
+            prog.step(f"fit {cand.name}")
+            th, sl, n = _refine(cand, effects, ev, st, sigmas, scores, pr, has_frf and rnd > 1, rnd)
+            n_evals += n
+            refined = True
+        else:
+            th = np.r_[pr.theta0()[:len(pr.free) - len(cand.parameters)], scores[0][1]]  # nominal start
+            sl, refined = None, False
+        after = _summary(pr, th, k_now + len(cand.parameters))
+        vals_all = pr.values(th)
+        vals = {lbl.split(".", 1)[1]: v for lbl, v in vals_all.items() if lbl.startswith(cand.name + ".")}
+        std = {lbl.split(".", 1)[1]: s for lbl, s in pr.uncertainty(th, sl).items()
+               if lbl.startswith(cand.name + ".")}
+        r = EffectFit(candidate=cand, values=vals, std=std, error_before=current["error"],
+                      error_after=after["error"], delta_bic=after["bic"] - current["bic"],
+                      heldout_before=current["heldout"], heldout_after=after["heldout"], refined=refined,
+                      round=rnd, per_dataset=(current["per_dataset"], after["per_dataset"]),
+                      _start=vals_all)
+        r._after, r._problem, r._theta = after, pr, th
+        results.append(r)
+    # refined candidates by their predictive error: the mean of the fitted and the held-out error (a
+    # candidate that only fits the fitted half, e.g. by absorbing noise or a smoothing detail, drops)
+    return results, n_evals
+
+
+def _choose(results, current, datasets, thresholds):
+    """The first refined candidate (in ranking order) that passes every acceptance rule; each gets its
+    verdict and evidence in words."""
+    user_now = _user(current["outputs"], datasets)
+    for r in results:
+        if not r.refined:
+            r.verdict = "screened only"
+            continue
+        bound = r._problem.at_bound(r._theta, [f"{r.name}.{p.name}" for p in r.candidate.parameters])
+        r.user_before, r.user_after = user_now, _user(r._after["outputs"], datasets)
+        ok, why = _verdict(current, r._after, r.delta_bic, bound, _clearly_worse(user_now, r.user_after),
+                           thresholds)
+        r.verdict = "accepted" if ok else why
+        r.evidence = _evidence(current, r._after, datasets, r.candidate)
+        if ok:
+            return r
+    return None
+
+
+def _screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen, base=None):
+    """Scores ``[(error, log-theta, uncertain values)]`` of a candidate over its prior, best first.
+
+    Each start is scored with the uncertain parameters at each of ``unc_sets`` (nominal and re-calibrated:
+    the re-calibration may have absorbed part of the effect -- a heavier table for a table part on a
+    joint -- or the nominal values may be far off -- a mis-set table mass dominating a time series).
+    ``frf_only``: a linear candidate after an accepted nonlinear effect is screened on the FRFs (its
+    linear evidence; the time series is then dominated by that effect's fitted parameters).
+    """
+    p0 = cand.parameters[0]
+    meds = [p.median for p in cand.parameters]
+    if cand.nonlinear or len(cand.parameters) == 1:   # one-parameter effects: a dense scan is cheap
+        lo = max(math.log(p0.lower), math.log(p0.median) - 2.5 * p0.sigma_log)
+        hi = min(math.log(p0.upper), math.log(p0.median) + 2.5 * p0.sigma_log)
+        grid = np.exp(np.linspace(lo, hi, n_scan))
+    else:
+        grid = p0.starts(n_screen)
+    starts = [tuple([v] + meds[1:]) for v in grid]
+    if len(cand.parameters) == 2 and not cand.nonlinear:
+        # linear two-parameter effects (a mass on a spring, a joint's stiffness and damping): a grid over
+        # both priors -- evaluations are cheap and the cost is far from convex
+        starts = [(a, b) for a in grid for b in cand.parameters[1].starts(n_screen)]
+    elif len(cand.parameters) > 1:
+        starts += list(zip(*[p.starts(n_screen) for p in cand.parameters]))[1:3]
+    scores, nfev, seen = [], 0, []
+    for unc in unc_sets:
+        if any(unc == u for u in seen):
+            continue
+        seen.append(unc)
+        pr0 = Problem(ev, sigmas, dict(unc), [], effects, st)
+        pr0.only_frf = frf_only and not cand.nonlinear
+        e0 = (base or {}).get((tuple(sorted(unc.items())), pr0.only_frf), 0.0)
+        for stv in starts:
+            th = np.log(np.array(stv, float))
+            try:
+                e = float(np.sum(pr0.residual(th) ** 2)) - e0
+            except RuntimeError:
+                e = np.inf
+            scores.append((e, th, dict(unc)))
+        nfev += pr0.nfev
+    scores.sort(key=lambda x: x[0])
+    return scores, nfev
+
+
+def _refine(cand, effects, ev, st, sigmas, scores, pr, frf_only, rnd):
+    """Least squares from the best screening point: the candidate alone (into the valley), then jointly
+    with the uncertain parameters and the effects accepted before (``pr``). Returns (theta, sol, nfev)."""
+    pr0 = Problem(ev, sigmas, dict(scores[0][2]), [], effects, st)
+    pr0.only_frf = frf_only and not cand.nonlinear
+    th0 = scores[0][1]
+    if cand.nonlinear:
+        th0 = _line_search(pr0, th0, [sc for sc in scores if sc[2] == scores[0][2]])
+    th0, _ = pr0.fit(th0, max_nfev=8 if cand.nonlinear else 15)
+    th_prev = pr.theta0()[:len(pr.free) - len(cand.parameters)]   # uncertain + earlier effects
+    slow = cand.nonlinear or any(c.nonlinear for c, _, _ in effects)
+    th, sl = pr.fit(np.r_[th_prev, th0], max_nfev=(12 if rnd > 1 else 6) if slow else 20)
+    return th, sl, pr.nfev + pr0.nfev
 
 
 def _line_search(pr, th0, scores):
     """Bounded Brent search on the first free parameter between the scan neighbours of ``th0``."""
     from scipy.optimize import minimize_scalar
 
-    xs = sorted(s[1][0] for s in scores if np.all(s[1][1:] == th0[1:]))
+    xs = sorted(sc[1][0] for sc in scores if np.all(sc[1][1:] == th0[1:]))
     i = int(np.argmin([abs(x - th0[0]) for x in xs]))
     lo, hi = xs[max(i - 1, 0)], xs[min(i + 1, len(xs) - 1)]
     if hi <= lo:
