@@ -440,14 +440,23 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
         n_evals += n
         screened.append((scores[0][0], cand, effects, scores))  # (error, theta, uncertain values)
     screened.sort(key=lambda x: x[0])
+    # refined: the best of each uncertain-value set (improvements over the nominal model reward
+    # candidates that absorb a mis-set parameter; over the re-calibrated one, those the re-calibration
+    # has not absorbed), up to n_refine in all
+    refine = set()
+    for key in {tuple(sorted(sc[2].items())) for _e, _c, _f, scs in screened for sc in scs}:
+        by_set = sorted(screened, key=lambda x: min((sc[0] for sc in x[3] if tuple(sorted(sc[2].items())) == key),
+                                                    default=np.inf))
+        refine |= {x[1].name for x in by_set[:max(n_refine - 1, 1)]}
+    refine |= {x[1].name for x in screened[:n_refine]}
     results = []
-    for i, (_e, cand, effects, scores) in enumerate(screened):
+    for _e, cand, effects, scores in screened:
         ev, st = structures.get(effects)
         # the effects accepted before are re-fitted with the candidate: an early one was fitted while
         # this one was still missing (friction fitted without the joint absorbs part of it)
         effects_free = [(c, v, True) for c, v, _ in effects]
         pr = Problem(ev, sigmas, {}, _specs(ref, unc, unc_nominal), effects_free, st)
-        if i < n_refine:
+        if cand.name in refine:
             prog.step(f"fit {cand.name}")
             th, sl, n = _refine(cand, effects, ev, st, sigmas, scores, pr, has_frf and rnd > 1, rnd)
             n_evals += n
