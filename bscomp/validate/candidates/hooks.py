@@ -93,7 +93,8 @@ class DetachedBodyDamping:
     is damped by that dashpot alone. So the base option's matrix is computed on the drive with each body
     lumped rigidly on the coordinate its joint attaches it to (the joint removed), and embedded with no
     damping on the body's own coordinate: the added mode neither takes the place of the drive's first or
-    second mode nor changes the damping forces among the drive's coordinates.
+    second mode nor changes the damping forces among the drive's coordinates. A body joined to more than
+    one coordinate (another effect attached to it) stays part of the drive.
     """
 
     needs_coordinates = True
@@ -116,8 +117,7 @@ class DetachedBodyDamping:
             row[i] = 0.0
             j = np.flatnonzero(row)
             if j.size > 1 or np.any(np.delete(M[i], i) != 0.0):
-                raise ValueError(f"DetachedBodyDamping: {b} must be joined by one spring to one coordinate "
-                                 f"(found {[names[n] for n in j]})")
+                continue                     # joined to several coordinates: it stays part of the drive
             if j.size:                       # (none: linearized inside a clearance, the body is free)
                 j = int(j[0])
                 M2[j, j] += M[i, i]          # the body rides rigidly on coordinate j (direction +-1)
