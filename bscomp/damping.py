@@ -338,6 +338,19 @@ def damped_modal_properties(
     return omega, -s.real / omega
 
 
+def matrix_from_ratios(option, M, K, coordinates=None) -> np.ndarray:
+    """The damping matrix (Eq A.10-A.15) of an option that gives a ratio per mode (``modal_ratios(lam,
+    phi, M, coordinates)``): one ``eigh`` of (K, M), the ratios, :func:`modal_damping_matrix`."""
+    import scipy.linalg as sla
+
+    Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
+    Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
+    lam, phi = sla.eigh(Kd, Md)
+    rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
+    z = option.modal_ratios(lam, phi, Md, coordinates)
+    return modal_damping_matrix(Md, Kd, z, n_rigid=int(rigid.sum()))
+
+
 def system_damping_matrix(damping, M, K, coordinates) -> np.ndarray:
     """The matrix of a system-level damping option (``System.damping``) for the mechanical (M, K).
 

@@ -99,7 +99,7 @@ from bscomp.components import (
     TorsionalDamper,
 )
 from bscomp.components._beam_fe import Section
-from bscomp.damping import modal_damping_matrix
+from bscomp.damping import matrix_from_ratios
 from bscomp.errors import ModelDefinitionError
 from bscomp.interface import InsertionPoint, UncertainParameter, ValidationInterface
 
@@ -204,14 +204,7 @@ class DriveModalDamping:
         return z
 
     def matrix(self, M, K, coordinates=None):
-        import scipy.linalg as sla
-
-        Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
-        Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
-        lam, phi = sla.eigh(Kd, Md)
-        rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
-        z = self.modal_ratios(lam, phi, Md, coordinates)
-        return modal_damping_matrix(Md, Kd, z, n_rigid=int(rigid.sum()))
+        return matrix_from_ratios(self, M, K, coordinates)
 
     def __repr__(self):
         return "DriveModalDamping(zeta1={}, zeta2={}, zeta_other={})".format(*self.zeta)

@@ -43,16 +43,9 @@ class AddedModalDamping:
         return z
 
     def matrix(self, M, K, coordinates=None):
-        import scipy.linalg as sla
+        from bscomp.damping import matrix_from_ratios
 
-        from bscomp.damping import modal_damping_matrix
-
-        Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
-        Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
-        lam, phi = sla.eigh(Kd, Md)
-        rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
-        z = self.modal_ratios(lam, phi, Md, coordinates)
-        return modal_damping_matrix(Md, Kd, z, n_rigid=int(rigid.sum()))
+        return matrix_from_ratios(self, M, K, coordinates)
 
     def __repr__(self):
         return f"AddedModalDamping({self.base!r}, zeta={self.zeta:g})"
