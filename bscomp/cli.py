@@ -62,7 +62,7 @@ def _demo_validation(out: Path) -> int:
     print("  " + comp.summary().replace("\n", "\n  "))
     print("  diagnosing: re-calibrate the uncertain parameters, then fit and confirm the candidate effects...",
           flush=True)
-    diag = diagnose("testbed_axial_torsional", datasets, max_effects=3)
+    diag = diagnose("testbed_axial_torsional", datasets, max_effects=2)
     print("  " + diag.table().replace("\n", "\n  "))
     if diag.accepted:
         print("  lines to add to the system file:\n    " + diag.code().replace("\n", "\n    "))
