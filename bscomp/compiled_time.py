@@ -100,31 +100,11 @@ class TimeSeriesMixin:
         scale = 1.0 + ca.norm_inf(w)
         return ca.Function("newton", [a_s, a_v, Gs, Gv, w0, pl], [w, ca.norm_inf(R) / scale])
 
-    def simulate(self, params, t, inputs: dict, outputs=None, extra_damping: float = 0.0, delay: float = 0.0,
-                 n_sub: int | None = None, n_newton: int = 8, mm=None):
-        """Outputs ``{name: y(t)}`` for measured inputs held over each sample (module docstring).
-
-        ``t`` must be uniform; the first sample is the model at rest with the first input value.
-        """
-        t = np.asarray(t, float)
-        dt = float(t[1] - t[0])
-        if np.max(np.abs(np.diff(t) - dt)) > 1e-6 * dt:
-            raise CompiledModelError("CompiledModel.simulate needs a uniformly sampled time grid")
-        outputs = list(self.outputs if outputs is None else outputs)
-        mm = mm or self.modal(params, extra_damping, delay)
-        _lin, law, _struct = self._split(dict(params or {}))
+    def _discrete(self, mm, dt, n_sub, alpha, outputs):
+        """Discretised modal matrices for one step length, delay fraction and output set (cached per
+        modal model by :meth:`simulate`)."""
         so = mm.so
         r = len(self.elements)
-        n_sub = n_sub or (4 if r else 1)
-        nt = t.size
-        U = np.vstack([np.asarray(inputs.get(n, np.zeros(nt)), float) for n in self.inputs])
-        # delayed held inputs: on step k the input is up = u[k-m-1] until fraction alpha, then uc = u[k-m]
-        m = int(math.floor(delay / dt + 1e-12))
-        alpha = delay / dt - m
-        pad = np.zeros((U.shape[0], m + 1))
-        Ud = np.hstack([pad, U])
-        uc_seq = Ud[:, 1:nt + 1 - 0][:, :nt]
-        up_seq = Ud[:, :nt]
         pk = mm.phi[:, mm.keep]
         lk = mm.lam[mm.keep]
         nk = lk.size
@@ -170,6 +150,38 @@ class TimeSeriesMixin:
         else:
             Cs = Cvn = np.zeros((1, n2))
             Dsu, Dsw, Dyw = np.zeros((1, nu)), np.zeros((1, 1)), np.zeros((len(outputs), 1))
+        return n2, Phi, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Dsw, Cy, Dyu, Dyw
+
+    def simulate(self, params, t, inputs: dict, outputs=None, extra_damping: float = 0.0, delay: float = 0.0,
+                 n_sub: int | None = None, n_newton: int = 8, mm=None):
+        """Outputs ``{name: y(t)}`` for measured inputs held over each sample (module docstring).
+
+        ``t`` must be uniform; the first sample is the model at rest with the first input value.
+        """
+        t = np.asarray(t, float)
+        dt = float(t[1] - t[0])
+        if np.max(np.abs(np.diff(t) - dt)) > 1e-6 * dt:
+            raise CompiledModelError("CompiledModel.simulate needs a uniformly sampled time grid")
+        outputs = list(self.outputs if outputs is None else outputs)
+        mm = mm or self.modal(params, extra_damping, delay)
+        _lin, law, _struct = self._split(dict(params or {}))
+        r = len(self.elements)
+        n_sub = n_sub or (4 if r else 1)
+        nt = t.size
+        U = np.vstack([np.asarray(inputs.get(n, np.zeros(nt)), float) for n in self.inputs])
+        # delayed held inputs: on step k the input is up = u[k-m-1] until fraction alpha, then uc = u[k-m]
+        m = int(math.floor(delay / dt + 1e-12))
+        alpha = delay / dt - m
+        pad = np.zeros((U.shape[0], m + 1))
+        Ud = np.hstack([pad, U])
+        uc_seq = Ud[:, 1:nt + 1 - 0][:, :nt]
+        up_seq = Ud[:, :nt]
+        key = (dt, n_sub, round(alpha, 12), tuple(outputs))
+        cache = mm.__dict__.setdefault("_discrete", {})
+        if key not in cache:   # a change of an element's law parameter only re-runs the integration
+            cache[key] = self._discrete(mm, dt, n_sub, alpha, outputs)
+        n2, Phi, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Dsw, Cy, Dyu, Dyw = cache[key]
+        nu = len(self.inputs)
         plaw = self.law_values(law)
         f = self._step_function(n2, nu, len(outputs), n_sub, n_newton)
         if not r:

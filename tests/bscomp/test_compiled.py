@@ -29,7 +29,19 @@ def _square(t, amp=2.125):
 @pytest.fixture(scope="module")
 def testbed_model():
     s = get("testbed_axial_torsional")
-    return s, CompiledModel(s, ["amp.u"], OUTS, free=["table.m", "coupling.k_T", "b1.k_axial"])
+    cm = CompiledModel(s, ["amp.u"], OUTS, free=["table.m", "coupling.k_T", "b1.k_axial"])
+    assert cm.inputs == ["amp.u"] and not cm.elements     # linear drive: nothing cut out
+    return s, cm
+
+
+def test_modes_are_mass_normalised_with_one_rigid_body_mode(testbed_model):
+    _, cm = testbed_model
+    mm = cm.modal({})
+    M = mm.so.M.toarray()
+    assert np.allclose(mm.phi.T @ M @ mm.phi, np.eye(mm.lam.size), atol=1e-8)
+    assert int(np.sum(mm.lam == 0.0)) == 1 and 0 in mm.keep                # the drive's rigid-body mode
+    f = mm.frequencies[mm.keep]
+    assert abs(f[1] - 118.87) < 0.05 and np.all(f <= cm.f_keep)            # first axial mode, kept modes
 
 
 def test_frf_equals_bscomp_frf_on_the_fe_test_bed_after_parameter_changes(testbed_model):
