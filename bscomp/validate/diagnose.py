@@ -42,7 +42,7 @@ from bscomp.interface import NotApplicable
 
 from .candidates import default_candidates
 from .diagnosis import Diagnosis, EffectFit, Skipped
-from .evaluation import Evaluator, Problem, block_stats, noise_levels
+from .evaluation import Evaluator, Problem, block_stats, noise_levels, residual_blocks
 from .measurements import FrfData, TimeData
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
@@ -121,9 +121,7 @@ def _summary(problem, theta, k):
     """Errors of one parameter vector: fitted and held-out chi^2 (per dataset and mean), BIC, outputs."""
     ov, hooks = problem.overrides(theta)
     outs = problem.ev.outputs(ov, hooks)
-    from .evaluation import _blocks
-
-    blocks = [_blocks(y, d, s) for y, d, s in zip(outs, problem.ev.datasets, problem.sigmas)]
+    blocks = [residual_blocks(y, d, s) for y, d, s in zip(outs, problem.ev.datasets, problem.sigmas)]
     fit_d, held_d, n_fit, ss = [], [], 0, 0.0
     for b, cut in zip(blocks, problem.ev.split):
         fb = [x[:cut] for x in b] if cut else b

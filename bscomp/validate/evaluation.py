@@ -30,7 +30,7 @@ import numpy as np
 from .measurements import FrfData, TimeData
 from .residuals import frf_errors
 
-__all__ = ["Evaluator", "noise_levels", "Problem", "Free", "block_stats"]
+__all__ = ["Evaluator", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]
 
 _MAD = 0.6744897501960817
 
@@ -70,7 +70,7 @@ def noise_levels(data) -> list:
     return out
 
 
-def _blocks(model_out, data, sigmas):
+def residual_blocks(model_out, data, sigmas):
     """Whitened residual blocks (measured minus model) of one dataset."""
     if isinstance(data, FrfData):
         blocks = []
@@ -169,7 +169,7 @@ class Evaluator:
 
     def blocks(self, overrides, hooks, sigmas, only_frf: bool = False) -> list:
         """Whitened residual blocks per dataset (a list of lists of arrays; empty for skipped series)."""
-        return [[] if y is None else _blocks(y, d, s)
+        return [[] if y is None else residual_blocks(y, d, s)
                 for y, d, s in zip(self.outputs(overrides, hooks, only_frf), self.datasets, sigmas)]
 
 
