@@ -5,7 +5,7 @@
    98 coordinates) -- goal <= 60 s -- and on ``validation_drive`` (the bundled demo data,
    ``systems/data/validation``) -- goal <= 15 s. Wall clock of the whole call, and what it found.
 2. One evaluation of the FE test bed with Table 5.2 guideway friction (the kind a fit repeats hundreds of
-   times): the shared engine :class:`bscomp.compiled.CompiledModel` (modal coordinates, exact ZOH, Newton
+   times): the shared engine :class:`bscomp.simulation.compiled.CompiledModel` (modal coordinates, exact ZOH, Newton
    on the friction law) against the old private engine (``benchmarks/_old_evaluate.py``, moved out of the
    library; 3-stage Radau on the full 196-state DAE, ``fast_newton`` per step) -- which is timed on the
    first 0.02 s and extrapolated, since a whole run did not finish in 900 s -- and against
@@ -30,12 +30,12 @@ from importlib import resources  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from bscomp.compiled import CompiledModel  # noqa: E402
 from bscomp.components import Fixed  # noqa: E402
 from bscomp.components.coulomb_friction import CoulombFriction  # noqa: E402
-from bscomp.flatten import flatten  # noqa: E402
+from bscomp.kernel.flatten import flatten  # noqa: E402
+from bscomp.simulation.compiled import CompiledModel  # noqa: E402
 from bscomp.systems import get  # noqa: E402
-from bscomp.validate.diagnose import diagnose  # noqa: E402
+from bscomp.validate.diagnostics import diagnose  # noqa: E402
 from bscomp.validate.measurements import load_all  # noqa: E402
 
 OUTS = ["rotor.phi", "rotor.w", "table.s", "table.a"]
@@ -71,7 +71,7 @@ def bench_diagnose(cases):
 def bench_evaluation(t_old: float = 0.02):
     from _old_evaluate import FrfEvaluator, TimeSimulator
 
-    from bscomp.simulate import simulate
+    from bscomp.simulation.dispatch import simulate
 
     s = get("testbed_axial_torsional")
     s.add("friction", CoulombFriction(F_c=2066.0, v_reg=5e-4))

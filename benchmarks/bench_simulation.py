@@ -43,8 +43,8 @@ from scipy.integrate import solve_ivp
 import bscomp
 from bscomp import System
 from bscomp.components import SecondOrderBlock
-from bscomp.reduce import reduce_second_order
-from bscomp.simulate import simulate
+from bscomp.linear.reduction import reduce_second_order
+from bscomp.simulation.dispatch import simulate
 from bscomp.systems.testbed import testbed_axial_torsional
 
 K_A, K_T = 6.4898, 0.4769          # Eq 4.1
@@ -143,7 +143,7 @@ def nonlinear(T_end: float = 1.0, reference: bool = False):
                 t0 = time.perf_counter()
                 y = fn() if fn is not None else _sim(dae, outs, "amp.u", t, **kw)
                 walls.append(time.perf_counter() - t0)
-        except bscomp.simulate.SimulationError as exc:
+        except bscomp.simulation.SimulationError as exc:
             print(f"  {name}: failed: {str(exc)[:160]}")
             continue
         runs[name] = (min(walls), y)

@@ -4,7 +4,7 @@
    6-DOF test bed (290 coordinates), best of 3. Goal < 2 s. Also the moving-joint variant
    (``nut_joint="moving"``), flattened once for a sweep.
 2. Sweep: 100 nut positions x 1000 frequencies (1-300 Hz), inputs tau and F_d, outputs omega and x
-   (Fig 4.2), with our API (:func:`bscomp.sweep.position_sweep`, ``method="tangent"`` on the test bed with
+   (Fig 4.2), with our API (:func:`bscomp.linear.sweeps.position_sweep`, ``method="tangent"`` on the test bed with
    the moving joint: one flattening, then per position the joint's tangent update, one symmetric
    eigen-decomposition and the exact FRF) against plain numpy/scipy on the same assembled matrices
    (per position: ``scipy.linalg.eigh`` of (K, M), the diagonal of the projected damping and a
@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 import scipy.linalg as sla  # noqa: E402
 
 from bscomp import flatten, second_order  # noqa: E402
-from bscomp.sweep import _tangent_component, _TangentUpdate, position_sweep  # noqa: E402
+from bscomp.linear.sweeps import _tangent_component, _TangentUpdate, position_sweep  # noqa: E402
 from bscomp.systems import get  # noqa: E402
 from bscomp.systems.testbed import testbed  # noqa: E402
 

@@ -12,9 +12,8 @@ import numpy as np
 
 def _demo(args) -> int:
     """Modes and FRFs of the thesis test bed (FE, axial + torsional), then the validation story."""
+    from bscomp.linear.modal import modes
     from bscomp.systems import get
-
-    from .modal import modes
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -23,11 +22,11 @@ def _demo(args) -> int:
     md = modes(system, inputs=["amp.u"], outputs=["rotor.w", "table.a"], n=6)
     print("  modes (undamped K phi = w^2 M phi; damping from the damped poles):")
     print("    " + md.table("rotor.phi").replace("\n", "\n    "))
-    from .frf import frf
+    from bscomp.linear.response import frf
 
     f = np.logspace(0, np.log10(2000), 600)
     res = frf(system, input="amp.u", output=["rotor.w", "table.a"], freqs=f)
-    from .plotting import bode_plot
+    from bscomp.plotting.base import bode_plot
 
     png = out / "demo_bode.png"
     bode_plot(f, res.H[:, :, 0], labels=["amp.u -> rotor.w [rad/s/V]", "amp.u -> table.a [m/s^2/V]"],
@@ -48,10 +47,10 @@ def _demo_validation(out: Path) -> int:
     import json
     from importlib import resources
 
-    from .validate.compare import compare
-    from .validate.diagnose import diagnose
-    from .validate.measurements import load_all
-    from .validate.report import write_report
+    from bscomp.validate.comparison import compare
+    from bscomp.validate.diagnostics import diagnose
+    from bscomp.validate.measurements import load_all
+    from bscomp.validate.report import write_report
 
     root = resources.files("bscomp.systems") / "data" / "truths" / DEMO_CASE[0] / DEMO_CASE[1]
     datasets = load_all([str(root / "frf.csv"), str(root / "time.csv")])
@@ -76,7 +75,7 @@ def _demo_validation(out: Path) -> int:
 
 
 def _parse_set(items) -> dict:
-    from .errors import ParameterError
+    from bscomp.errors import ParameterError
 
     out = {}
     for item in items or []:
@@ -92,7 +91,7 @@ def _parse_set(items) -> dict:
 
 def _build(args):
     """(system, overrides) from SYSTEM, --set and --position (the system's ``position_parameter``)."""
-    from .sweep import build_system, position_parameter
+    from bscomp.linear.sweeps import build_system, position_parameter
 
     overrides = _parse_set(args.set)
     if args.position is not None:
@@ -102,7 +101,7 @@ def _build(args):
 
 
 def _modes(args) -> int:
-    from .modal import modes
+    from bscomp.linear.modal import modes
 
     system = _build(args)
     md = modes(system, inputs=args.input or None, outputs=args.output or None, n=args.n, fmax=args.fmax)
@@ -122,7 +121,7 @@ def _modes(args) -> int:
 
 
 def _frf(args) -> int:
-    from .frf import frf
+    from bscomp.linear.response import frf
 
     system = _build(args)
     res = frf(system, args.input, args.output, fmin=args.fmin, fmax=args.fmax, n=args.n)
@@ -144,7 +143,7 @@ def _frf(args) -> int:
 
 
 def _compare(args) -> int:
-    from .validate import compare, load_all, write_report
+    from bscomp.validate import compare, load_all, write_report
 
     build = args.system
     overrides = _parse_set(args.set)
@@ -162,7 +161,7 @@ def _compare(args) -> int:
 
 def _parse_uncertain(items):
     """``--uncertain NAME[=SPREAD][,NAME...]`` -> ``{name: spread}`` (None when not given)."""
-    from .errors import ParameterError
+    from bscomp.errors import ParameterError
 
     if not items:
         return None
@@ -180,12 +179,12 @@ def _parse_uncertain(items):
 
 def _diagnose(args) -> int:
     """``bscomp diagnose SYSTEM DATA...``: re-calibrate, fit candidate effects, accept the confirmed ones."""
-    from .validate.diagnose import diagnose
-    from .validate.measurements import load_all
+    from bscomp.validate.diagnostics import diagnose
+    from bscomp.validate.measurements import load_all
 
     overrides = _parse_set(args.set)
     if args.position is not None:
-        from .sweep import build_system, position_parameter
+        from bscomp.linear.sweeps import build_system, position_parameter
 
         overrides[position_parameter(build_system(args.system, overrides))] = float(args.position)
     datasets = load_all(args.data)
@@ -276,7 +275,7 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except Exception as exc:  # report named errors cleanly
-        from .errors import BscompError
+        from bscomp.errors import BscompError
         if isinstance(exc, BscompError):
             print(f"bscomp: {type(exc).__name__}: {exc}", file=sys.stderr)
             return 2

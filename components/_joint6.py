@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from bscomp.component import Component, LinearStructure
-from bscomp.ports import Node6
+from bscomp.kernel.component import Component, LinearStructure
+from bscomp.kernel.ports import Node6
 
 from ._node_dofs import DOF_NAMES
 

@@ -11,7 +11,7 @@ from bscomp.errors import ModelDefinitionError
 
 __all__ = ["DOF_NAMES", "check_dofs", "pin_unused", "skew", "t_point_com", "as_6x6"]
 
-#: Potentials of a :func:`~bscomp.ports.Node6` port, in order (thesis Eq 3.27).
+#: Potentials of a :func:`~bscomp.kernel.ports.Node6` port, in order (thesis Eq 3.27).
 DOF_NAMES = ("u", "v", "w", "tx", "ty", "tz")
 
 

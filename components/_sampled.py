@@ -15,7 +15,7 @@ direct form II (n delay states, no history buffers).
 
 :func:`sampled_controller` (or :meth:`SampledBlock.controller`) wraps one block, or a series chain of
 blocks (e.g. the P controller and the notch filter of Fig 4.14), as a
-:class:`bscomp.simulate.SampledController` for ``simulate(..., controllers=[...])``.
+:class:`bscomp.simulation.SampledController` for ``simulate(..., controllers=[...])``.
 """
 
 from __future__ import annotations
@@ -138,7 +138,7 @@ class SampledBlock:
 
 
 def sampled_controller(blocks, measure: str, actuate: str, reference, measure_gain: float = 1.0):
-    """Run sampled blocks in series as a :class:`bscomp.simulate.SampledController`.
+    """Run sampled blocks in series as a :class:`bscomp.simulation.SampledController`.
 
     At each sample ``t_k`` the first block gets the reference and the measurement,
     ``r_k = g reference(t_k)`` and ``y_k = g y(t_k)`` (two inputs ``r, y`` as :class:`DigitalPController`
@@ -163,7 +163,7 @@ def sampled_controller(blocks, measure: str, actuate: str, reference, measure_ga
 
     Returns
     -------
-    bscomp.simulate.SampledController
+    bscomp.simulation.SampledController
         Its ``law`` also records the samples: ``law.t``, ``law.u`` (lists of ``t_k`` and ``u_k``).
 
     Raises
@@ -171,7 +171,7 @@ def sampled_controller(blocks, measure: str, actuate: str, reference, measure_ga
     ParameterError
         Empty chain, different sampling periods, or a block with the wrong number of inputs.
     """
-    from bscomp.simulate import SampledController  # lazy: components do not import solvers at load
+    from bscomp.simulation.dispatch import SampledController  # lazy: components do not import solvers at load
 
     blocks = list(blocks)
     if not blocks:

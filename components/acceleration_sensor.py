@@ -1,7 +1,7 @@
 """Ideal absolute acceleration sensor (an accelerometer on the table): ``a = der(der(flange.s))``."""
 
-from bscomp.component import Component
-from bscomp.ports import Flange, RealOutput
+from bscomp.kernel.component import Component
+from bscomp.kernel.ports import Flange, RealOutput
 
 
 class AccelerationSensor(Component):

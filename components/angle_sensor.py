@@ -1,7 +1,7 @@
 """Ideal absolute angle sensor (the motor encoder): ``phi = flange.phi``, no torque."""
 
-from bscomp.component import Component
-from bscomp.ports import RealOutput, RotFlange
+from bscomp.kernel.component import Component
+from bscomp.kernel.ports import RealOutput, RotFlange
 
 
 class AngleSensor(Component):

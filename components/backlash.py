@@ -34,8 +34,8 @@ for ``delta > b/2``, like a spring in tension pulling the flanges back together.
 
 import casadi as ca
 
-from bscomp.component import Parameter
-from bscomp.partials import PartialCompliant
+from bscomp.kernel.component import Parameter
+from bscomp.kernel.partials import PartialCompliant
 
 
 def dead_zone(delta, b, eps):
@@ -79,7 +79,7 @@ class Backlash(PartialCompliant):
     - ``eps`` [m]: width of the smoothed corners (0 = sharp dead zone)
 
     # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.partials.PartialCompliant`)
+    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialCompliant`)
 
     # Observables
     - ``f`` [N], ``s_rel`` [m], ``v_rel`` [m/s], ``penetration`` [m] (``e``; 0 in the gap)

@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from bscomp.component import Component, Constraint, LinearStructure, Parameter
 from bscomp.errors import ModelDefinitionError
-from bscomp.ports import Node6
+from bscomp.kernel.component import Component, Constraint, LinearStructure, Parameter
+from bscomp.kernel.ports import Node6
 
 from ._beam_fe import STEEL_E, STEEL_NU, STEEL_RHO, assemble_shaft, select_dofs, thesis_table_b1_sections
 from ._node_dofs import DOF_NAMES, check_dofs, pin_unused

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bscomp.component import Parameter
+from bscomp.kernel.component import Parameter
 
 from ._joint6 import PartialJoint6
 

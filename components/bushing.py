@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bscomp.component import Parameter
 from bscomp.errors import ParameterError
+from bscomp.kernel.component import Parameter
 
 from ._joint6 import PartialJoint6
 from ._node_dofs import as_6x6

@@ -30,8 +30,8 @@ to ground. Mechanical power dissipated: ``f v_rel >= 0``.
 
 import casadi as ca
 
-from bscomp.component import Parameter
-from bscomp.partials import PartialCompliant
+from bscomp.kernel.component import Parameter
+from bscomp.kernel.partials import PartialCompliant
 
 
 class CoulombFriction(PartialCompliant):
@@ -44,7 +44,7 @@ class CoulombFriction(PartialCompliant):
     - ``v_reg`` [m/s]: regularisation velocity of ``tanh(v/v_reg)`` (> 0)
 
     # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.partials.PartialCompliant`)
+    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialCompliant`)
 
     # Observables
     - ``f`` [N], ``s_rel`` [m], ``v_rel`` [m/s], ``power`` [W] (dissipated, ``f v_rel >= 0``)

@@ -11,8 +11,8 @@ block is exactly linear, so linear analyses see ``K_a`` (see :class:`Saturation`
 compliance of the amplifier (back-EMF headroom) is not modelled.
 """
 
-from bscomp.component import Component, Parameter
-from bscomp.ports import RealInput, RealOutput
+from bscomp.kernel.component import Component, Parameter
+from bscomp.kernel.ports import RealInput, RealOutput
 
 from ._limits import limit
 

@@ -1,7 +1,7 @@
 """Linear translational damper, ``f = d v_rel`` (e.g. the guideway viscous coefficient, Table 5.2)."""
 
-from bscomp.component import Parameter
-from bscomp.partials import PartialCompliant
+from bscomp.kernel.component import Parameter
+from bscomp.kernel.partials import PartialCompliant
 
 
 class Damper(PartialCompliant):

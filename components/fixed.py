@@ -1,7 +1,7 @@
 """Fixed translational flange (the rigid frame, Sec 3.3: ``s = s0``), an ideal constraint."""
 
-from bscomp.component import Component, Parameter
-from bscomp.ports import Flange
+from bscomp.kernel.component import Component, Parameter
+from bscomp.kernel.ports import Flange
 
 
 class Fixed(Component):

@@ -6,8 +6,8 @@ other potentials its owner already constrains; fixing a potential twice is a red
 error).
 """
 
-from bscomp.component import Component
-from bscomp.ports import Node6
+from bscomp.kernel.component import Component
+from bscomp.kernel.ports import Node6
 
 from ._node_dofs import DOF_NAMES, check_dofs
 

@@ -1,7 +1,7 @@
 """Fixed rotational flange (``phi = phi0``), an ideal constraint."""
 
-from bscomp.component import Component, Parameter
-from bscomp.ports import RotFlange
+from bscomp.kernel.component import Component, Parameter
+from bscomp.kernel.ports import RotFlange
 
 
 class FixedRotational(Component):

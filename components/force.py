@@ -3,8 +3,8 @@
 With a positive input the flange is pushed in the positive direction (Modelica ``Force``).
 """
 
-from bscomp.component import Component
-from bscomp.ports import Flange, RealInput
+from bscomp.kernel.component import Component
+from bscomp.kernel.ports import Flange, RealInput
 
 
 class Force(Component):

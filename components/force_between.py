@@ -1,20 +1,20 @@
 """A force between two flanges set by a signal: ``f = w`` (tension positive, as a spring's force).
 
-Used by :class:`bscomp.compiled.CompiledModel` to cut a nonlinear element (friction, backlash) out of a
+Used by :class:`bscomp.simulation.compiled.CompiledModel` to cut a nonlinear element (friction, backlash) out of a
 drive: the element is replaced by its small-signal equivalent plus this force, whose signal the
 compiled simulator computes from the element's own :meth:`force_law` at every step. The flange sign
-convention is :class:`~bscomp.partials.PartialCompliant`'s: ``flange_b.f = f``, ``flange_a.f = -f``.
+convention is :class:`~bscomp.kernel.partials.PartialCompliant`'s: ``flange_b.f = f``, ``flange_a.f = -f``.
 """
 
-from bscomp.partials import PartialCompliant
-from bscomp.ports import RealInput
+from bscomp.kernel.partials import PartialCompliant
+from bscomp.kernel.ports import RealInput
 
 
 class ForceBetween(PartialCompliant):
     """Signal-driven element force between two flanges.
 
     # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.partials.PartialCompliant`)
+    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialCompliant`)
     - ``w``: real input [N], the element force ``f``; unconnected, it becomes the system input ``<name>.w``
     """
 

@@ -1,7 +1,7 @@
 """Static gain on a signal, ``y = k u`` (amplifier K_a, torque constant K_t, tachometer H_g: Eq 4.1)."""
 
-from bscomp.component import Component, Parameter
-from bscomp.ports import RealInput, RealOutput
+from bscomp.kernel.component import Component, Parameter
+from bscomp.kernel.ports import RealInput, RealOutput
 
 
 class Gain(Component):

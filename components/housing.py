@@ -16,8 +16,8 @@ Limits: radial and tilting compliance of the fasteners are not modelled (held ri
 fastener stiffness is lumped (no bolt-by-bolt detail); the damping is viscous.
 """
 
-from bscomp.component import Component, Parameter
-from bscomp.ports import Node6
+from bscomp.kernel.component import Component, Parameter
+from bscomp.kernel.ports import Node6
 
 from ._node_dofs import pin_unused
 

@@ -11,8 +11,8 @@ problem. ``r_g = 1.59e-3 m/rad`` for the thesis test bed (p = 10 mm, Sec 4.2.1).
 
 import math
 
-from bscomp.component import Component, Constraint, Parameter
-from bscomp.ports import Flange, RotFlange
+from bscomp.kernel.component import Component, Constraint, Parameter
+from bscomp.kernel.ports import Flange, RotFlange
 
 
 class IdealLeadScrew(Component):

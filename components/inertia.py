@@ -5,8 +5,8 @@
 with both flanges rigidly attached (ideal constraint) and ``flange_a.tau = J a`` explicit.
 """
 
-from bscomp.component import Component, Parameter
-from bscomp.ports import RotFlange
+from bscomp.kernel.component import Component, Parameter
+from bscomp.kernel.ports import RotFlange
 
 
 class Inertia(Component):

@@ -18,9 +18,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from bscomp.component import Component, LinearStructure, Parameter
 from bscomp.errors import ModelDefinitionError
-from bscomp.ports import Node6
+from bscomp.kernel.component import Component, LinearStructure, Parameter
+from bscomp.kernel.ports import Node6
 
 from ._node_dofs import DOF_NAMES
 

@@ -8,8 +8,8 @@ is written as the explicit flow ``flange_a.f = m a``; the split between the flan
 reaction, solved by the system.
 """
 
-from bscomp.component import Component, Parameter
-from bscomp.ports import Flange
+from bscomp.kernel.component import Component, Parameter
+from bscomp.kernel.ports import Flange
 
 
 class Mass(Component):

@@ -22,8 +22,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from bscomp.component import Component, Parameter
-from bscomp.ports import Node6
+from bscomp.kernel.component import Component, Parameter
+from bscomp.kernel.ports import Node6
 
 _OTHER = (("u", "Fx"), ("v", "Fy"), ("tx", "Mx"), ("ty", "My"))
 

@@ -21,7 +21,7 @@ Two uses:
 * **position as a parameter**: linearized at ``nut.w = 0`` it equals the frozen joint at ``z0`` (the
   ``∂N/∂z`` terms multiply the interface deflection, zero at rest), and ``z0`` is an ordinary
   (non-structural) parameter: one flattening serves every nut position, which is what makes
-  :func:`bscomp.sweep.position_sweep` fast;
+  :func:`bscomp.linear.sweeps.position_sweep` fast;
 * **moving nut in the time domain**: the nut travels along the screw and the modes change continuously.
 
 The axial + torsional special case is :class:`~components.moving_nut_joint.MovingNutJoint`.
@@ -33,9 +33,9 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
-from bscomp.component import Component, LinearStructure, Parameter
 from bscomp.errors import ModelDefinitionError
-from bscomp.ports import Node6
+from bscomp.kernel.component import Component, LinearStructure, Parameter
+from bscomp.kernel.ports import Node6
 
 from ._beam_fe import _shape_and_derivs
 from ._node_dofs import DOF_NAMES

@@ -12,8 +12,8 @@ five flows of the node are zero.
 positive motor command moves it (the thesis's convention, G_x = r_g / s).
 """
 
-from bscomp.component import Component, Constraint, Parameter
-from bscomp.ports import Flange, Node6
+from bscomp.kernel.component import Component, Constraint, Parameter
+from bscomp.kernel.ports import Flange, Node6
 
 
 class NodeToFlange(Component):

@@ -6,8 +6,8 @@ relation is an ideal constraint; its reaction is ``node.Mz = -flange.tau``. The 
 the node are zero.
 """
 
-from bscomp.component import Component, Constraint
-from bscomp.ports import Node6, RotFlange
+from bscomp.kernel.component import Component, Constraint
+from bscomp.kernel.ports import Node6, RotFlange
 
 
 class NodeToRotFlange(Component):

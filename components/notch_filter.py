@@ -3,7 +3,7 @@
 Placed in the position loop after the P controller (Fig 4.14) to cancel the first (axial) mode: the
 numerator zeros sit on the mode's poles (Eq 4.20), the denominator has the same frequency with more
 damping (Eq 4.21) and ``K_N`` makes the static gain one (Eq 4.19). The coefficients come from
-:func:`bscomp.control_design.notch` (Table 4.3: n_1 = -1.9521, n_2 = 0.9745, d_1 = -1.8390,
+:func:`bscomp.control.design.notch` (Table 4.3: n_1 = -1.9521, n_2 = 0.9745, d_1 = -1.8390,
 d_2 = 0.8600, K_N = 0.9402 at T_s = 200 us). A sampled block (see ``_sampled.py``).
 """
 
@@ -43,7 +43,7 @@ class NotchFilter(SampledBlock):
     @classmethod
     def design(cls, zeta_N: float, omega_N: float, zeta_D: float, T_s: float, omega_D: float | None = None):
         """Notch from the mode to cancel and the damping of the new poles (Eq 4.19-4.21)."""
-        from bscomp.control_design import notch
+        from bscomp.control.design import notch
 
         c = notch(zeta_N, omega_N, zeta_D, T_s, omega_D=omega_D)
         return cls(c.n1, c.n2, c.d1, c.d2, c.K_N, T_s)

@@ -34,9 +34,9 @@ Padé approximant shows the non-minimum-phase undershoot of its zeros at a step 
 sampled at intervals longer than ``T`` the difference is small.
 """
 
-from bscomp.component import Component, Parameter, Variable
 from bscomp.errors import ParameterError
-from bscomp.ports import RealInput, RealOutput
+from bscomp.kernel.component import Component, Parameter, Variable
+from bscomp.kernel.ports import RealInput, RealOutput
 
 
 class PadeDelay(Component):

@@ -11,8 +11,8 @@ integrator state ``x_i`` [V.s] starts at 0 (an analysis sets other initial state
 anti-windup: put a :class:`Saturation` after it and mind the wind-up in large moves.
 """
 
-from bscomp.component import Component, Parameter, Variable
-from bscomp.ports import RealInput, RealOutput
+from bscomp.kernel.component import Component, Parameter, Variable
+from bscomp.kernel.ports import RealInput, RealOutput
 
 
 class PIController(Component):

@@ -1,7 +1,7 @@
 """Ideal absolute position sensor (e.g. the table's linear encoder): ``s = flange.s``, no force."""
 
-from bscomp.component import Component
-from bscomp.ports import Flange, RealOutput
+from bscomp.kernel.component import Component
+from bscomp.kernel.ports import Flange, RealOutput
 
 
 class PositionSensor(Component):

@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from bscomp.component import Component, Constraint, LinearStructure, Parameter
 from bscomp.errors import ModelDefinitionError, ParameterError
-from bscomp.ports import Node6
+from bscomp.kernel.component import Component, Constraint, LinearStructure, Parameter
+from bscomp.kernel.ports import Node6
 
 from ._node_dofs import DOF_NAMES, check_dofs, pin_unused, t_point_com
 

@@ -13,8 +13,8 @@ zero inside the gap (damping only in contact, never adhesive, bounded by the ela
 ``docs/nonlinear.md`` for the regularisation and its measured error.
 """
 
-from bscomp.component import Parameter
-from bscomp.partials import PartialRotCompliant
+from bscomp.kernel.component import Parameter
+from bscomp.kernel.partials import PartialRotCompliant
 
 from .backlash import contact_force, dead_zone
 
@@ -30,7 +30,7 @@ class RotationalBacklash(PartialRotCompliant):
     - ``eps`` [rad]: width of the smoothed corners (0 = sharp dead zone)
 
     # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.partials.PartialRotCompliant`)
+    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialRotCompliant`)
 
     # Observables
     - ``tau`` [N.m], ``phi_rel`` [rad], ``w_rel`` [rad/s], ``penetration`` [rad]

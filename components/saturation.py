@@ -12,9 +12,9 @@ gain is 0 (the loop is open), as it should be. ``delta > 0`` removes the slope d
 variable-step integrators; the hard clip needs event handling for an accurate switch time.
 """
 
-from bscomp.component import Component, Parameter
 from bscomp.errors import ParameterError
-from bscomp.ports import RealInput, RealOutput
+from bscomp.kernel.component import Component, Parameter
+from bscomp.kernel.ports import RealInput, RealOutput
 
 from ._limits import limit
 

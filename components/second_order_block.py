@@ -1,6 +1,6 @@
 """A linear mechanical model given as matrices, ``M q'' + C q' + K q = B u``, as a component.
 
-Used to put a reduced model (CMS, thesis Sec 5.2.3, :mod:`bscomp.reduce`) or any assembled
+Used to put a reduced model (CMS, thesis Sec 5.2.3, :mod:`bscomp.linear.reduction`) or any assembled
 second-order model (Eq 3.44 / 5.1) back into a system, next to nonlinear parts (friction, backlash,
 controllers), for simulation and optimal control. ``M, C, K`` enter as one sparse structural block
 over generalized ports ``q0, q1, ...``; each named input is a ``RealInput`` acting through ``B``;
@@ -14,9 +14,9 @@ import re
 
 import scipy.sparse as sp
 
-from bscomp.component import Component, LinearStructure
 from bscomp.errors import ModelDefinitionError
-from bscomp.ports import Flange, Generalized, RealInput, RotFlange
+from bscomp.kernel.component import Component, LinearStructure
+from bscomp.kernel.ports import Flange, Generalized, RealInput, RotFlange
 
 
 def _port_name(name: str) -> str:

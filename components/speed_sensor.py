@@ -1,7 +1,7 @@
 """Ideal absolute angular speed sensor (the tachometer, before its gain H_g): ``w = der(flange.phi)``."""
 
-from bscomp.component import Component
-from bscomp.ports import RealOutput, RotFlange
+from bscomp.kernel.component import Component
+from bscomp.kernel.ports import RealOutput, RotFlange
 
 
 class SpeedSensor(Component):

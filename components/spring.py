@@ -1,7 +1,7 @@
 """Linear translational spring, ``f = c (s_rel - s_rel0)`` (joint springs of Sec 3.3.3)."""
 
-from bscomp.component import Parameter
-from bscomp.partials import PartialCompliant
+from bscomp.kernel.component import Parameter
+from bscomp.kernel.partials import PartialCompliant
 
 
 class Spring(PartialCompliant):
@@ -12,7 +12,7 @@ class Spring(PartialCompliant):
     - ``s_rel0`` [m]: unstretched length
 
     # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.partials.PartialCompliant`)
+    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialCompliant`)
     """
 
     c = Parameter(unit="N/m", positive=True, doc="spring constant")

@@ -1,7 +1,7 @@
 """Linear spring and damper in parallel, ``f = c (s_rel - s_rel0) + d v_rel`` (a contact in engagement)."""
 
-from bscomp.component import Parameter
-from bscomp.partials import PartialCompliant
+from bscomp.kernel.component import Parameter
+from bscomp.kernel.partials import PartialCompliant
 
 
 class SpringDamper(PartialCompliant):

@@ -32,8 +32,8 @@ Sign convention as :class:`~components.damper.Damper`: ``f`` has the sign of
 
 import casadi as ca
 
-from bscomp.component import Parameter
-from bscomp.partials import PartialCompliant
+from bscomp.kernel.component import Parameter
+from bscomp.kernel.partials import PartialCompliant
 
 
 class StribeckFriction(PartialCompliant):
@@ -51,7 +51,7 @@ class StribeckFriction(PartialCompliant):
     the velocity defaults are placeholders of typical lubricated-guideway magnitude, not data.
 
     # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.partials.PartialCompliant`)
+    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialCompliant`)
 
     # Observables
     - ``f`` [N], ``s_rel`` [m], ``v_rel`` [m/s], ``power`` [W] (dissipated, ``f v_rel >= 0``)

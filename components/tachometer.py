@@ -4,8 +4,8 @@ The analog velocity loop of the P-PI cascade measures the motor speed with a tac
 H_g = 0.0668 V/(rad/s) (Sec 4.3). The sensor is ideal (no ripple, no filter) and draws no torque.
 """
 
-from bscomp.component import Component, Parameter
-from bscomp.ports import RealOutput, RotFlange
+from bscomp.kernel.component import Component, Parameter
+from bscomp.kernel.ports import RealOutput, RotFlange
 
 
 class Tachometer(Component):

@@ -4,8 +4,8 @@ Used for the motor torque ``tau = K_a K_t u`` (Eq 4.1); unconnected, its input i
 ``<name>.tau`` (e.g. ``"motor.tau"``).
 """
 
-from bscomp.component import Component
-from bscomp.ports import RealInput, RotFlange
+from bscomp.kernel.component import Component
+from bscomp.kernel.ports import RealInput, RotFlange
 
 
 class Torque(Component):

@@ -1,7 +1,7 @@
 """Linear torsional damper, ``tau = d w_rel`` (e.g. B reflected at the motor, Eq 4.2)."""
 
-from bscomp.component import Parameter
-from bscomp.partials import PartialRotCompliant
+from bscomp.kernel.component import Parameter
+from bscomp.kernel.partials import PartialRotCompliant
 
 
 class TorsionalDamper(PartialRotCompliant):

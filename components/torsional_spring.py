@@ -1,7 +1,7 @@
 """Linear torsional spring, ``tau = c (phi_rel - phi_rel0)`` (the coupling's k_T, Fig 3.7)."""
 
-from bscomp.component import Parameter
-from bscomp.partials import PartialRotCompliant
+from bscomp.kernel.component import Parameter
+from bscomp.kernel.partials import PartialRotCompliant
 
 
 class TorsionalSpring(PartialRotCompliant):

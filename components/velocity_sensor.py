@@ -1,7 +1,7 @@
 """Ideal absolute velocity sensor: ``v = der(flange.s)``, no force."""
 
-from bscomp.component import Component
-from bscomp.ports import Flange, RealOutput
+from bscomp.kernel.component import Component
+from bscomp.kernel.ports import Flange, RealOutput
 
 
 class VelocitySensor(Component):

@@ -13,7 +13,8 @@ import argparse
 import json
 from pathlib import Path
 
-from bscomp.closed_loop import (
+from bscomp.components import Force
+from bscomp.control.closed_loop import (
     p_pi_loop,
     plant_from_system,
     rigid_plant,
@@ -21,9 +22,8 @@ from bscomp.closed_loop import (
     thesis_modal_plant,
     velocity_loop,
 )
-from bscomp.components import Force
-from bscomp.control_design import notch, pi_gains, ppc_polynomials, rst_design, split_polynomial
-from bscomp.plotting_control import (
+from bscomp.control.design import notch, pi_gains, ppc_polynomials, rst_design, split_polynomial
+from bscomp.plotting.control import (
     plot_bode_comparison,
     plot_disturbance_comparison,
     plot_sensitivity_comparison,

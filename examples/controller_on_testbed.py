@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bscomp.closed_loop import modal_plant, p_pi_loop, thesis_modal_plant
-from bscomp.control_design import pi_gains, zoh_polynomials
+from bscomp.control.closed_loop import modal_plant, p_pi_loop, thesis_modal_plant
+from bscomp.control.design import pi_gains, zoh_polynomials
 from bscomp.systems._params import get_value, load_parameters
 from bscomp.systems.testbed_analysis import drive_parameters
 

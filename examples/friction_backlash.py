@@ -19,7 +19,7 @@ import numpy as np
 
 from bscomp import System
 from bscomp.components import Backlash, CoulombFriction, Damper, Fixed, Mass, Spring
-from bscomp.simulate import simulate
+from bscomp.simulation.dispatch import simulate
 
 M, K, F_C, X0 = 1.0, 1.0e4, 10.0, 10.5e-3  # omega = 100 rad/s; stick band |x| <= 1 mm
 B, A = 1.0e-3, 5.0e-3  # backlash and drive amplitude [m]

@@ -32,7 +32,7 @@ from bscomp.components._beam_fe import (
     select_dofs,
     thesis_table_b1_sections,
 )
-from bscomp.reduce import ReducedModel, cms_reduce
+from bscomp.linear.reduction import ReducedModel, cms_reduce
 from bscomp.systems._params import get_value, load_parameters
 
 PARAMS = load_parameters("fadal_vmc2216_x")

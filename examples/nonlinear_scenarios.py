@@ -22,8 +22,8 @@ import numpy as np
 import bscomp
 from bscomp import System
 from bscomp.components import Backlash, CoulombFriction, Fixed, SecondOrderBlock
-from bscomp.reduce import reduce_second_order
-from bscomp.simulate import simulate
+from bscomp.linear.reduction import reduce_second_order
+from bscomp.simulation.dispatch import simulate
 from bscomp.systems._params import load_parameters
 from bscomp.systems.testbed import testbed_axial_torsional
 
@@ -57,7 +57,7 @@ def run(system, t, outputs=("table.v", "table.a", "rotor.w")):
 
 
 def main(out_dir="out/nonlinear", T_end=0.4):
-    from bscomp.plotting import _plt
+    from bscomp.plotting.base import _plt
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -15,7 +15,7 @@ Model (section: model)
 Solve
     ``simulate(..., method="split")`` on a 25 µs grid (24 points per tooth period): the linear closed loop
     stepped by exact zero-order hold, re-linearized per friction regime (stick / slide), the friction
-    force implicit (bscomp._split_step). IDAS on the same model took 37 s for 20 ms of motion here
+    force implicit (bscomp.simulation.split). IDAS on the same model took 37 s for 20 ms of motion here
     (per-sample restarts), i.e. ~35 min per controller for this 1.2 s operation. Limits:
 
     * **Nut position frozen.** The nut is fixed at one position per run (L, C, R, toml
@@ -52,8 +52,8 @@ from bscomp.components import (
     Tachometer,
 )
 from bscomp.components._sampled import sampled_controller
-from bscomp.control_design import ppc_polynomials, rst_design, split_polynomial
-from bscomp.simulate import simulate
+from bscomp.control.design import ppc_polynomials, rst_design, split_polynomial
+from bscomp.simulation.dispatch import simulate
 from bscomp.systems._params import get_value, load_parameters
 from bscomp.systems.testbed import testbed_axial_torsional
 
@@ -266,8 +266,8 @@ def rst_redesigned(p, position="C"):
     Table 4.4, with bscomp's modal parameters instead of the thesis's measured-model ones)."""
     import control
 
-    from bscomp.closed_loop import modal_plant
-    from bscomp.control_design import zoh_polynomials
+    from bscomp.control.closed_loop import modal_plant
+    from bscomp.control.design import zoh_polynomials
     from bscomp.systems.testbed_analysis import drive_parameters
 
     Ts = get_value(p, "control.T_s")
@@ -394,7 +394,7 @@ def metrics(res, traj, f_tooth):
 
 
 def plot_case(results, traj, name, path):
-    from bscomp.plotting import _plt
+    from bscomp.plotting.base import _plt
 
     plt = _plt()
     fig, ax = plt.subplots(4, 1, sharex=True, figsize=(9, 10))
@@ -422,7 +422,7 @@ def plot_case(results, traj, name, path):
 
 def plot_cut_zoom(all_res, traj, position, path):
     """Fig 5.22: table acceleration during the cut, one panel per controller (20 ms window)."""
-    from bscomp.plotting import _plt
+    from bscomp.plotting.base import _plt
 
     plt = _plt()
     t0 = traj.phases["cut"][0] + 0.1

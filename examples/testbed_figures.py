@@ -1,7 +1,7 @@
 """Figures of the thesis test bed: Fig 4.2 FRFs, Fig 4.12/4.13 mode shapes, Fig 3.27/3.28 and Table 4.1
 frequencies against the nut position, and the Appendix C cross-coupling study.
 
-FRFs are modal sums (thesis Eq 4.3-4.7) over every mode of :func:`bscomp.modal.modes` -- residues
+FRFs are modal sums (thesis Eq 4.3-4.7) over every mode of :func:`bscomp.linear.modal.modes` -- residues
 ``R_k`` and damping from the model -- checked against the direct sparse solve of
 :meth:`bscomp.linear.SecondOrderModel.frf` at a few frequencies (the printed "max rel. difference").
 
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from bscomp import second_order
-from bscomp.modal import modes
+from bscomp.linear.modal import modes
 from bscomp.systems._params import get_value, load_parameters
 from bscomp.systems.testbed import nut_positions, testbed
 from bscomp.systems.testbed_analysis import DRIVE_INPUTS, DRIVE_OUTPUTS, drive_parameters, free_free_modes

@@ -50,9 +50,9 @@ import scipy.linalg as sla
 import bscomp
 from bscomp import System
 from bscomp.components import SecondOrderBlock
-from bscomp.optimal import Ocp
-from bscomp.reduce import reduce_second_order
-from bscomp.simulate import simulate
+from bscomp.linear.reduction import reduce_second_order
+from bscomp.optimal.problem import Ocp
+from bscomp.simulation.dispatch import simulate
 from bscomp.systems.testbed import nut_positions, testbed_axial_torsional
 
 MOVE = 0.100                 # m

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from bscomp.systems.validation_drive import validation_drive
-from bscomp.validate.diagnose import diagnose
-from bscomp.validate.generate import generate
+from bscomp.validate.diagnostics import diagnose
+from bscomp.validate.synthetic import generate
 
 
 def _overlay(data, systems, linear_systems, labels, path):
@@ -31,7 +31,7 @@ def _overlay(data, systems, linear_systems, labels, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bscomp.compiled import CompiledModel
+    from bscomp.simulation.compiled import CompiledModel
 
     frf, tim = data.frf, data.time
     fig, ax = plt.subplots(2, 1, figsize=(8, 7))

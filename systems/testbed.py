@@ -50,7 +50,7 @@ nut position ``sn.z0 + nut.w`` and every screw node are measured along +z from t
 
 Validation interface
 --------------------
-Every drive variant declares ``s.validation`` (:class:`bscomp.interface.ValidationInterface`): the
+Every drive variant declares ``s.validation`` (:class:`bscomp.kernel.interface.ValidationInterface`): the
 measured input (``amp.u``, or ``motor.tau``) and outputs (``rotor.phi``, ``rotor.w``, ``table.s``,
 ``table.a``), the uncertain parameters with spreads (table mass, coupling stiffness, thrust-bearing
 stiffness) and insertion points by role (nut-table joint, table on its guideways, thrust support ``b1``,
@@ -99,9 +99,9 @@ from bscomp.components import (
     TorsionalDamper,
 )
 from bscomp.components._beam_fe import Section
-from bscomp.damping import matrix_from_ratios
 from bscomp.errors import ModelDefinitionError
-from bscomp.interface import InsertionPoint, UncertainParameter, ValidationInterface
+from bscomp.kernel.interface import InsertionPoint, UncertainParameter, ValidationInterface
+from bscomp.linear.damping import matrix_from_ratios
 
 from ._params import get_value, load_parameters
 
@@ -178,7 +178,7 @@ class DriveModalDamping:
 
     Tables 4.1/4.2 damp the first and second modes seen from the motor -- the axial screw-nut mode
     (6 %) and the coupling torsion mode (10 %). In the 6-DOF model screw bending modes can fall between
-    them (e.g. at the L position), so ascending order (:class:`bscomp.damping.ModalDamping`) would give
+    them (e.g. at the L position), so ascending order (:class:`bscomp.linear.damping.ModalDamping`) would give
     10 % to a bending mode. Here ``zeta1``/``zeta2`` go to the first two elastic modes whose kinetic
     energy is mostly axial/torsional (:func:`drive_fraction` > 0.5), ``zeta_other`` to every other
     elastic mode; the rigid-body mode gets none (Sec 5.2.2.1). Without coordinate names (older
@@ -279,7 +279,7 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
     System
         With ``position_parameter = "nut_position"`` (``"sn.z0"`` for ``nut_joint="moving"``) where a nut
         exists, ``sources`` citing the thesis, ``build_args`` (the resolved choices) and, for the drive
-        variants, ``validation`` (:class:`~bscomp.interface.ValidationInterface`, see the module docstring).
+        variants, ``validation`` (:class:`~bscomp.kernel.interface.ValidationInterface`, see the module docstring).
     """
     if variant not in VARIANTS:
         raise ModelDefinitionError(f"testbed: unknown variant {variant!r}; use one of {VARIANTS}")

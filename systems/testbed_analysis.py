@@ -1,6 +1,6 @@
 """Reproduction quantities of the test bed (thesis Sec 3.5.2, Tables 3.2/3.3, 4.1/4.2, 5.3, Eq 4.2).
 
-Small functions over :func:`bscomp.modal.modes` that pick the modes the thesis tabulates by their
+Small functions over :func:`bscomp.linear.modal.modes` that pick the modes the thesis tabulates by their
 *character* (share of kinetic energy in the axial ``w``, torsional ``tz``/``phi`` or bending fields),
 not by index: in the 6-DOF model, screw bending modes interleave with the drive modes.
 """
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from bscomp import second_order
-from bscomp.modal import modes
+from bscomp.linear.modal import modes
 
 from .testbed import testbed
 
@@ -62,7 +62,7 @@ def drive_parameters(system=None, **build) -> dict:
         ``Rm1``, ``Rm2`` (tau -> table x, Eq 4.7), ``Rd1``, ``Rd2`` (F_d -> motor angle, Eq 4.6), all in
         the thesis's sign convention, which the test bed's table axis follows (table advancing for a
         positive motor angle, F_d positive along the table axis), ``r_g`` (table advance per motor
-        radian of the rigid-body mode, > 0) and ``modes`` (the :class:`~bscomp.modal.Modes`).
+        radian of the rigid-body mode, > 0) and ``modes`` (the :class:`~bscomp.linear.modal.Modes`).
     """
     if system is None:
         build.setdefault("variant", "full")

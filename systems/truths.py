@@ -53,9 +53,9 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from bscomp.component import Parameter
 from bscomp.components import Damper, Fixed, Mass, Spring
-from bscomp.partials import PartialCompliant
+from bscomp.kernel.component import Parameter
+from bscomp.kernel.partials import PartialCompliant
 
 from ._params import DATA_DIR, get_value
 from .testbed import drive_fraction, testbed, thesis_parameters
@@ -419,7 +419,7 @@ def make_frf(case: str, model: str = "axial_torsional", seed: int | None = None,
              noise: float = FRF_NOISE):
     """FRF data of a truth: ``amp.u`` -> ``rotor.w`` and -> ``table.a`` at the truth's nut position.
 
-    From the truth's linear equivalent (:func:`bscomp.frf.frf`), times ``e^{-j omega T}`` for a hidden
+    From the truth's linear equivalent (:func:`bscomp.linear.response.frf`), times ``e^{-j omega T}`` for a hidden
     delay, times ``1 + eps`` with ``eps`` complex normal of relative standard deviation ``noise``
     (seeded, stream ``[seed, 1]``); coherence 1.
 
@@ -429,7 +429,7 @@ def make_frf(case: str, model: str = "axial_torsional", seed: int | None = None,
         The data (condition ``nut_position``) and the truth's ``info`` with ``frf_noise_free``
         ``{(input, output): H}``.
     """
-    from bscomp.frf import frf
+    from bscomp.linear.response import frf
     from bscomp.validate.measurements import FrfData
 
     s, info = truth_system(case, model, seed, linear=True)
@@ -471,7 +471,7 @@ def make_time(case: str, model: str = "axial_torsional", seed: int | None = None
               noise: dict | None = None, nut_joint: str = "moving", progress: bool = False):
     """Square-wave time series of a truth (Sec 5.3.1: +-2.125 V, 5 Hz) from rest at the nut position.
 
-    The truth (moving nut) is integrated by :func:`bscomp.simulate.simulate` on a grid ``fine`` times the
+    The truth (moving nut) is integrated by :func:`bscomp.simulation.simulate` on a grid ``fine`` times the
     sample rate, the command held per sample (D/A) and delayed by a hidden ``T`` (a whole number of grid
     steps: exact); outputs ``rotor.phi``, ``rotor.w``, ``table.s``, ``table.a`` are sampled at ``dt`` and
     get white noise of standard deviations :data:`TIME_NOISE` (seeded, stream ``[seed, 2]``).
@@ -482,7 +482,7 @@ def make_time(case: str, model: str = "axial_torsional", seed: int | None = None
         The data (input ``amp.u``, condition ``nut_position``) and ``info`` with ``time`` (method,
         tolerances, wall time) and ``time_noise_free``.
     """
-    from bscomp.simulate import simulate
+    from bscomp.simulation.dispatch import simulate
     from bscomp.validate.measurements import TimeData
 
     s, info = truth_system(case, model, seed, nut_joint=nut_joint)

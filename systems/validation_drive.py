@@ -29,7 +29,7 @@ Values (``systems/data/fadal_vmc2216_x.toml``, thesis sections cited there):
 
 Validation interface
 --------------------
-``validation_drive().validation`` is a :class:`bscomp.interface.ValidationInterface` (:data:`INTERFACE`
+``validation_drive().validation`` is a :class:`bscomp.kernel.interface.ValidationInterface` (:data:`INTERFACE`
 lists the same declarations): input ``amp.u``, outputs :data:`OUTPUTS`, the uncertain parameters and the
 insertion points by role.
 
@@ -79,7 +79,7 @@ from bscomp.components import (
     TorsionalDamper,
     TorsionalSpring,
 )
-from bscomp.interface import InsertionPoint, UncertainParameter, ValidationInterface
+from bscomp.kernel.interface import InsertionPoint, UncertainParameter, ValidationInterface
 from bscomp.systems._params import get_value, load_parameters
 
 __all__ = ["validation_drive", "interface", "INTERFACE", "INSERTION_POINTS", "UNCERTAIN", "INPUT", "OUTPUTS"]

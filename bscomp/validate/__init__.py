@@ -6,11 +6,11 @@
 * :mod:`~bscomp.validate.report` -- an HTML report of comparisons (and diagnoses).
 
 Importing this package is light: the engine (CasADi, python-control) is imported when a function
-needs it, and matplotlib only by ``Comparison.plot`` (through :mod:`bscomp.plotting_validate`).
+needs it, and matplotlib only by ``Comparison.plot`` (through :mod:`bscomp.plotting.validate`).
 """
 
-from .compare import Comparison, compare, peak_pick, resid
-from .measurements import (
+from bscomp.validate.comparison import Comparison, compare, peak_pick, resid
+from bscomp.validate.measurements import (
     FrfData,
     MeasurementFileError,
     TimeData,
@@ -21,8 +21,8 @@ from .measurements import (
     write_frf_csv,
     write_time_csv,
 )
-from .report import write_report
-from .residuals import cost, fit_percent, frf_residuals, model_frf, model_time, time_residuals
+from bscomp.validate.report import write_report
+from bscomp.validate.residuals import cost, fit_percent, frf_residuals, model_frf, model_time, time_residuals
 
 __all__ = ["FrfData", "TimeData", "MeasurementFileError", "load", "load_all", "read_frf_csv", "read_time_csv",
            "write_frf_csv", "write_time_csv", "model_frf", "model_time", "frf_residuals", "time_residuals", "cost",

@@ -1,4 +1,4 @@
-"""Results of :func:`~bscomp.validate.diagnose.diagnose`: fitted effects and the diagnosis."""
+"""Results of :func:`~bscomp.validate.diagnostics.diagnose`: fitted effects and the diagnosis."""
 
 from __future__ import annotations
 
@@ -97,7 +97,7 @@ def _fmt_user(u: dict) -> str:
 
 @dataclass
 class Diagnosis:
-    """Result of :func:`~bscomp.validate.diagnose.diagnose`.
+    """Result of :func:`~bscomp.validate.diagnostics.diagnose`.
 
     Attributes
     ----------
@@ -223,7 +223,7 @@ class Diagnosis:
 
     def plot(self, directory):
         """Write ``error_staircase.png`` and ``candidates.png`` to ``directory``; returns the paths."""
-        from bscomp.plotting_validate import plot_diagnosis
+        from bscomp.plotting.validate import plot_diagnosis
 
         return plot_diagnosis(self, directory)
 

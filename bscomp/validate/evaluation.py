@@ -1,7 +1,7 @@
 r"""A model structure evaluated on a set of measurements: whitened residuals, noise floors, fits.
 
-Used by :func:`~bscomp.validate.diagnose.diagnose` (and calibration). The model is evaluated by the
-library's shared engine :class:`bscomp.compiled.CompiledModel` (one per model structure and measurement
+Used by :func:`~bscomp.validate.diagnostics.diagnose` (and calibration). The model is evaluated by the
+library's shared engine :class:`bscomp.simulation.compiled.CompiledModel` (one per model structure and measurement
 condition: one flattening, then FRFs and time series per parameter vector in modal coordinates).
 
 Residuals are *whitened*: each block -- the log10-magnitude or the phase error of one FRF pair, one time
@@ -27,8 +27,8 @@ import math
 
 import numpy as np
 
-from .measurements import FrfData, TimeData
-from .residuals import frf_errors
+from bscomp.validate.measurements import FrfData, TimeData
+from bscomp.validate.residuals import frf_errors
 
 __all__ = ["Evaluator", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]
 
@@ -119,7 +119,7 @@ class Evaluator:
     """
 
     def __init__(self, systems: dict, datasets, keys, free=(), f_keep: float = 6000.0, n_sub: int = 2):
-        from bscomp.compiled import CompiledModel
+        from bscomp.simulation.compiled import CompiledModel
 
         self.datasets, self.keys, self.n_sub = list(datasets), list(keys), int(n_sub)
         self.models = {}

@@ -32,8 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from bscomp.errors import BscompError
-
-from .units import UnitSyntaxError, convention_units, expected_dimension_ok, parse_unit
+from bscomp.kernel.units import UnitSyntaxError, convention_units, expected_dimension_ok, parse_unit
 
 __all__ = ["FrfData", "TimeData", "MeasurementFileError", "read_frf_csv", "write_frf_csv", "read_time_csv",
            "write_time_csv", "load", "load_all"]

@@ -1,7 +1,7 @@
 """An HTML report of comparisons (and diagnoses): one self-contained folder with ``index.html`` and the
 PNG figures it embeds by relative path; plain HTML, no extra dependency.
 
-Objects other than :class:`~bscomp.validate.compare.Comparison` (e.g. a ``Diagnosis``) are rendered
+Objects other than :class:`~bscomp.validate.comparison.Comparison` (e.g. a ``Diagnosis``) are rendered
 through an optional protocol: ``summary() -> str`` (else ``table()`` or ``str()``), ``code() -> str``,
 ``plot(out_dir) -> list of paths``, ``html_tables() -> list of (caption, header, rows)`` and
 ``comparisons`` (a list of Comparison); whatever they provide is shown.
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .compare import Comparison
+from bscomp.validate.comparison import Comparison
 
 __all__ = ["write_report"]
 

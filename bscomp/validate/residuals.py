@@ -19,7 +19,7 @@ import inspect
 
 import numpy as np
 
-from .measurements import FrfData, MeasurementFileError, TimeData
+from bscomp.validate.measurements import FrfData, MeasurementFileError, TimeData
 
 __all__ = ["model_frf", "model_time", "frf_residuals", "time_residuals", "cost", "fit_percent",
            "build_for", "frf_errors", "frf_at", "simulate_for", "simulate_at", "ConditionIgnoredWarning"]
@@ -55,7 +55,7 @@ def build_for(system_or_build, conditions: dict | None = None, params: dict | No
     source : str, optional
         The dataset's name, for the warning.
     """
-    from bscomp.system import System
+    from bscomp.kernel.system import System
 
     conditions = dict(conditions or {})
     plain = {k: v for k, v in conditions.items() if "." not in k}
@@ -183,7 +183,7 @@ def _node_keywords(node, resolve, depth: int = 0) -> set | None:
 
 
 def _dae(system):
-    from bscomp.flatten import flatten
+    from bscomp.kernel.flatten import flatten
 
     return flatten(system)
 
@@ -218,7 +218,7 @@ def model_frf(system_or_build, data: FrfData, params: dict | None = None) -> dic
     """The model's FRF at the measured frequencies and conditions, ``{(input, output): H}``.
 
     Uses the sparse second-order form, or the linearized state space when the model has controller
-    states (:func:`bscomp.frf.frf`), of the system's small-signal equivalent
+    states (:func:`bscomp.linear.response.frf`), of the system's small-signal equivalent
     (:meth:`bscomp.System.linear_equivalent`: friction reduced to its viscous part, backlash engaged).
     """
     return frf_at(build_for(system_or_build, data.conditions, params, source=data.source), data)
@@ -227,8 +227,8 @@ def model_frf(system_or_build, data: FrfData, params: dict | None = None) -> dic
 def frf_at(system, data: FrfData) -> dict:
     """:func:`model_frf` of a System already built at the dataset's conditions (or of its linear
     equivalent's flattened :class:`~bscomp.Dae`)."""
-    from bscomp.dae import Dae
-    from bscomp.frf import frf
+    from bscomp.kernel.dae import Dae
+    from bscomp.linear.response import frf
 
     dae = system if isinstance(system, Dae) else _dae(system.linear_equivalent())
     ins, outs = data.inputs, data.outputs
@@ -249,7 +249,7 @@ def simulate_for(system_or_build, data: TimeData, params: dict | None = None, ex
 
 def simulate_at(system, data: TimeData, extra=(), rtol=1e-7, atol=1e-10):
     """:func:`simulate_for` of a System already built at the dataset's conditions (the SimulationResult)."""
-    from bscomp.simulate import simulate
+    from bscomp.simulation.dispatch import simulate
 
     dae = _dae(system)
     _check_names(dae, data, list(data.inputs), list(data.outputs))
@@ -257,7 +257,7 @@ def simulate_at(system, data: TimeData, extra=(), rtol=1e-7, atol=1e-10):
     names = list(data.outputs) + [n for n in dict.fromkeys(extra) if n in obs and n not in data.outputs]
     # a linear model driven by held inputs is stepped exactly (zero-order hold, as the data were sampled);
     # friction, backlash or controller states need the nonlinear integrator
-    from bscomp.compiled import nonlinear_elements
+    from bscomp.simulation.compiled import nonlinear_elements
 
     linear = not nonlinear_elements(system) and not dae.mech.has_internal_states and dae.nz == 0
     method = "lti" if linear else "idas"

@@ -5,12 +5,12 @@ own independent paths (bscomp.frf on a re-flattened system, IDAS at tight tolera
 import numpy as np
 import pytest
 
-from bscomp.compiled import CompiledModel
 from bscomp.components import Fixed
 from bscomp.components.backlash import Backlash
 from bscomp.components.coulomb_friction import CoulombFriction
-from bscomp.frf import frf
-from bscomp.simulate import simulate
+from bscomp.linear.response import frf
+from bscomp.simulation.compiled import CompiledModel
+from bscomp.simulation.dispatch import simulate
 from bscomp.systems import get
 
 OUTS = ["rotor.phi", "rotor.w", "table.s", "table.a"]

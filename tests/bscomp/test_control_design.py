@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import bscomp
-from bscomp.closed_loop import (
+from bscomp.control.closed_loop import (
     modal_plant,
     p_pi_loop,
     plant_from_system,
@@ -15,7 +15,7 @@ from bscomp.closed_loop import (
     thesis_modal_plant,
     velocity_loop,
 )
-from bscomp.control_design import (
+from bscomp.control.design import (
     diophantine,
     notch,
     pi_gains,
@@ -223,7 +223,7 @@ def test_result_outputs(tmp_path, rigid):
 
 def test_rigid_design_on_our_own_testbed_at_C_collapses_like_the_thesis():
     """P-PI at K_p = 7000 on bscomp's full test bed at C: margins near the thesis's 3.12 dB / 65.3 deg."""
-    from bscomp.closed_loop import modal_plant
+    from bscomp.control.closed_loop import modal_plant
     from bscomp.systems.testbed_analysis import drive_parameters
 
     d = drive_parameters(variant="full", nut_position="C")

@@ -18,7 +18,7 @@ from bscomp.errors import (
     UnderdeterminedError,
     UnknownNameError,
 )
-from bscomp.ports import Flange
+from bscomp.kernel.ports import Flange
 
 
 def test_connecting_different_kinds_names_both_ports():

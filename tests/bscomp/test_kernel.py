@@ -21,7 +21,7 @@ from bscomp.components import (
     TorsionalDamper,
     VelocitySensor,
 )
-from bscomp.partials import PartialCompliant
+from bscomp.kernel.partials import PartialCompliant
 
 
 def two_mass(m1=2.0, m2=3.0, k1=1.0e4, k2=2.5e4):
@@ -224,8 +224,8 @@ def test_composite_system_as_component():
 class Lag(Component):
     """First-order lag y' = (u - y)/T: an internal differential state."""
 
-    u = bscomp.ports.RealInput()
-    y = bscomp.ports.RealOutput()
+    u = bscomp.kernel.ports.RealInput()
+    y = bscomp.kernel.ports.RealOutput()
     x = Variable(start=0.0)
     T = Parameter(0.01, unit="s", positive=True)
 
@@ -258,7 +258,7 @@ def test_insert_a_compliance_between_connected_ports():
     s = two_mass(k2=2.5e4)
     s.insert("joint", Spring(c=2.5e4), between=("m1.flange_b", "k2.flange_a"))
     # k2 in series with the joint: 1.25e4
-    from bscomp.modal import modes  # the joint adds a massless node: modes() condenses it statically
+    from bscomp.linear.modal import modes  # the joint adds a massless node: modes() condenses it statically
 
     np.testing.assert_allclose(modes(s).frequencies, analytic_two_mass(2.0, 3.0, 1.0e4, 1.25e4), rtol=1e-9)
     s.remove("joint")

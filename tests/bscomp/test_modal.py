@@ -1,4 +1,4 @@
-"""bscomp.modal: undamped modes, damping ratios, modal masses and residues (thesis Sec 4.2, App. A.3)."""
+"""bscomp.linear.modal: undamped modes, damping ratios, modal masses and residues (thesis Sec 4.2, App. A.3)."""
 
 import json
 import math
@@ -10,10 +10,10 @@ import scipy.sparse as sp
 
 from bscomp import System, second_order
 from bscomp.components import Fixed, Force, Mass, Spring
-from bscomp.damping import modal_damping_matrix
 from bscomp.errors import UnknownNameError
-from bscomp.linear import SecondOrderModel
-from bscomp.modal import Modes, modes
+from bscomp.linear.damping import modal_damping_matrix
+from bscomp.linear.linearize import SecondOrderModel
+from bscomp.linear.modal import Modes, modes
 from bscomp.systems import small_drive
 
 
@@ -167,7 +167,7 @@ def test_computing_does_not_import_matplotlib():
     import subprocess
     import sys
 
-    code = ("import sys; from bscomp.modal import modes; from bscomp.frf import frf; "
+    code = ("import sys; from bscomp.linear.modal import modes; from bscomp.linear.response import frf; "
             "from bscomp.systems import small_drive; s = small_drive(); modes(s); "
             "frf(s, 'motor.tau', 'rotor.w', [1.0, 10.0]); "
             "print('matplotlib' in sys.modules)")

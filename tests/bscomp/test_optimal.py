@@ -7,7 +7,7 @@ import pytest
 
 from bscomp import System
 from bscomp.components import Inertia, Torque
-from bscomp.optimal import Ocp, OcpError
+from bscomp.optimal.problem import Ocp, OcpError
 from bscomp.systems import small_drive
 
 
@@ -64,7 +64,7 @@ TAU_MAX, V_MAX, A_MAX, MOVE = 43.0, 1.0, 1.5 * 9.81, 0.1   # Sec 5.3.3 peak torq
 def reduced_testbed():
     import bscomp
     from bscomp.components import SecondOrderBlock
-    from bscomp.reduce import reduce_second_order
+    from bscomp.linear.reduction import reduce_second_order
     from bscomp.systems.testbed import testbed_axial_torsional
 
     # torque input: the OCP's limits are the motor's peak torque (Sec 5.3.3)
@@ -151,7 +151,7 @@ def _residual_after_arrival(r):
 
     table.s(inf): the end of a 6 s run -- the slowest mode (table on its guide damping, -3.8 1/s) has then
     decayed by e^-23."""
-    from bscomp.simulate import simulate
+    from bscomp.simulation.dispatch import simulate
 
     f = r.input_function("motor.tau")
     t = np.unique(np.r_[np.linspace(0, r.T, 401), np.linspace(r.T, r.T + 0.2, 4001), np.linspace(r.T + 0.2, 6.0, 2000)])

@@ -1,4 +1,4 @@
-"""Tests of bscomp.reduce: CMS reduction and MD/MA recovery (thesis Sec 5.2.3, Eq 5.10-5.18, Table 5.3).
+"""Tests of bscomp.linear.reduction: CMS reduction and MD/MA recovery (thesis Sec 5.2.3, Eq 5.10-5.18, Table 5.3).
 
 The test structure is the thesis's sub-model 1 (Table 5.1, Sec 5.3.1): the axial + torsional DOF of
 the ballscrew with the parts attached to it, but not the nut and table (sub-model 2):
@@ -31,9 +31,9 @@ import scipy.sparse as sp
 
 from bscomp.components._beam_fe import BeamModel, DofSelection, assemble_shaft, select_dofs
 from bscomp.components._beam_fe import thesis_table_b1_sections as table_b1
-from bscomp.damping import modal_damping_matrix
 from bscomp.errors import SingularSystemError
-from bscomp.reduce import ReducedModel, cms_reduce
+from bscomp.linear.damping import modal_damping_matrix
+from bscomp.linear.reduction import ReducedModel, cms_reduce
 from bscomp.systems._params import get_value, load_parameters
 
 P = load_parameters()

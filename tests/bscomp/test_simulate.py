@@ -11,7 +11,7 @@ import pytest
 import bscomp
 from bscomp import System
 from bscomp.components import Fixed, Force, Mass, Spring
-from bscomp.simulate import SampledController, simulate
+from bscomp.simulation.dispatch import SampledController, simulate
 from bscomp.systems import small_drive
 
 
@@ -168,7 +168,7 @@ def test_fixed_step_newton_failure_names_the_time_window():
     """Friction regularised 1000x harder than the step can resolve: Newton fails, the error says where."""
     dt = 2.0 ** -12
     t = dt * np.arange(int(0.05 / dt) + 1)
-    with pytest.raises(bscomp.simulate.SimulationError, match=r"Newton did not converge .* between t = 0\.03"):
+    with pytest.raises(bscomp.simulation.SimulationError, match=r"Newton did not converge .* between t = 0\.03"):
         simulate(coulomb_oscillator(10.0, 1e-7), t, x0={"m.s": 10.5e-3}, method="fixed")
     with pytest.raises(ValueError, match="substeps"):
         simulate(oscillator(), t, method="fixed", substeps=0)

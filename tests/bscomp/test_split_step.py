@@ -1,5 +1,5 @@
 """simulate(method="split"): exact zero-order hold of the linear part, implicit held nonlinear forces
-(bscomp._split_step). Checked against the exact ZOH solution (linear), the exact Coulomb oscillator,
+(bscomp.simulation.split). Checked against the exact ZOH solution (linear), the exact Coulomb oscillator,
 the no-motion answer below breakaway, and IDAS with tight tolerances (friction + backlash)."""
 
 import math
@@ -11,7 +11,7 @@ from test_simulate import coulomb_exact, coulomb_oscillator, oscillator
 import bscomp
 from bscomp import System
 from bscomp.components import Backlash, CoulombFriction, Damper, Fixed, Force, Mass
-from bscomp.simulate import SampledController, SimulationError, simulate
+from bscomp.simulation.dispatch import SampledController, SimulationError, simulate
 from bscomp.systems import small_drive
 
 
@@ -128,7 +128,7 @@ def test_sampled_controller_matches_exact_zoh():
 
 
 def test_newton_failure_names_time_and_variable(monkeypatch):
-    import bscomp._split_step as ss
+    import bscomp.simulation.split as ss
 
     monkeypatch.setattr(ss, "NEWTON_TOL", -1.0)  # unreachable: every step fails at once
     s = oscillator()

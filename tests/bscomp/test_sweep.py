@@ -1,4 +1,4 @@
-"""bscomp.sweep: modes and FRFs against a swept (position) parameter, serial and on a process pool."""
+"""bscomp.linear.sweeps: modes and FRFs against a swept (position) parameter, serial and on a process pool."""
 
 import json
 import math
@@ -10,8 +10,8 @@ import pytest
 from bscomp import System
 from bscomp.components import Fixed, Force, Mass, Spring
 from bscomp.errors import UnknownNameError
-from bscomp.frf import frf
-from bscomp.sweep import PositionSweep, build_system, position_sweep
+from bscomp.linear.response import frf
+from bscomp.linear.sweeps import PositionSweep, build_system, position_sweep
 
 M1, M2, K1 = 2.0, 3.0, 1.0e4
 

@@ -6,7 +6,7 @@ import pytest
 import bscomp
 from bscomp import System, second_order
 from bscomp.components import Force, Mass, Spring
-from bscomp.damping import ModalDamping, RayleighDamping
+from bscomp.linear.damping import ModalDamping, RayleighDamping
 
 
 def free_chain():

@@ -23,7 +23,7 @@ from bscomp.components import (
     Torque,
     TorsionalDamper,
 )
-from bscomp.control_design import notch, velocity_loop_tf
+from bscomp.control.design import notch, velocity_loop_tf
 
 K_A, K_T, H_G, J, B = 6.4898, 0.4769, 0.0668, 8.55e-3, 0.0321  # Eq 4.1, Sec 4.2.1, Sec 4.3
 K_V, K_I = 18.217, 4081.2  # Eq 4.14

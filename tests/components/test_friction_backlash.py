@@ -27,7 +27,7 @@ from bscomp.components import (
     TorsionalSpring,
 )
 from bscomp.components.backlash import contact_force
-from bscomp.simulate import simulate
+from bscomp.simulation.dispatch import simulate
 
 M, K = 1.0, 1.0e4  # oscillator: omega = 100 rad/s, half period 31.4 ms
 W = math.sqrt(K / M)

@@ -6,7 +6,7 @@ import numpy as np
 
 from bscomp import System, flatten
 from bscomp.components import Bearing, FixedNode, Housing, Mass, NodeToFlange
-from bscomp.modal import modes
+from bscomp.linear.modal import modes
 
 
 def test_housing_is_a_mass_on_a_spring_along_the_axis():

@@ -6,7 +6,7 @@ import pytest
 from bscomp import System, second_order
 from bscomp.components import Ballscrew, FixedNode, MovingNutJoint, RigidBody, ScrewNut
 from bscomp.components._beam_fe import Section
-from bscomp.modal import modes
+from bscomp.linear.modal import modes
 
 SECTIONS = [Section(length=0.8, d_out=0.04, n_elements=16)]
 
@@ -117,8 +117,8 @@ def test_slow_creep_matches_frozen_quasi_static_stretch():
     The stretch itself changes by ~35 % over the window, so a joint stuck at its start position fails.
     """
     from bscomp import flatten
-    from bscomp.damping import ModalDamping
-    from bscomp.simulate import simulate
+    from bscomp.linear.damping import ModalDamping
+    from bscomp.simulation.dispatch import simulate
 
     F, v, z0 = 2000.0, 0.4, 0.25
     K = ScrewNut.thesis().stiffness_matrix()

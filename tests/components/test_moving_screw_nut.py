@@ -19,7 +19,7 @@ from bscomp.components import (
 )
 from bscomp.components._beam_fe import Section
 from bscomp.errors import BscompError
-from bscomp.sweep import modal_lowrank_frf, position_sweep
+from bscomp.linear.sweeps import modal_lowrank_frf, position_sweep
 
 SECTIONS = [Section(length=0.8, d_out=0.04, n_elements=8)]
 NUT = dict(m=1.49 + 250.0, I=[2.56e-3, 2.56e-3, 1.31e-3])
@@ -74,7 +74,7 @@ def test_parameter_z0_gives_the_frozen_joint(dae, z):
 
 def test_tangent_is_the_linearization(dae):
     """K of the Dae linearized at rest = K without the joint + P^T tangent P, at a position off the nominal."""
-    from bscomp.sweep import _TangentUpdate
+    from bscomp.linear.sweeps import _TangentUpdate
 
     s = moving(0.3)
     upd = _TangentUpdate(s, "sn.z0", "sn", "z0", s.component("sn"), None, None)
@@ -133,7 +133,7 @@ def _with_damper():
 
 def test_tangent_sweep_agrees_with_rebuild_sweep():
     """position_sweep(method='tangent') = method='rebuild' (exact FRF with modal damping + a discrete damper)."""
-    from bscomp.damping import ModalDamping
+    from bscomp.linear.damping import ModalDamping
 
     def build():
         s = _with_damper()

@@ -5,7 +5,7 @@ import numpy as np
 from bscomp import System
 from bscomp.components import Ballscrew, FixedNode, RigidBody, ScrewNut, ScrewNutShapeFunction
 from bscomp.components._beam_fe import Section
-from bscomp.modal import modes
+from bscomp.linear.modal import modes
 
 
 def nut_frequencies(method, d, E, turns, n_el=24, L=0.6):

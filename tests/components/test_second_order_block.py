@@ -4,8 +4,8 @@ import numpy as np
 
 from bscomp import System, second_order
 from bscomp.components import Force, Mass, SecondOrderBlock, Spring
-from bscomp.reduce import reduce_second_order
-from bscomp.simulate import simulate
+from bscomp.linear.reduction import reduce_second_order
+from bscomp.simulation.dispatch import simulate
 
 
 def chain(n=30, m=0.5, k=2.0e8):

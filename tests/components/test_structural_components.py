@@ -26,7 +26,7 @@ from bscomp.components import (
 )
 from bscomp.components._beam_fe import Section
 from bscomp.components._node_dofs import t_point_com
-from bscomp.damping import modal_damping_matrix
+from bscomp.linear.damping import modal_damping_matrix
 
 E, RHO, NU = 210e9, 7800.0, 0.27
 G = E / (2 * (1 + NU))
@@ -280,7 +280,7 @@ def test_node_to_flange_direction_flips_the_axis_not_the_inertia(direction):
     The table moves direction * r_g per radian, a force on it acts on the node as direction * F
     (virtual work: node.Fz = -direction * flange.f), and the reflected inertia is that of Eq 4.2."""
     from bscomp.components import Force, Mass
-    from bscomp.frf import frf
+    from bscomp.linear.response import frf
 
     J, m_nut, m, lead = 5.98e-3, 1.49, 250.0, 0.010
     s = System("t")

@@ -15,7 +15,7 @@ from importlib import resources
 
 import pytest
 
-from bscomp.validate.diagnose import diagnose
+from bscomp.validate.diagnostics import diagnose
 from bscomp.validate.measurements import load_all
 
 pytestmark = pytest.mark.slow

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from bscomp import ModelDefinitionError, UnknownNameError, flatten, second_order
-from bscomp.modal import modes
+from bscomp.linear.modal import modes
 from bscomp.systems import REGISTRY, get
 from bscomp.systems._params import get_value, load_parameters
 from bscomp.systems.testbed import VARIANTS, DriveModalDamping, nut_positions

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from bscomp import ModelDefinitionError
-from bscomp.frf import frf
+from bscomp.linear.response import frf
 from bscomp.systems._params import get_value, load_parameters
 from bscomp.systems.testbed import testbed as build
 

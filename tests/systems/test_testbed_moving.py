@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from bscomp import flatten, second_order
-from bscomp.frf import frf
-from bscomp.sweep import position_sweep
+from bscomp.linear.response import frf
+from bscomp.linear.sweeps import position_sweep
 from bscomp.systems.testbed import nut_positions
 from bscomp.systems.testbed import testbed as build
 

@@ -1,4 +1,4 @@
-"""Declared validation interfaces (bscomp.interface) of the systems in systems/: every drive variant
+"""Declared validation interfaces (bscomp.kernel.interface) of the systems in systems/: every drive variant
 declares one, every declared port and parameter exists, the insertion points can be used."""
 
 import re
@@ -9,8 +9,8 @@ import pytest
 
 from bscomp import flatten
 from bscomp.components import Damper, Fixed, Mass, Spring
-from bscomp.frf import frf
-from bscomp.interface import ROLES, NotApplicable, ValidationInterface, interface_of
+from bscomp.kernel.interface import ROLES, NotApplicable, ValidationInterface, interface_of
+from bscomp.linear.response import frf
 from bscomp.systems import get
 from bscomp.systems.testbed import testbed as build
 from bscomp.systems.validation_drive import INPUT, INSERTION_POINTS, OUTPUTS, UNCERTAIN, validation_drive
@@ -164,8 +164,8 @@ def test_validation_drive_interface_and_legacy_aliases():
 def test_validation_drive_still_diagnoses_through_the_current_code_path():
     """diagnose() re-calibrates the declared uncertain parameters (legacy ``uncertain`` alias) and recovers
     the generator's mis-set table mass (x 1.06) and coupling stiffness (x 0.93)."""
-    from bscomp.validate.diagnose import diagnose
-    from bscomp.validate.generate import MISSET, generate
+    from bscomp.validate.diagnostics import diagnose
+    from bscomp.validate.synthetic import MISSET, generate
 
     data = generate(hidden={}, seed=1)
     diag = diagnose(validation_drive(), data.datasets, max_effects=0)

@@ -4,10 +4,10 @@ Thesis Sec 3.5.2.3-3.5.2.4 compares the test-bed model with measured FRFs and gu
 bearing-housing mass and compliance, guideway compliance, nut-table (bolted joint) compliance, friction
 and backlash "greatly amplified by the addition of the table", and a time delay from the D/A converters.
 Each guess is a :class:`Candidate` here: components inserted at an **insertion point of a role** that the
-drive declares in its validation interface (``system.validation``, :mod:`bscomp.interface`), with free
+drive declares in its validation interface (``system.validation``, :mod:`bscomp.kernel.interface`), with free
 parameters, bounds and a physical prior, and a plain-words *signature* -- what its absence looks like in
 the residuals. A drive without a point of the candidate's role (or of a kind the candidate handles)
-makes it *not applicable*: :meth:`Candidate.applicable` raises :class:`~bscomp.interface.NotApplicable`
+makes it *not applicable*: :meth:`Candidate.applicable` raises :class:`~bscomp.kernel.interface.NotApplicable`
 with the reason; any other failure while inserting it is an error and propagates.
 
 A candidate is applied in two steps: :meth:`Candidate.structure` edits a copy of the system (adds the
@@ -30,10 +30,22 @@ backlash whose contact stiffness is the joint's (see :class:`ScrewNutBacklash`),
 
 from __future__ import annotations
 
-from .base import Candidate, CandidateParameter
-from .hooks import AddedDampingOnMatrix, AddedModalDamping, AmplifierDelay, DetachedBodyDamping, ExtraDamping
-from .nonlinear import V_REG, CompliantBacklash, GuidewayFriction, ScrewNutBacklash, StribeckGuidewayFriction
-from .structural import (
+from bscomp.validate.candidates.base import Candidate, CandidateParameter
+from bscomp.validate.candidates.hooks import (
+    AddedDampingOnMatrix,
+    AddedModalDamping,
+    AmplifierDelay,
+    DetachedBodyDamping,
+    ExtraDamping,
+)
+from bscomp.validate.candidates.nonlinear import (
+    V_REG,
+    CompliantBacklash,
+    GuidewayFriction,
+    ScrewNutBacklash,
+    StribeckGuidewayFriction,
+)
+from bscomp.validate.candidates.structural import (
     BearingHousing,
     CouplingStiffness,
     MissingInertia,

@@ -41,7 +41,7 @@ def _lit(v) -> str:
 class Edits:
     """Edits of ``system`` (in place), each recorded as it is made.
 
-    Methods mirror :class:`~bscomp.system.System` (``add``, ``replace``, ``remove``, ``connect``,
+    Methods mirror :class:`~bscomp.kernel.system.System` (``add``, ``replace``, ``remove``, ``connect``,
     ``disconnect``); components are given as a class and keyword arguments so they can be written back.
     """
 

@@ -12,9 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp.errors import UnknownNameError
-from bscomp.interface import InsertionPoint, NotApplicable, ValidationInterface, interface_of
-
-from ._edits import Edits
+from bscomp.kernel.interface import InsertionPoint, NotApplicable, ValidationInterface, interface_of
+from bscomp.validate.candidates._edits import Edits
 
 __all__ = ["CandidateParameter", "Candidate"]
 
@@ -64,7 +63,7 @@ class Candidate:
     title : str
         Words for a report (``"nut-table bolted-joint compliance"``).
     role : str
-        Insertion-point role the effect goes to (:data:`bscomp.interface.ROLES`); ``where`` is the same.
+        Insertion-point role the effect goes to (:data:`bscomp.kernel.interface.ROLES`); ``where`` is the same.
     parameters : list of CandidateParameter
     signature : str
         What the residuals look like when this effect is missing, in plain words.

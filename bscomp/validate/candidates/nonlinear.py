@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from bscomp.interface import NotApplicable
-
-from ._edits import between, connected, insert_series
-from .base import Candidate, CandidateParameter
+from bscomp.kernel.interface import NotApplicable
+from bscomp.validate.candidates._edits import between, connected, insert_series
+from bscomp.validate.candidates.base import Candidate, CandidateParameter
 
 __all__ = ["GuidewayFriction", "StribeckGuidewayFriction", "ScrewNutBacklash", "V_REG"]
 
@@ -139,7 +138,7 @@ class ScrewNutBacklash(Candidate):
             detached = e.s.damping is not None and hasattr(e.s.damping, "modal_ratios") and \
                 type(e.s.component(b.split(".")[0])).__name__ == "Mass"
             if detached:   # no modal damping force across the clearance: the contact's own damping only
-                from .hooks import DetachedBodyDamping
+                from bscomp.validate.candidates.hooks import DetachedBodyDamping
 
                 e.s.damping = DetachedBodyDamping(e.s.damping, [body])
             return {"element": name, "detached": body if detached else None}

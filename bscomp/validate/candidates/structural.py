@@ -4,10 +4,9 @@ stiffness, missing mass and inertia (thesis Sec 3.5.2.3-3.5.2.4)."""
 from __future__ import annotations
 
 from bscomp.errors import ModelDefinitionError, UnknownNameError
-from bscomp.interface import InsertionPoint, NotApplicable
-
-from ._edits import between, connected, insert_series
-from .base import Candidate, CandidateParameter, _params_of, _zeta_damper
+from bscomp.kernel.interface import InsertionPoint, NotApplicable
+from bscomp.validate.candidates._edits import between, connected, insert_series
+from bscomp.validate.candidates.base import Candidate, CandidateParameter, _params_of, _zeta_damper
 
 __all__ = ["NutTableJoint", "TableSubassembly", "BearingHousing", "ParameterScale", "CouplingStiffness",
            "MissingInertia", "MissingMass"]
@@ -96,7 +95,7 @@ class TableSubassembly(Candidate):
             e.connect(f"{part}.flange_b", f"{mass}.flange_a")
         detached = e.s.damping is not None and hasattr(e.s.damping, "modal_ratios")
         if detached:   # the drive's modal damping does not reach the added body: its dashpot damps it
-            from .hooks import DetachedBodyDamping
+            from bscomp.validate.candidates.hooks import DetachedBodyDamping
 
             e.s.damping = DetachedBodyDamping(e.s.damping, [f"{mass}.s"])
         return {"spring": spring, "damper": loss, "mass": mass, "detached": detached}
@@ -243,7 +242,7 @@ class MissingInertia(Candidate):
 
 class MissingMass(Candidate):
     """A mass the model lacks on the table (fixture, workpiece). Degenerate with re-calibrating the
-    table's mass: skipped by :func:`~bscomp.validate.diagnose.diagnose` when that is uncertain."""
+    table's mass: skipped by :func:`~bscomp.validate.diagnostics.diagnose` when that is uncertain."""
 
     def __init__(self):
         super().__init__(

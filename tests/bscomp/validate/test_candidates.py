@@ -12,9 +12,9 @@ import pytest
 
 from bscomp import flatten
 from bscomp.errors import ModelDefinitionError, ParameterError, PortConnectionError, UnknownNameError
-from bscomp.interface import InsertionPoint as Point
-from bscomp.interface import NotApplicable, ValidationInterface
-from bscomp.modal import modes
+from bscomp.kernel.interface import InsertionPoint as Point
+from bscomp.kernel.interface import NotApplicable, ValidationInterface
+from bscomp.linear.modal import modes
 from bscomp.systems import get
 from bscomp.systems.validation_drive import UNCERTAIN, validation_drive
 from bscomp.validate.candidates import (
@@ -120,7 +120,7 @@ def elastic(md):
 
 
 def frf(system):
-    from bscomp.frf import frf as kernel_frf
+    from bscomp.linear.response import frf as kernel_frf
 
     res = kernel_frf(system, input="amp.u", output=["rotor.w", "table.a"], freqs=F)
     return {PAIRS[0]: res.H[:, 0, 0], PAIRS[1]: res.H[:, 1, 0]}
@@ -186,7 +186,7 @@ def test_pade_order_1_and_bad_order():
 
 
 def test_backlash_is_invisible_in_frf_but_delays_the_time_response():
-    from bscomp.simulate import simulate
+    from bscomp.simulation.dispatch import simulate
 
     cand = ScrewNutBacklash()
     s = cand.apply(build("validation_drive"), b=2e-5)

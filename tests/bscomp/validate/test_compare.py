@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from bscomp.modal import modes
+from bscomp.linear.modal import modes
 from bscomp.systems import small_drive
 from bscomp.validate import (
     FrfData,
@@ -27,7 +27,7 @@ from bscomp.validate import (
     write_report,
     write_time_csv,
 )
-from bscomp.validate.compare import user_errors
+from bscomp.validate.comparison import user_errors
 from bscomp.validate.residuals import ConditionIgnoredWarning, build_for
 
 K_T = 3938.0
@@ -163,14 +163,14 @@ def test_conditions_of_a_registered_system_behave_like_a_callables(tmp_path):
 
 
 def _testbed_input(system):
-    from bscomp.flatten import flatten
+    from bscomp.kernel.flatten import flatten
 
     return next(n for n in flatten(system).u_names if n != "Fd.f")
 
 
 def _testbed_frf(system, freqs, seed, **kw):
     """The test bed's FRF to rotor.w and table.a with 2 % complex noise (seeded)."""
-    from bscomp.frf import frf
+    from bscomp.linear.response import frf
 
     u = _testbed_input(system)
     unit = {"tau": "N m", "u": "V", "f": "N"}.get(u.rsplit(".", 1)[-1], "1")

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from bscomp.systems.validation_drive import validation_drive
-from bscomp.validate.diagnose import Diagnosis, diagnose
-from bscomp.validate.generate import TRUTH_VALUES, generate
+from bscomp.validate.diagnostics import Diagnosis, diagnose
+from bscomp.validate.synthetic import TRUTH_VALUES, generate
 
 CASES = {
     "joint": ({"nut_table_joint": {}}, "nut_table_joint", "k", 0.80),

@@ -1,0 +1,426 @@
+"""Linearization of a flattened model.
+
+* :func:`linearize` -> python-control ``StateSpace`` with state, input and output names, from the
+  implicit DAE at an operating point: with ``W = [dF/dx', dF/dz]`` (index 1, non-singular),
+
+  .. math:: \\begin{bmatrix}\\delta\\dot x\\\\ \\delta z\\end{bmatrix}
+            = -W^{-1}\\left(F_x\\,\\delta x + F_u\\,\\delta u\\right)
+
+  solved with a sparse LU (no dense inverse).
+* :func:`second_order` -> :class:`SecondOrderModel` ``M q'' + C q' + K q = B u``,
+  ``y = C_q q + C_v q' + C_a q'' + D u`` over the reduced mechanical coordinates (thesis Eq 3.44 / 5.1),
+  sparse. Internal algebraic variables are eliminated by a Schur complement.
+
+Operating points and parameters passed in are honoured: ``at`` sets states and inputs by name, ``params``
+overrides parameters (structural ones re-flatten a copy of the system).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from bscomp.errors import NotLinearError, SingularSystemError, UnknownNameError
+from bscomp.kernel.dae import Dae, _sp
+
+__all__ = ["linearize", "second_order", "SecondOrderModel", "OperatingPoint", "resolve_model", "control_labels"]
+
+
+def control_labels(names):
+    """bscomp names as python-control signal labels: python-control forbids '.', so ``motor.tau`` ->
+    ``motor/tau``."""
+    return [n.replace(".", "/") for n in names]
+
+
+@dataclass
+class OperatingPoint:
+    """Numeric operating point of a Dae: ``x``, ``x'``, ``z``, ``u``, ``p``."""
+
+    xd: np.ndarray
+    x: np.ndarray
+    z: np.ndarray
+    u: np.ndarray
+    p: np.ndarray
+
+
+def resolve_model(model, params: dict | None = None, *, damping_refreshed: bool = False) -> Dae:
+    """A Dae from a System or Dae, with parameter overrides applied (re-flattening if structural).
+
+    A Dae with a system-level damping (modal/Rayleigh, computed from the modes at flattening) is also
+    re-flattened when the overrides change its parameter values, since its damping matrix follows the
+    modes; callers that re-derive the damping themselves (``second_order``) pass ``damping_refreshed``.
+    """
+    from bscomp.kernel.flatten import flatten
+    from bscomp.kernel.system import System
+
+    params = dict(params or {})
+    if isinstance(model, System):
+        return flatten(model.with_parameters(params) if params else model)
+    if isinstance(model, Dae):
+        structural = [k for k in params if k in model.structural_parameters]
+        stale = (not damping_refreshed and getattr(model, "system_damping", None) is not None and params
+                 and not np.array_equal(model.parameter_vector(params), model.parameter_vector({})))
+        if structural or stale:
+            if model.system is None:
+                why = (f"parameters {structural} are structural" if structural else
+                       "its system damping depends on the parameters")
+                raise UnknownNameError(f"{why} and the Dae has no system to re-flatten; pass the System instead")
+            return flatten(model.system.with_parameters(params))
+        return model
+    raise TypeError(f"expected a System or Dae, got {type(model).__name__}")
+
+
+def operating_point(dae: Dae, at: dict | None = None, params: dict | None = None) -> OperatingPoint:
+    """Consistent operating point: states and inputs set by name in ``at``; (x', z) solved."""
+    p = dae.parameter_vector({k: v for k, v in (params or {}).items() if k not in dae.structural_parameters})
+    x = dae.x_start.copy()
+    u = np.zeros(dae.nu)
+    for k, v in (at or {}).items():
+        if k in dae.x_names:
+            x[dae.x_names.index(k)] = float(v)
+        elif k in dae.u_names:
+            u[dae.u_names.index(k)] = float(v)
+        else:
+            raise UnknownNameError(f"operating point names '{k}', which is neither a state {dae.x_names[:10]}... "
+                                   f"nor an input {dae.u_names} of '{dae.name}'")
+    xd, z = dae.initialize(x, u, p)
+    return OperatingPoint(xd, x, z, u, p)
+
+
+def _jac(dae: Dae, op: OperatingPoint):
+    _, Jxd, Jx, Jz, Ju = dae.jacobians(op.xd, op.x, op.z, op.u, op.p)
+    return _sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju)
+
+
+def _output_jac(dae: Dae, names, op: OperatingPoint):
+    import casadi as ca
+
+    key = ("output_jacobian", tuple(names))
+    f = dae._cache.get(key)
+    if f is None:  # built once per (Dae, outputs), reused by every linearization
+        y = dae.output_expr(names)
+        f = dae._cache[key] = ca.Function(
+            "gj", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
+            [ca.jacobian(y, dae.xds), ca.jacobian(y, dae.xs), ca.jacobian(y, dae.zs), ca.jacobian(y, dae.us)])
+    return [_sp(m) for m in f(op.xd, op.x, op.z, op.u, op.p)]
+
+
+def explicit_form(dae: Dae, Jxd, Jx, Jz, Ju):
+    """``(A, B, Zx, Zu)`` of the index-1 linearization from the Jacobians of F at a point (scipy sparse):
+    ``x' = A dx + B du``, ``z = Zx dx + Zu du``, i.e. ``[A B; Zx Zu] = -[dF/dx', dF/dz]^{-1} [dF/dx, dF/du]``.
+
+    ``Ju`` holds the columns of the inputs wanted. Raises :class:`SingularSystemError` if
+    ``[dF/dx', dF/dz]`` is singular at the point.
+    """
+    nx = dae.nx
+    W = sp.hstack([Jxd, Jz]).tocsc()
+    try:
+        lu = spla.splu(W)
+    except RuntimeError as exc:
+        raise SingularSystemError(dae._singular_message(W)) from exc
+    ncol = Jx.shape[1] + Ju.shape[1]
+    sol = -lu.solve(sp.hstack([Jx, Ju]).toarray()) if ncol else np.zeros((W.shape[0], 0))
+    return sol[:nx, :nx], sol[:nx, nx:], sol[nx:, :nx], sol[nx:, nx:]
+
+
+def _select_inputs(dae: Dae, inputs):
+    if inputs is None:
+        return list(range(dae.nu)), list(dae.u_names)
+    idx = []
+    for n in inputs:
+        if n not in dae.u_names:
+            raise UnknownNameError(f"'{n}' is not an input of '{dae.name}'; inputs are the unconnected signal inputs "
+                                   f"{dae.u_names}")
+        idx.append(dae.u_names.index(n))
+    return idx, list(inputs)
+
+
+def linearize(model, inputs=None, outputs=None, at: dict | None = None, params: dict | None = None):
+    """Linearize a System or Dae into a python-control ``StateSpace``.
+
+    Parameters
+    ----------
+    model : System or Dae
+    inputs : list of str, optional
+        Input names (unconnected signal inputs, e.g. ``"motor.tau"``); default all.
+    outputs : list of str, optional
+        Output names (any observable, e.g. ``"table.a"``, ``"rotor.w"``); default the states.
+    at : dict, optional
+        Operating point: state and input values by name; the rest of the state is at its start value
+        and ``(x', z)`` are solved consistently.
+    params : dict, optional
+        Parameter overrides by dotted name.
+
+    Returns
+    -------
+    control.StateSpace
+        With ``state_labels``, ``input_labels`` and ``output_labels`` set (python-control forbids '.' in
+        labels, so ``"motor.tau"`` appears as ``"motor/tau"``). Its attribute
+        ``second_order`` holds the :class:`SecondOrderModel` when the model is mechanical-linear
+        (else None).
+    """
+    import control
+
+    dae = resolve_model(model, params)
+    op = operating_point(dae, at, params)
+    Jxd, Jx, Jz, Ju = _jac(dae, op)
+    uidx, unames = _select_inputs(dae, inputs)
+    if not uidx:
+        raise NotLinearError(f"'{dae.name}' has no inputs and python-control's StateSpace needs at least one: add a "
+                             "Force/Torque source (its unconnected input becomes a system input); second_order() "
+                             "works without inputs")
+    nx = dae.nx
+    A, B, Zx, Zu = explicit_form(dae, Jxd, Jx, Jz, Ju[:, uidx])
+    if outputs is None:
+        outputs = list(dae.x_names)
+        C = np.eye(nx)
+        D = np.zeros((nx, len(uidx)))
+    else:
+        Gxd, Gx, Gz, Gu = _output_jac(dae, outputs, op)
+        C = np.asarray(Gx.toarray() + Gxd @ A + Gz @ Zx).reshape(len(outputs), nx)
+        D = np.asarray(Gu[:, uidx].toarray() + Gxd @ B + Gz @ Zu).reshape(len(outputs), len(uidx))
+    sys = control.ss(A, B, np.asarray(C), np.asarray(D), states=control_labels(dae.x_names),
+                     inputs=control_labels(unames), outputs=control_labels(outputs), name=dae.name)
+    try:
+        sys.second_order = second_order(dae, inputs=unames, outputs=outputs, at=at, params=params, _op=op)
+    except NotLinearError:
+        sys.second_order = None
+    sys.operating_point = op
+    return sys
+
+
+@dataclass
+class SecondOrderModel:
+    """``M q'' + C q' + K q = B u``, ``y = Cq q + Cv q' + Ca q'' + D u`` (sparse), thesis Eq 3.44 / 5.1-5.3.
+
+    Attributes
+    ----------
+    coordinates : list of str
+        Names of the reduced coordinates ``q``.
+    units : list of str
+    inputs, outputs : list of str
+    """
+
+    M: Any
+    C: Any
+    K: Any
+    B: Any
+    Cq: Any
+    Cv: Any
+    Ca: Any
+    D: Any
+    coordinates: list
+    units: list
+    inputs: list
+    outputs: list
+
+    @property
+    def n(self):
+        return self.M.shape[0]
+
+    def frf(self, freqs_hz, method: str = "auto"):
+        r"""Frequency response ``H[k, i, j]`` (freq, output, input); no dense inverse.
+
+        .. math:: H(j\omega) = (C_q + j\omega C_v - \omega^2 C_a)
+                  (K + j\omega C - \omega^2 M)^{-1} B + D
+
+        Parameters
+        ----------
+        method : {"auto", "modal", "direct"}
+            ``"modal"``: one eigen-decomposition of the first-order form ``(q, q')`` (any viscous
+            damping, non-proportional included), then the exact partial-fraction sum per frequency:
+            cheap for many frequencies. ``"direct"``: one sparse LU per frequency (large models, or a
+            singular mass matrix). ``"auto"``: modal up to 1500 coordinates with a non-singular M.
+        """
+        f = np.atleast_1d(np.asarray(freqs_hz, float))
+        if method not in ("auto", "modal", "direct"):
+            raise ValueError(f"frf method must be 'auto', 'modal' or 'direct', got {method!r}")
+        if method != "direct" and self.n <= 1500:
+            dec = self._modal_decomposition()
+            if dec is not None:
+                return self._frf_modal(f, dec)
+            if method == "modal":
+                raise SingularSystemError("frf(method='modal') needs a non-singular mass matrix")
+        H = np.zeros((len(f), len(self.outputs), len(self.inputs)), complex)
+        M, C, K = (sp.csc_matrix(m, dtype=complex) for m in (self.M, self.C, self.K))
+        B = self.B.toarray() if sp.issparse(self.B) else np.asarray(self.B)
+        D = np.asarray(self.D.toarray() if sp.issparse(self.D) else self.D)
+        for k, fk in enumerate(f):
+            w = 2 * np.pi * fk
+            Z = (K + 1j * w * C - w * w * M).tocsc()
+            X = spla.splu(Z).solve(B.astype(complex)) if B.size else np.zeros((self.n, 0), complex)
+            Y = (self.Cq + 1j * w * self.Cv - w * w * self.Ca) @ X
+            H[k] = np.asarray(Y) + D
+        return H
+
+    def _modal_decomposition(self):
+        """Eigen-decomposition of ``A = [[0, I], [-M^-1 K, -M^-1 C]]`` (cached), or None if M is singular."""
+        cache = self.__dict__.setdefault("_cache", {})
+        if "modal" in cache:
+            return cache["modal"]
+        import scipy.linalg as sla
+
+        n = self.n
+        M = self.M.toarray() if sp.issparse(self.M) else np.asarray(self.M)
+        try:
+            cho = sla.cho_factor(M)
+        except np.linalg.LinAlgError:
+            cache["modal"] = None
+            return None
+        K = self.K.toarray() if sp.issparse(self.K) else np.asarray(self.K)
+        C = self.C.toarray() if sp.issparse(self.C) else np.asarray(self.C)
+        B = self.B.toarray() if sp.issparse(self.B) else np.asarray(self.B)
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-sla.cho_solve(cho, K), -sla.cho_solve(cho, C)]])
+        lam, V = sla.eig(A)
+        if np.linalg.cond(V) > 1e12:  # defective (repeated rigid-body poles): use the direct solve
+            cache["modal"] = None
+            return None
+        W = np.linalg.solve(V, np.vstack([np.zeros((n, B.shape[1])), sla.cho_solve(cho, B)]))
+        dense = [m.toarray() if sp.issparse(m) else np.asarray(m) for m in (self.Cq, self.Cv, self.Ca)]
+        cache["modal"] = (lam, W, dense[0] @ V[:n], dense[1] @ V[n:], dense[2] @ V[n:])
+        return cache["modal"]
+
+    def _frf_modal(self, f, dec):
+        lam, W, CqV, CvV, CaV = dec
+        D = np.asarray(self.D.toarray() if sp.issparse(self.D) else self.D)
+        H = np.zeros((len(f), len(self.outputs), len(self.inputs)), complex)
+        for k, fk in enumerate(f):
+            s = 2j * np.pi * fk
+            G = W / (s - lam)[:, None]
+            H[k] = (CqV + CvV + s * CaV) @ G + D  # y = Cq q + Cv v + Ca s v, x = (q, v)
+        return H
+
+    def to_statespace(self):
+        """First-order form x = (q, q') (Eq 5.3); needs a non-singular M."""
+        import control
+
+        M = self.M.toarray()
+        try:
+            Minv_K = np.linalg.solve(M, self.K.toarray())
+            Minv_C = np.linalg.solve(M, self.C.toarray())
+            Minv_B = np.linalg.solve(M, self.B.toarray())
+        except np.linalg.LinAlgError as exc:
+            raise SingularSystemError("mass matrix is singular (massless coordinates): use linearize() on the Dae, "
+                                      "which handles quasi-static coordinates") from exc
+        n = self.n
+        A = np.block([[np.zeros((n, n)), np.eye(n)], [-Minv_K, -Minv_C]])
+        B = np.vstack([np.zeros((n, Minv_B.shape[1])), Minv_B])
+        Ca = self.Ca.toarray()
+        C = np.hstack([self.Cq.toarray() - Ca @ Minv_K, self.Cv.toarray() - Ca @ Minv_C])
+        D = self.D.toarray() + Ca @ Minv_B
+        return control.ss(A, B, C, D,
+                          states=control_labels(self.coordinates + [f"der({c})" for c in self.coordinates]),
+                          inputs=control_labels(self.inputs), outputs=control_labels(self.outputs))
+
+
+def _close(A, B) -> bool:
+    scale = max(abs(B).max(), 1e-300) if B.nnz else 1.0
+    D = (A - B).tocsr()
+    return D.nnz == 0 or abs(D).max() <= 1e-12 * scale
+
+
+def _refresh_system_damping(dae, M, K, C):
+    """Replace the system damping computed at flattening by the one of this linearization's (M, K).
+
+    Modal damping (Eq A.10-A.15) is defined on the modes, so when parameters (e.g. the nut position of a
+    :class:`~components.moving_screw_nut.MovingScrewNut`) or the operating point change M or K it is
+    re-derived here, exactly as flattening at those values would.
+    """
+    damping = getattr(dae, "system_damping", None)
+    if damping is None:
+        return C
+    M0, K0, Cadd0 = dae.system_damping_basis
+    if _close(M, M0) and _close(K, K0):
+        return C
+    from bscomp.linear.damping import system_damping_matrix
+
+    Cadd = system_damping_matrix(damping, M, K, dae.mech.coordinate_names)
+    return sp.csr_matrix(C - Cadd0 + sp.csr_matrix(Cadd))
+
+
+def second_order(model, inputs=None, outputs=None, at: dict | None = None, params: dict | None = None,
+                 _op: OperatingPoint | None = None, refresh_damping: bool = True) -> SecondOrderModel:
+    """Second-order form of a mechanical system, linearized at ``at`` (see :class:`SecondOrderModel`).
+
+    ``refresh_damping=False`` keeps the system damping of the flattening (``dae.system_damping_basis``)
+    instead of re-deriving it from this linearization's modes: for callers that re-derive it themselves
+    in modal coordinates (:class:`bscomp.simulation.compiled.CompiledModel`).
+
+    Raises
+    ------
+    NotLinearError
+        If the model has internal differential states (controllers, electrical dynamics...): use
+        :func:`linearize` for the first-order form.
+    """
+    dae = resolve_model(model, params, damping_refreshed=True)
+    m = dae.mech
+    if m.has_internal_states:
+        raise NotLinearError(f"'{dae.name}' has internal differential states (not only mechanical coordinates); "
+                             "its linearization has no second-order form: use linearize()")
+    op = _op if _op is not None else operating_point(dae, at, params)
+    Jxd, Jx, Jz, Ju = _jac(dae, op)
+    uidx, unames = _select_inputs(dae, inputs)
+    nr = len(m.coordinate_names)
+    nx, nz = dae.nx, dae.nz
+
+    def S(where, n):
+        rows = [where[j] for j in where]
+        cols = list(where)
+        return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, nr))
+
+    Sq_x, Sq_z = S(m.q_in_x, nx), S(m.q_in_z, nz)
+    Sv_x, Sv_xd, Sa_xd = S(m.v_in_x, nx), S(m.v_in_xd, nx), S(m.a_in_xd, nx)
+    # derivative of an inertial position (dt(q)) is its velocity: for outputs only
+    Sv_xd_out = Sv_xd + S({j: i for i, j in enumerate(m.inertial)}, nx)
+    zint = [i for i in range(nz) if i not in set(m.q_in_z.values())]
+    Sw = sp.csr_matrix((np.ones(len(zint)), (zint, np.arange(len(zint)))), shape=(nz, len(zint)))
+    ni = len(m.inertial)
+    rows_R = m.balance_rows
+    rows_G = list(range(ni + nr, Jx.shape[0]))
+
+    def blocks(rows):
+        Jxd_r, Jx_r, Jz_r = Jxd[rows], Jx[rows], Jz[rows]
+        return (Jx_r @ Sq_x + Jz_r @ Sq_z, Jx_r @ Sv_x + Jxd_r @ Sv_xd, Jxd_r @ Sa_xd, Jz_r @ Sw,
+                Ju[rows][:, uidx])
+
+    Rq, Rv, Ra, Rw, Ru = blocks(rows_R)
+    if zint:
+        Gq, Gv, Ga, Gw, Gu = blocks(rows_G)
+        try:
+            lu = spla.splu(sp.csc_matrix(Gw))
+        except RuntimeError as exc:
+            raise SingularSystemError(f"'{dae.name}': internal algebraic equations are singular") from exc
+
+        def schur(Rx, Gx):
+            Gx = sp.csc_matrix(Gx)
+            if Gx.nnz == 0:
+                return sp.csr_matrix(Rx)
+            return sp.csr_matrix(Rx - Rw @ sp.csr_matrix(lu.solve(Gx.toarray())))
+
+        Kq, Cv_, Ma, Bu = schur(Rq, Gq), schur(Rv, Gv), schur(Ra, Ga), schur(Ru, Gu)
+    else:
+        Kq, Cv_, Ma, Bu = sp.csr_matrix(Rq), sp.csr_matrix(Rv), sp.csr_matrix(Ra), sp.csr_matrix(Ru)
+        Gq = Gv = Ga = Gu = None
+    if outputs is None:
+        outputs = list(m.coordinate_names)
+    Gxd, Gx, Gz, Gu_y = _output_jac(dae, outputs, op)
+    Cq = Gx @ Sq_x + Gz @ Sq_z
+    Cv = Gx @ Sv_x + Gxd @ Sv_xd_out
+    Ca = Gxd @ Sa_xd
+    Dy = Gu_y[:, uidx]
+    Yw = Gz @ Sw
+    if zint and Yw.nnz:
+        def ysub(Yx, Gx_):
+            return sp.csr_matrix(Yx - Yw @ lu.solve(sp.csc_matrix(Gx_).toarray()))
+        Cq, Cv, Ca, Dy = ysub(Cq, Gq), ysub(Cv, Gv), ysub(Ca, Ga), ysub(Dy, Gu)
+    if refresh_damping:
+        Cv_ = _refresh_system_damping(dae, sp.csr_matrix(Ma), sp.csr_matrix(Kq), sp.csr_matrix(Cv_))
+    return SecondOrderModel(
+        M=sp.csr_matrix(Ma), C=sp.csr_matrix(Cv_), K=sp.csr_matrix(Kq), B=-sp.csr_matrix(Bu),
+        Cq=sp.csr_matrix(Cq), Cv=sp.csr_matrix(Cv), Ca=sp.csr_matrix(Ca), D=sp.csr_matrix(Dy),
+        coordinates=list(m.coordinate_names), units=list(m.coordinate_units), inputs=unames,
+        outputs=list(outputs))

@@ -1,0 +1,157 @@
+"""The one way to turn "a model" into what an analysis needs.
+
+Every analysis (``modes``, ``frf``, ``simulate``, ``Ocp``, ``compare``, ``diagnose``, sweeps) accepts the
+same things for its model argument:
+
+* a registered system name (``"testbed_axial_torsional"``, see ``bscomp systems``),
+* a path to a ``.py`` file that defines ``build()`` returning a :class:`~bscomp.System`,
+* a build function (called with the build keywords),
+* a :class:`~bscomp.System`, or a flattened :class:`~bscomp.Dae`,
+* a :class:`ModelSpec`.
+
+:class:`ModelSpec` is the picklable pair ``(name or path, overrides)``: what travels to a worker process
+(or a Dask worker) so that it rebuilds the drive itself instead of receiving compiled CasADi objects.
+Override keys without a dot (``nut_position``) are keyword arguments of the build function (structural
+choices fixed at construction); dotted keys (``coupling.k_T``) are parameter values set with
+:meth:`System.set`.
+
+This module is the only place in the engine that reaches ``bscomp.systems`` (lazily, for names).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from bscomp.errors import UnknownNameError
+from bscomp.kernel.dae import Dae
+from bscomp.kernel.system import System
+
+__all__ = ["ModelSpec", "as_system", "as_dae", "spec_of", "split_overrides", "model_name"]
+
+
+def split_overrides(overrides: dict | None) -> tuple[dict, dict]:
+    """``(build keywords, dotted parameter values)`` of an override mapping."""
+    overrides = dict(overrides or {})
+    return ({k: v for k, v in overrides.items() if "." not in k},
+            {k: v for k, v in overrides.items() if "." in k})
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A drive as ``(registered name or .py path, overrides)``: picklable, hashable, rebuilt on demand.
+
+    Parameters
+    ----------
+    source : str
+        A registered system name (``bscomp.systems.available()``) or a path to a ``.py`` file defining
+        ``build()``.
+    overrides : dict, optional
+        Build keywords (no dot, e.g. ``nut_position``) and parameter values (dotted, e.g.
+        ``"coupling.k_T"``; numbers or ``"250 kg"``-style strings).
+
+    Examples
+    --------
+    >>> spec = ModelSpec("small_drive", {"table.m": 50.0})
+    >>> spec.system().name
+    'small_drive'
+    """
+
+    source: str
+    overrides: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if not isinstance(self.source, str) or not self.source:
+            raise UnknownNameError(f"ModelSpec.source must be a system name or a .py path, got {self.source!r}")
+        object.__setattr__(self, "overrides", dict(self.overrides or {}))
+
+    def __hash__(self):
+        return hash((self.source, tuple(sorted((k, repr(v)) for k, v in self.overrides.items()))))
+
+    def with_overrides(self, overrides: dict | None = None, **more) -> ModelSpec:
+        """A new spec with these overrides added (later keys win)."""
+        return ModelSpec(self.source, {**self.overrides, **(overrides or {}), **more})
+
+    def system(self) -> System:
+        """Build the System (registered name or ``.py`` file) and apply the overrides."""
+        from bscomp import systems  # lazily: the engine itself never needs the drives
+
+        return systems.get(self.source, self.overrides)
+
+    def dae(self) -> Dae:
+        """Build and flatten."""
+        from bscomp.kernel.flatten import flatten
+
+        return flatten(self.system())
+
+
+def as_system(model, params: dict | None = None) -> System:
+    """A :class:`System` from a name, ``.py`` path, :class:`ModelSpec`, build function or System.
+
+    ``params`` are overrides: for a name, path, spec or build function, keys without a dot are build
+    keywords; for a System every key must be a dotted parameter (applied to a copy).
+    """
+    if isinstance(model, System):
+        build_kw, dotted = split_overrides(params)
+        if build_kw:
+            raise UnknownNameError(f"overrides {sorted(build_kw)} are build keywords, but the model was given as a "
+                                   f"built System '{model.name}': pass its name or build function to use them")
+        return model.with_parameters(dotted) if dotted else model
+    if isinstance(model, ModelSpec):
+        return model.with_overrides(params).system()
+    if isinstance(model, (str, Path)):
+        return ModelSpec(str(model), params or {}).system()
+    if isinstance(model, Dae):
+        if model.system is None:
+            raise UnknownNameError(f"the Dae '{model.name}' keeps no System: pass the System or its name")
+        return as_system(model.system, params)
+    if callable(model):
+        from bscomp.systems import _call_build  # one implementation of "name the bad build keyword"
+
+        build_kw, dotted = split_overrides(params)
+        system = _call_build(model, getattr(model, "__name__", "build"), build_kw)
+        if not isinstance(system, System):
+            raise UnknownNameError(f"build function {getattr(model, '__name__', model)!r} returned "
+                                   f"{type(system).__name__}, not a bscomp.System")
+        return system.with_parameters(dotted) if dotted else system
+    raise UnknownNameError(f"cannot use {type(model).__name__} as a model: give a system name, a .py path, a "
+                           "build function, a bscomp.System, a bscomp.Dae or a bscomp.model.ModelSpec")
+
+
+def as_dae(model, params: dict | None = None, *, damping_refreshed: bool = False) -> Dae:
+    """A flattened :class:`Dae` from anything :func:`as_system` takes, or a Dae.
+
+    A Dae is returned as is unless the overrides are structural (re-mesh) or change a parameter its
+    system-level damping depends on (then it is re-flattened from its System); callers that re-derive
+    that damping themselves (``second_order``) pass ``damping_refreshed``.
+    """
+    from bscomp.linear.linearize import resolve_model
+
+    if isinstance(model, (System, Dae)):
+        return resolve_model(model, params, damping_refreshed=damping_refreshed)
+    from bscomp.kernel.flatten import flatten
+
+    return flatten(as_system(model, params))
+
+
+def spec_of(model, params: dict | None = None) -> ModelSpec:
+    """The picklable :class:`ModelSpec` of a name, path or spec (with ``params`` added).
+
+    A System or Dae built in memory has no such pair; it raises, naming what to pass instead.
+    """
+    if isinstance(model, ModelSpec):
+        return model.with_overrides(params)
+    if isinstance(model, (str, Path)):
+        return ModelSpec(str(model), params or {})
+    raise UnknownNameError(f"a {type(model).__name__} cannot travel to a worker: pass the system's registered "
+                           "name or .py path (with overrides) instead, e.g. ModelSpec('testbed_axial_torsional', "
+                           "{'nut_position': 0.3})")
+
+
+def model_name(model) -> str:
+    """A display name for any accepted model."""
+    if isinstance(model, ModelSpec):
+        return model.source
+    if isinstance(model, (str, Path)):
+        return str(model)
+    return getattr(model, "name", None) or getattr(model, "__name__", type(model).__name__)

@@ -1,0 +1,208 @@
+"""Figures of a :class:`bscomp.validate.Comparison` (matplotlib imported lazily, as in
+:mod:`bscomp.plotting`): FRF overlays with resonance markers, error per band, time overlays with
+residuals, MATLAB-``resid`` correlation plots and the residual signatures.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from bscomp.plotting.base import _finish, _plt
+
+__all__ = ["comparison_plots", "frf_comparison_plot", "band_error_plot", "time_comparison_plot", "resid_plot",
+           "signature_plot", "plot_diagnosis"]
+
+
+def _slug(text):
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(str(text)).name)[:60] or "data"
+
+
+def frf_comparison_plot(fc, path=None, title=None):
+    """Measured and model magnitude [dB] and phase [deg] per pair, resonances marked (x measured,
+    dotted lines model modes, red: unpaired)."""
+    plt = _plt()
+    pairs = list(fc.measured)
+    fig, axes = plt.subplots(2, len(pairs), sharex=True, figsize=(6.5 * len(pairs), 6), squeeze=False)
+    f = fc.freqs
+    for j, p in enumerate(pairs):
+        am, ap = axes[0, j], axes[1, j]
+        hm, hh = fc.measured[p], fc.model[p]
+        am.semilogx(f, 20 * np.log10(np.abs(hm) + 1e-300), "k.", ms=2.5, label="measured")
+        am.semilogx(f, 20 * np.log10(np.abs(hh) + 1e-300), "C0-", lw=1.2, label="model")
+        ap.semilogx(f, np.degrees(np.angle(hm)), "k.", ms=2.5)
+        ap.semilogx(f, np.degrees(np.angle(hh)), "C0-", lw=1.2)
+        for m in fc.modes:
+            if m.model_f is not None:
+                am.axvline(m.model_f, color="C0" if m.measured is not None else "r", ls=":", lw=0.8)
+            if m.measured is not None and p in m.measured.pairs:
+                r = m.measured
+                am.plot([r.f], [20 * np.log10(r.amplitude)], "x", color="k" if m.model_f is not None else "r", ms=8)
+        am.set_title(f"{p[1]} / {p[0]} [{fc.units.get(p, '')}]", fontsize=9)
+        am.set_ylabel("magnitude [dB]")
+        ap.set_ylabel("phase [deg]")
+        ap.set_xlabel("frequency [Hz]")
+        for ax in (am, ap):
+            ax.grid(True, which="both", alpha=0.3)
+        am.legend(fontsize=8)
+    fig.suptitle(title or f"{fc.source}: measured vs model")
+    return _finish(fig, plt, path)
+
+
+def band_error_plot(fc, path=None, title=None):
+    """Share of the squared residual per band (stacked over pairs) and RMS magnitude error per band."""
+    plt = _plt()
+    bands = sorted({(b["lo"], b["hi"]) for b in fc.bands})
+    pairs = list(fc.measured)
+    x = np.arange(len(bands))
+    fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(8, 5.5))
+    bottom = np.zeros(len(bands))
+    for p in pairs:
+        s = np.array([sum(b["share"] for b in fc.bands if b["pair"] == p and (b["lo"], b["hi"]) == bb) for bb in bands])
+        m = np.array([next((b["rms_mag_db"] for b in fc.bands if b["pair"] == p and (b["lo"], b["hi"]) == bb), 0.0)
+                      for bb in bands])
+        a1.bar(x, 100 * s, bottom=bottom, label=f"{p[1]}/{p[0]}")
+        bottom += 100 * s
+        a2.plot(x, m, "o-", label=f"{p[1]}/{p[0]}")
+    a1.set_ylabel("share of error [%]")
+    a2.set_ylabel("rms magnitude error [dB]")
+    a2.set_xticks(x)
+    a2.set_xticklabels([f"{np.sqrt(lo * hi):.3g}" for lo, hi in bands], rotation=45)
+    a2.set_xlabel("band centre [Hz]")
+    for ax in (a1, a2):
+        ax.grid(True, alpha=0.3)
+    a1.legend(fontsize=8)
+    a1.set_title(title or f"{fc.source}: where the FRF error is")
+    return _finish(fig, plt, path)
+
+
+def time_comparison_plot(tc, path=None, title=None):
+    """Measured and simulated channels with the residual (measured - model) under each; worst windows
+    shaded."""
+    plt = _plt()
+    chans = list(tc.measured)
+    fig, axes = plt.subplots(2 * len(chans), 1, sharex=True, figsize=(8, 2.2 + 2.6 * len(chans)), squeeze=False)
+    worst = tc.worst_windows()
+    for k, ch in enumerate(chans):
+        ay, ae = axes[2 * k, 0], axes[2 * k + 1, 0]
+        ay.plot(tc.t, tc.measured[ch], "k-", lw=1.0, label="measured")
+        ay.plot(tc.t, tc.model[ch], "C0--", lw=1.0, label=f"model (fit {tc.fit[ch]:.1f} %)")
+        ay.set_ylabel(f"{ch} [{tc.units.get(ch, '')}]", fontsize=8)
+        ay.legend(fontsize=8, loc="upper right")
+        ae.plot(tc.t, tc.residual[ch], "C3-", lw=0.8)
+        ae.set_ylabel("residual", fontsize=8)
+        for w in worst:
+            for ax in (ay, ae):
+                ax.axvspan(w["t0"], w["t1"], color="orange", alpha=0.15)
+        for ax in (ay, ae):
+            ax.grid(True, alpha=0.3)
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[0, 0].set_title(title or f"{tc.source}: measured vs model (shaded: windows carrying most error)")
+    return _finish(fig, plt, path)
+
+
+def resid_plot(tc, path=None, title=None):
+    """Residual autocorrelation and cross-correlation with the input, 99 % bands (MATLAB ``resid``)."""
+    plt = _plt()
+    chans = list(tc.resid)
+    fig, axes = plt.subplots(len(chans), 2, figsize=(9, 2.4 + 2.2 * len(chans)), squeeze=False)
+    for k, ch in enumerate(chans):
+        r = tc.resid[ch]
+        a, b = axes[k, 0], axes[k, 1]
+        a.stem(r.lags, r.acf, basefmt=" ")
+        a.axhspan(-r.acf_bound, r.acf_bound, color="C2", alpha=0.2)
+        a.set_title(f"{ch}: autocorrelation ({'white' if r.white else 'not white'})", fontsize=9)
+        b.stem(r.xlags, r.xcf, basefmt=" ")
+        b.axhspan(-r.xcf_bound, r.xcf_bound, color="C2", alpha=0.2)
+        b.set_title(f"cross-correlation with input ({'independent' if r.independent else 'correlated'})", fontsize=9)
+        for ax in (a, b):
+            ax.set_xlabel("lag [samples]")
+            ax.grid(True, alpha=0.3)
+    fig.suptitle(title or f"{tc.source}: residual tests (99 % confidence)")
+    return _finish(fig, plt, path)
+
+
+def signature_plot(signatures, path=None, title=None):
+    """Correlation of the residual with physical signals (horizontal bars)."""
+    from bscomp.validate.comparison import SIGNATURES
+
+    plt = _plt()
+    items = [(k, v) for k, v in signatures.items() if k in SIGNATURES and np.isfinite(v)]
+    fig, ax = plt.subplots(figsize=(7, 0.8 + 0.4 * max(len(items), 1)))
+    if items:
+        names, vals = zip(*items)
+        ax.barh(range(len(vals)), vals, color=["C3" if abs(v) > 0.5 else "C0" for v in vals])
+        ax.set_yticks(range(len(vals)))
+        ax.set_yticklabels(names)
+    ax.set_xlim(-1, 1)
+    ax.axvline(0, color="k", lw=0.5)
+    ax.set_xlabel("correlation with the residual")
+    ax.grid(True, axis="x", alpha=0.3)
+    ax.set_title(title or "residual signatures")
+    return _finish(fig, plt, path)
+
+
+def comparison_plots(comparison, out_dir) -> list:
+    """All figures of a Comparison as PNGs in ``out_dir``; returns their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for k, fc in enumerate(comparison.frf):
+        stem = f"frf{k + 1}_{_slug(fc.source)}"
+        for suffix, fn in (("overlay", frf_comparison_plot), ("bands", band_error_plot)):
+            p = out / f"{stem}_{suffix}.png"
+            fn(fc, p)
+            paths.append(p)
+    for k, tc in enumerate(comparison.time):
+        stem = f"time{k + 1}_{_slug(tc.source)}"
+        for suffix, fn in (("overlay", time_comparison_plot), ("resid", resid_plot)):
+            p = out / f"{stem}_{suffix}.png"
+            fn(tc, p)
+            paths.append(p)
+    if comparison.time:
+        p = out / "signatures.png"
+        signature_plot(comparison.signatures, p)
+        paths.append(p)
+    return paths
+
+
+def plot_diagnosis(diag, directory):
+    """The error staircase and the round-1 candidate ranking of a Diagnosis, as two PNGs in ``directory``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    labels = [lbl for lbl, _ in diag.staircase]
+    errs = [e for _, e in diag.staircase]
+    ax.step(range(len(errs)), errs, where="mid", lw=2)
+    ax.plot(range(len(errs)), errs, "o")
+    ax.axhline(1.0, color="0.5", ls="--", lw=1, label="noise floor")
+    ax.set_xticks(range(len(errs)))
+    ax.set_xticklabels(labels, rotation=20, ha="right")
+    ax.set_yscale("log")
+    ax.set_ylabel("error (mean chi^2, 1 = noise floor)")
+    ax.set_title("error staircase: effects added one after another")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(loc="upper right")
+    fig.tight_layout()
+    p1 = d / "error_staircase.png"
+    fig.savefig(p1, dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    names = [r.name for r in diag.ranked][::-1]
+    drops = [100 * r.drop for r in diag.ranked][::-1]
+    colors = ["tab:green" if any(a.name == n for a in diag.accepted) else "tab:gray" for n in names]
+    ax.barh(names, drops, color=colors)
+    ax.set_xlabel("error reduction in round 1 [%]")
+    ax.set_title("candidate effects (green: accepted)")
+    fig.tight_layout()
+    p2 = d / "candidates.png"
+    fig.savefig(p2, dpi=110)
+    plt.close(fig)
+    return [p1, p2]
