@@ -1,5 +1,12 @@
-"""Command line: a thin layer over the library (``bscomp demo``, ``bscomp modes``, ``bscomp frf``,
-``bscomp compare``)."""
+"""Command line: a thin layer over the library (``bscomp demo``, ``systems``, ``modes``, ``frf``,
+``compare``, ``diagnose``).
+
+One error boundary (:func:`main`): every failure is one line ``bscomp <verb>: <ErrorName>: what is wrong --
+how to fix it`` on stderr (with ``--json``: a JSON object ``{"error", "type", "hint"}`` on stdout), exit
+code 2 for a user mistake and 1 for a solver that ran and failed; ``--debug`` shows the traceback.
+Arguments are checked before any computation, and outputs are staged so that a failing second output
+leaves the first unchanged (:mod:`bscomp.files`).
+"""
 
 from __future__ import annotations
 
@@ -67,9 +74,13 @@ def _demo_validation(out: Path) -> int:
         print("  lines to add to the system file:\n    " + diag.code().replace("\n", "\n    "))
     truth = json.loads((root / "truth.json").read_text())
     print(f"  (the truth, which diagnose did not see: {json.dumps(truth['hidden'])})")
+    from bscomp.files import atomic_dir
+
     rep = out / "validation"
-    path = write_report([comp, diag], rep, title="bscomp demo: the FE test bed meets the measurements")
-    diag.to_json(rep / "diagnosis.json")
+    with atomic_dir(rep) as tmp:
+        write_report([comp, diag], tmp, title="bscomp demo: the FE test bed meets the measurements")
+        diag.to_json(tmp / "diagnosis.json")
+    path = rep / "index.html"
     print(f"  report written to {path}")
     return 0
 
@@ -100,11 +111,31 @@ def _build(args):
     return build_system(args.system, overrides)
 
 
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+def _outputs(args, csv_suffixes=(".csv",)):
+    """Check ``--csv``/``--png`` paths before computing (folder exists, not a directory, known suffix)."""
+    from bscomp.files import writable_path
+
+    if getattr(args, "csv", None):
+        writable_path(args.csv, "--csv file", csv_suffixes)
+    if getattr(args, "png", None):
+        writable_path(args.png, "--png file", FIGURE_SUFFIXES)
+
+
 def _modes(args) -> int:
+    from bscomp.files import staged
     from bscomp.linear.modal import modes
 
+    _outputs(args)
     system = _build(args)
     md = modes(system, inputs=args.input or None, outputs=args.output or None, n=args.n, fmax=args.fmax)
+    with staged() as st:       # both files or neither
+        if args.csv:
+            md.to_csv(st.path(args.csv))
+        if args.png:
+            md.plot(st.path(args.png))
     if args.json:
         print(md.to_json())
     else:
@@ -113,22 +144,25 @@ def _modes(args) -> int:
         print(md.table(args.reference) if args.reference else md.table())
         for note in md.notes:
             print(f"note: {note}")
-    if args.csv:
-        md.to_csv(args.csv)
-    if args.png:
-        md.plot(args.png)
     return 0
 
 
 def _frf(args) -> int:
+    from bscomp.errors import UsageError
+    from bscomp.files import staged
     from bscomp.linear.response import frf
 
+    if args.fmax <= args.fmin:
+        raise UsageError(f"--fmax {args.fmax:g} Hz must be above --fmin {args.fmin:g} Hz",
+                         hint="give a frequency band, e.g. --fmin 1 --fmax 1000")
+    _outputs(args)
     system = _build(args)
     res = frf(system, args.input, args.output, fmin=args.fmin, fmax=args.fmax, n=args.n)
-    if args.csv:
-        res.to_csv(args.csv)
-    if args.png:
-        res.plot(args.png)
+    with staged() as st:
+        if args.csv:
+            res.to_csv(st.path(args.csv))
+        if args.png:
+            res.plot(st.path(args.png))
     if not args.csv and not args.png:
         res.to_csv(sys.stdout)
     else:
@@ -154,8 +188,11 @@ def _compare(args) -> int:
     else:
         print(comp.summary())
     if args.report:
-        path = write_report(comp, args.report)
-        print(f"report written to {path}", file=sys.stderr if args.json else sys.stdout)
+        from bscomp.files import atomic_dir
+
+        with atomic_dir(args.report) as tmp:      # a report is complete or absent
+            write_report(comp, tmp)
+        print(f"report written to {Path(args.report) / 'index.html'}", file=sys.stderr if args.json else sys.stdout)
     return 0
 
 
@@ -198,59 +235,122 @@ def _diagnose(args) -> int:
         if args.apply:
             print("\nlines to add to the system file:\n" + diag.code())
     if args.report:
+        from bscomp.files import atomic_dir
+
         out = Path(args.report)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = diag.plot(out)
-        diag.to_json(out / "diagnosis.json")
-        (out / "diagnosis.txt").write_text(diag.table() + "\n\n" + diag.code() + "\n")
+        with atomic_dir(out) as tmp:              # complete or absent
+            paths = diag.plot(tmp)
+            diag.to_json(tmp / "diagnosis.json")
+            (tmp / "diagnosis.txt").write_text(diag.table() + "\n\n" + diag.code() + "\n")
         if not args.json:
             print(f"report written to {out} ({', '.join(p.name for p in paths)}, diagnosis.json, diagnosis.txt)")
     return 0
 
 
+def _systems(args) -> int:
+    """``bscomp systems``: the registered drives with their one-line descriptions."""
+    from bscomp import systems
+
+    rows = systems.available() if hasattr(systems, "available") else {
+        name: ((fn.__doc__ or "").strip().splitlines() or [""])[0] for name, fn in systems.REGISTRY.items()}
+    if args.json:
+        import json
+
+        print(json.dumps(rows, indent=2))
+        return 0
+    width = max(map(len, rows))
+    for name, doc in rows.items():
+        print(f"{name:<{width}}  {doc}")
+    print("\n(or a path to a .py file that defines build() returning a bscomp.System)")
+    return 0
+
+
 def _add_system_args(p):
-    p.add_argument("system", help="a system registered in bscomp.systems (e.g. small_drive) or a .py file "
+    p.add_argument("system", help="a system registered in bscomp.systems (see `bscomp systems`) or a .py file "
                                   "defining build()")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="parameter override (repeatable)")
-    p.add_argument("--position", type=float, metavar="X",
+    p.add_argument("--position", type=_number("--position"), metavar="X",
                    help="nut position: sets the system's position_parameter (declared by its build function)")
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="bscomp",
-                                     description="Ballscrew feed drives as acausal components.")
-    sub = parser.add_subparsers(dest="cmd", required=True)
-    p = sub.add_parser("demo", help="modes and Bode plot of the thesis test bed, then the validation story on "
-                                    "bundled measurements (compare, diagnose, report)")
+# ---- argument types: checked at the door, named in the error -------------------------------------------
+def _number(flag, low=None, high=None, integer=False, open_low=True):
+    """An argparse type: a finite number (an int if ``integer``) in (low, high]; the error names the flag."""
+    import math
+
+    def parse(text):
+        kind = "an integer" if integer else "a number"
+        try:
+            v = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{flag} must be {kind}, got {text!r}") from None
+        if not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{flag} must be finite, got {text!r}")
+        if low is not None and (v <= low if open_low else v < low):
+            raise argparse.ArgumentTypeError(f"{flag} must be {'>' if open_low else '>='} {low:g}, got {text!r}")
+        if high is not None and v > high:
+            raise argparse.ArgumentTypeError(f"{flag} must be <= {high:g}, got {text!r}")
+        return v
+
+    return parse
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises :class:`~bscomp.errors.UsageError` instead of printing usage and exiting."""
+
+    def error(self, message):
+        from bscomp.errors import UsageError
+
+        head, sep, rest = message.partition(": ")
+        if sep and head.startswith("argument ") and head.split()[-1].split("/")[0] in rest:
+            message = rest                       # "argument --n: --n must be > 0" -> "--n must be > 0"
+        elif head == "argument cmd":
+            message = rest
+        raise UsageError(message or "bad arguments", hint=f"see `{self.prog} --help`")
+
+
+def _parser() -> argparse.ArgumentParser:
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", help="show the full traceback on an error")
+    parser = _Parser(prog="bscomp", description="Ballscrew feed drives as acausal components.", parents=[common])
+    sub = parser.add_subparsers(dest="cmd", required=True, parser_class=_Parser)
+    p = sub.add_parser("demo", parents=[common], help="modes and Bode plot of the thesis test bed, then the "
+                       "validation story on bundled measurements (compare, diagnose, report)")
     p.add_argument("--no-validation", action="store_true", help="only the modes and Bode plot (seconds)")
     p.add_argument("--out", default="out", help="folder for figures (default: out)")
     p.set_defaults(func=_demo)
 
-    p = sub.add_parser("modes", help="natural frequencies, damping, modal masses and shapes")
+    p = sub.add_parser("systems", parents=[common], help="list the registered drives")
+    p.add_argument("--json", action="store_true", help="print the list as JSON")
+    p.set_defaults(func=_systems)
+
+    p = sub.add_parser("modes", parents=[common], help="natural frequencies, damping, modal masses and shapes")
     _add_system_args(p)
     p.add_argument("--input", action="append", help="input for the participation factors (repeatable)")
     p.add_argument("--output", action="append", help="output for the participation factors (repeatable)")
-    p.add_argument("--n", type=int, help="keep the n lowest modes")
-    p.add_argument("--fmax", type=float, help="keep the modes up to FMAX [Hz]")
+    p.add_argument("--n", type=_number("--n", 0, 100000, integer=True), help="keep the n lowest modes (>= 1)")
+    p.add_argument("--fmax", type=_number("--fmax", 0), help="keep the modes up to FMAX [Hz]")
     p.add_argument("--reference", help="coordinate at which modal masses are reported (e.g. rotor.phi)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--csv", help="write the mode table and shapes to a CSV file")
-    p.add_argument("--png", help="write a mode-shape plot")
+    p.add_argument("--png", help="write a mode-shape plot (.png, .pdf or .svg)")
     p.set_defaults(func=_modes)
 
-    p = sub.add_parser("frf", help="frequency response between an input and an output")
+    p = sub.add_parser("frf", parents=[common], help="frequency response between an input and an output")
     _add_system_args(p)
     p.add_argument("--input", required=True, help="input name, e.g. motor.tau")
     p.add_argument("--output", required=True, help="output name, e.g. rotor.w")
-    p.add_argument("--fmin", type=float, default=1.0, help="lowest frequency [Hz] (default 1)")
-    p.add_argument("--fmax", type=float, default=1000.0, help="highest frequency [Hz] (default 1000)")
-    p.add_argument("--n", type=int, default=500, help="number of log-spaced frequencies (default 500)")
+    p.add_argument("--fmin", type=_number("--fmin", 0), default=1.0, help="lowest frequency [Hz] (default 1)")
+    p.add_argument("--fmax", type=_number("--fmax", 0), default=1000.0, help="highest frequency [Hz] (default 1000)")
+    p.add_argument("--n", type=_number("--n", 1, 10 ** 6, integer=True, open_low=False), default=500,
+                   help="number of log-spaced frequencies (default 500)")
     p.add_argument("--csv", help="write the FRF to a CSV file (default: CSV on stdout when no --png)")
-    p.add_argument("--png", help="write a Bode plot")
+    p.add_argument("--png", help="write a Bode plot (.png, .pdf or .svg)")
     p.set_defaults(func=_frf)
 
-    p = sub.add_parser("compare", help="compare a model with measured FRFs / time series: where it fails")
-    p.add_argument("system", help="a system registered in bscomp.systems (e.g. small_drive) or a .py file "
+    p = sub.add_parser("compare", parents=[common],
+                       help="compare a model with measured FRFs / time series: where it fails")
+    p.add_argument("system", help="a system registered in bscomp.systems (see `bscomp systems`) or a .py file "
                                   "defining build(); each file's conditions are passed to the build")
     p.add_argument("data", nargs="+", help="measurement CSV files (FRF or time series, see docs/measurements.md)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="parameter override (repeatable)")
@@ -258,28 +358,76 @@ def main(argv=None) -> int:
     p.add_argument("--json", action="store_true", help="print the comparison as JSON")
     p.set_defaults(func=_compare)
 
-    p = sub.add_parser("diagnose", help="find the physical effects a model is missing, from measurements")
+    p = sub.add_parser("diagnose", parents=[common],
+                       help="find the physical effects a model is missing, from measurements")
     _add_system_args(p)
     p.add_argument("data", nargs="+", help="measurement files (FRF or time-series CSV, see docs/measurements.md)")
     p.add_argument("--uncertain", action="append", metavar="NAME[=SPREAD][,...]",
                    help="parameters to re-calibrate first, each with its relative spread (default 0.2); default: "
                         "the drive's declared uncertain parameters")
-    p.add_argument("--max-effects", type=int, default=3, help="most effects accepted one after another")
+    p.add_argument("--max-effects", type=_number("--max-effects", 0, 20, integer=True, open_low=False), default=3,
+                   help="most effects accepted one after another")
     p.add_argument("--apply", action="store_true", help="print the lines to add to the system file")
     p.add_argument("--report", metavar="DIR", help="write the staircase figure, JSON and text to DIR")
     p.add_argument("--json", action="store_true", help="print the diagnosis as JSON")
     p.add_argument("--verbose", action="store_true", help="print each round's fits (debug lines)")
     p.set_defaults(func=_diagnose)
+    return parser
 
-    args = parser.parse_args(argv)
+
+# ---- the error boundary ----------------------------------------------------------------------------------
+_HINTS = {
+    "FileNotFoundError": "check the path",
+    "IsADirectoryError": "give a file, not a folder",
+    "PermissionError": "choose a writable location",
+    "OSError": "check the path and free disk space",
+    "MemoryError": "use a coarser model or fewer points",
+}
+
+
+def _describe(exc: BaseException) -> tuple[str, str, str, int]:
+    """(type name, message, hint, exit code) of any exception, for the one-line report."""
+    from bscomp.errors import BscompError
+
+    name = type(exc).__name__
+    if isinstance(exc, BscompError):
+        return name, str(exc), exc.hint or "", exc.exit_code
+    if isinstance(exc, OSError):
+        where = f" {exc.filename!r}" if getattr(exc, "filename", None) else ""
+        return name, f"{exc.strerror or exc}{where}", _HINTS.get(name, _HINTS["OSError"]), 2
+    if isinstance(exc, (ValueError, TypeError, KeyError, ArithmeticError, MemoryError, RecursionError)):
+        msg = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+        return name, msg or repr(exc), _HINTS.get(name, "check the arguments (rerun with --debug for details)"), 2
+    return name, str(exc) or repr(exc), "this is a bug in bscomp: rerun with --debug and report the traceback", 2
+
+
+def main(argv=None) -> int:
+    """Run one command; every failure is one line (or a JSON object with ``--json``), see the module doc."""
+    import json
+
+    argv = sys.argv[1:] if argv is None else list(argv)
+    as_json, debug = "--json" in argv, "--debug" in argv
+    verb = next((a for a in argv if not a.startswith("-")), "")
     try:
+        args = _parser().parse_args(argv)
+        verb = args.cmd
         return args.func(args)
-    except Exception as exc:  # report named errors cleanly
-        from bscomp.errors import BscompError
-        if isinstance(exc, BscompError):
-            print(f"bscomp: {type(exc).__name__}: {exc}", file=sys.stderr)
-            return 2
+    except KeyboardInterrupt:
+        print(f"bscomp {verb}: interrupted".replace("  ", " "), file=sys.stderr)
+        return 130
+    except SystemExit:       # --help
         raise
+    except BaseException as exc:
+        if debug:
+            raise
+        name, msg, hint, code = _describe(exc)
+        msg = " ".join(msg.split())
+        if as_json:
+            print(json.dumps({"error": msg, "type": name, "hint": hint}))
+        else:
+            print(f"bscomp{' ' + verb if verb else ''}: {name}: {msg}" + (f" -- {hint}" if hint else ""),
+                  file=sys.stderr)
+        return code
 
 
 if __name__ == "__main__":

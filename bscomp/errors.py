@@ -17,11 +17,27 @@ __all__ = [
     "HighIndexError",
     "SingularSystemError",
     "NotLinearError",
+    "SolverError",
+    "OutputFileError",
+    "UsageError",
 ]
 
 
 class BscompError(Exception):
-    """Base class of all bscomp errors."""
+    """Base class of all bscomp errors.
+
+    ``hint`` (optional keyword) says how to fix it; the CLI prints ``<message> -- <hint>``.
+    ``exit_code`` is what the command line returns: 2 for a user mistake, 1 for a solver that ran and failed.
+    """
+
+    exit_code = 2
+
+    def __init__(self, *args, hint: str | None = None):
+        super().__init__(*args)
+        if hint is not None:
+            self.hint = hint
+
+    hint: str | None = None
 
 
 class ModelDefinitionError(BscompError):
@@ -73,3 +89,17 @@ class SingularSystemError(StructuralError):
 
 class NotLinearError(BscompError):
     """A second-order (M, C, K) form was requested for a system that has no such form."""
+
+
+class SolverError(BscompError):
+    """A solver ran on a well-posed problem and failed (integrator, Newton, Ipopt): CLI exit code 1."""
+
+    exit_code = 1
+
+
+class OutputFileError(BscompError, OSError):
+    """An output file cannot be written (a directory, a missing or read-only folder, a wrong extension)."""
+
+
+class UsageError(BscompError, ValueError):
+    """A command-line argument or a function argument is malformed or out of range."""

@@ -23,11 +23,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from bscomp.errors import UnknownNameError
 from bscomp.kernel.dae import Dae
+from bscomp.kernel.flatten import flatten
 from bscomp.kernel.system import System
 
-__all__ = ["ModelSpec", "as_system", "as_dae", "spec_of", "split_overrides", "model_name"]
+__all__ = ["ModelSpec", "as_system", "as_dae", "resolve_model", "spec_of", "split_overrides", "model_name"]
 
 
 def split_overrides(overrides: dict | None) -> tuple[dict, dict]:
@@ -80,8 +83,6 @@ class ModelSpec:
 
     def dae(self) -> Dae:
         """Build and flatten."""
-        from bscomp.kernel.flatten import flatten
-
         return flatten(self.system())
 
 
@@ -125,12 +126,8 @@ def as_dae(model, params: dict | None = None, *, damping_refreshed: bool = False
     system-level damping depends on (then it is re-flattened from its System); callers that re-derive
     that damping themselves (``second_order``) pass ``damping_refreshed``.
     """
-    from bscomp.linear.linearize import resolve_model
-
     if isinstance(model, (System, Dae)):
         return resolve_model(model, params, damping_refreshed=damping_refreshed)
-    from bscomp.kernel.flatten import flatten
-
     return flatten(as_system(model, params))
 
 
@@ -155,3 +152,27 @@ def model_name(model) -> str:
     if isinstance(model, (str, Path)):
         return str(model)
     return getattr(model, "name", None) or getattr(model, "__name__", type(model).__name__)
+
+
+def resolve_model(model, params: dict | None = None, *, damping_refreshed: bool = False) -> Dae:
+    """A Dae from a System or Dae, with parameter overrides applied (re-flattening if structural).
+
+    A Dae with a system-level damping (modal/Rayleigh, computed from the modes at flattening) is also
+    re-flattened when the overrides change its parameter values, since its damping matrix follows the
+    modes; callers that re-derive the damping themselves (``second_order``) pass ``damping_refreshed``.
+    """
+    params = dict(params or {})
+    if isinstance(model, System):
+        return flatten(model.with_parameters(params) if params else model)
+    if isinstance(model, Dae):
+        structural = [k for k in params if k in model.structural_parameters]
+        stale = (not damping_refreshed and getattr(model, "system_damping", None) is not None and params
+                 and not np.array_equal(model.parameter_vector(params), model.parameter_vector({})))
+        if structural or stale:
+            if model.system is None:
+                why = (f"parameters {structural} are structural" if structural else
+                       "its system damping depends on the parameters")
+                raise UnknownNameError(f"{why} and the Dae has no system to re-flatten; pass the System instead")
+            return flatten(model.system.with_parameters(params))
+        return model
+    return as_dae(model, params)

@@ -26,6 +26,7 @@ import scipy.sparse.linalg as spla
 
 from bscomp.errors import NotLinearError, SingularSystemError, UnknownNameError
 from bscomp.kernel.dae import Dae, _sp
+from bscomp.model import resolve_model
 
 __all__ = ["linearize", "second_order", "SecondOrderModel", "OperatingPoint", "resolve_model", "control_labels"]
 
@@ -45,33 +46,6 @@ class OperatingPoint:
     z: np.ndarray
     u: np.ndarray
     p: np.ndarray
-
-
-def resolve_model(model, params: dict | None = None, *, damping_refreshed: bool = False) -> Dae:
-    """A Dae from a System or Dae, with parameter overrides applied (re-flattening if structural).
-
-    A Dae with a system-level damping (modal/Rayleigh, computed from the modes at flattening) is also
-    re-flattened when the overrides change its parameter values, since its damping matrix follows the
-    modes; callers that re-derive the damping themselves (``second_order``) pass ``damping_refreshed``.
-    """
-    from bscomp.kernel.flatten import flatten
-    from bscomp.kernel.system import System
-
-    params = dict(params or {})
-    if isinstance(model, System):
-        return flatten(model.with_parameters(params) if params else model)
-    if isinstance(model, Dae):
-        structural = [k for k in params if k in model.structural_parameters]
-        stale = (not damping_refreshed and getattr(model, "system_damping", None) is not None and params
-                 and not np.array_equal(model.parameter_vector(params), model.parameter_vector({})))
-        if structural or stale:
-            if model.system is None:
-                why = (f"parameters {structural} are structural" if structural else
-                       "its system damping depends on the parameters")
-                raise UnknownNameError(f"{why} and the Dae has no system to re-flatten; pass the System instead")
-            return flatten(model.system.with_parameters(params))
-        return model
-    raise TypeError(f"expected a System or Dae, got {type(model).__name__}")
 
 
 def operating_point(dae: Dae, at: dict | None = None, params: dict | None = None) -> OperatingPoint:

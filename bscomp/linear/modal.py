@@ -24,6 +24,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from bscomp.errors import SingularSystemError, UnknownNameError
+from bscomp.kernel import Dae, System
+from bscomp.model import as_system
 
 __all__ = ["modes", "Modes", "modal_poles"]
 
@@ -41,10 +43,8 @@ def _second_order(model, inputs=None, outputs=None, at=None, params=None):
             raise TypeError("'at' and 'params' cannot be applied to a SecondOrderModel: pass the System "
                             "or Dae")
         return model
-    if isinstance(model, str):
-        from bscomp.systems import get
-
-        return second_order(get(model, params), inputs=inputs, outputs=outputs, at=at)
+    if not isinstance(model, (System, Dae)):         # a name, .py path, build function or ModelSpec
+        return second_order(as_system(model, params), inputs=inputs, outputs=outputs, at=at)
     return second_order(model, inputs=inputs, outputs=outputs, at=at, params=params)
 
 

@@ -27,6 +27,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from bscomp.errors import NotLinearError, UnknownNameError
+from bscomp.kernel import Dae, System
+from bscomp.model import as_system
 
 __all__ = ["frf", "Frf", "transfer_function", "ModalSection"]
 
@@ -189,10 +191,8 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
     try:
         so = _second_order(model, ins, outs, at, params)
     except NotLinearError:
-        if isinstance(model, str):
-            from bscomp.systems import get
-
-            model, params = get(model, params), None
+        if not isinstance(model, (System, Dae)):
+            model, params = as_system(model, params), None
         lin = linearize(model, inputs=ins, outputs=outs, at=at, params=params)
         return Frf(freqs=f, H=_statespace_frf(lin, f), inputs=[s.replace("/", ".") for s in lin.input_labels],
                    outputs=[s.replace("/", ".") for s in lin.output_labels], name=name,

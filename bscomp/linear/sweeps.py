@@ -16,21 +16,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp.errors import UnknownNameError
+from bscomp.model import ModelSpec, as_system
 
 __all__ = ["position_sweep", "PositionSweep", "build_system"]
 
 
 def build_system(build, overrides: dict | None = None):
-    """A System from a name / ``.py`` path (``bscomp.systems.get``) or a callable, with parameter overrides.
+    """A System from a name / ``.py`` path / :class:`~bscomp.model.ModelSpec` or a build callable, with overrides.
 
     A callable is called without arguments and must return a :class:`bscomp.System`; the overrides are
     then applied with ``System.set`` (so structural parameters such as the nut position re-mesh at
-    flattening).
+    flattening). Names and paths go through :func:`bscomp.model.as_system` (keys without a dot are build
+    keywords).
     """
-    if isinstance(build, str):
-        from bscomp.systems import get
-
-        return get(build, overrides)
+    if isinstance(build, (str, ModelSpec)):
+        return as_system(build, overrides)
     if callable(build):
         system = build()
         for k, v in (overrides or {}).items():

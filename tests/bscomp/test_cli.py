@@ -68,7 +68,79 @@ def test_position_sets_declared_parameter(tmp_path, capsys):
 def test_errors_exit_2_with_one_named_line(argv, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("bscomp: ") and "Error: " in err[0]
+    assert len(err) == 1 and err[0].startswith(f"bscomp {argv[0]}: ") and "Error: " in err[0]
+
+
+# (argv, error class, text the one line must contain): every bad input named, exit 2, no traceback
+BAD = [
+    (["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.w", "--fmin", "0"], "UsageError", "--fmin"),
+    (["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.w", "--fmax", "nan"], "UsageError", "--fmax"),
+    (["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.w", "--n", "-3"], "UsageError", "--n"),
+    (["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.w", "--n", "2.5"], "UsageError", "--n"),
+    (["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.w", "--fmin", "100", "--fmax", "10"],
+     "UsageError", "--fmax"),
+    (["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.w", "--png", "{tmp}/bode.xyz"],
+     "OutputFileError", "bode.xyz"),
+    (["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.w", "--csv", "{tmp}"], "OutputFileError",
+     "is a directory"),
+    (["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.w", "--csv", "{tmp}/no/such/dir/h.csv"],
+     "OutputFileError", "does not exist"),
+    (["frf", "small_drive", "--input", "motor.nope", "--output", "rotor.w"], "Error", "motor.nope"),
+    (["modes", "small_drive", "--n", "-1"], "UsageError", "--n"),
+    (["modes", "small_drive", "--n", "0"], "UsageError", "--n"),
+    (["modes", "small_drive", "--fmax", "-5"], "UsageError", "--fmax"),
+    (["modes", "small_drive", "--csv", "{tmp}/m.csv", "--png", "{tmp}/m.xyz"], "OutputFileError", "m.xyz"),
+    (["modes", "small_drive", "--set", "table.m=abc"], "ParameterError", "table.m"),
+    (["modes", "small_drive", "--set", "table.nope=3"], "UnknownNameError", "no parameter 'nope'"),
+    (["modes", "small_drive", "--position", "inf"], "UsageError", "--position"),
+    (["modes", "{tmp}/missing.py"], "UnknownNameError", "missing.py"),
+    (["diagnose", "small_drive", "{tmp}/missing.csv"], "Error", "missing.csv"),
+    (["diagnose", "small_drive", "x.csv", "--max-effects", "-1"], "UsageError", "--max-effects"),
+    (["compare", "small_drive", "{tmp}"], "Error", ""),
+    (["frobnicate"], "UsageError", "frobnicate"),
+]
+
+
+@pytest.mark.parametrize("argv, error, text", BAD, ids=[" ".join(a[0][:1] + a[0][2:]) for a in BAD])
+def test_bad_input_one_line_named_error(argv, error, text, tmp_path, capsys):
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
+    assert main(argv) == 2
+    cap = capsys.readouterr()
+    err = cap.err.strip().splitlines()
+    assert len(err) == 1, cap.err
+    assert err[0].startswith(f"bscomp {argv[0]}: ") and f"{error}: " in err[0] and text.replace("{tmp}", "") in err[0]
+    assert "Traceback" not in cap.err
+    assert not (tmp_path / "m.csv").exists()           # a failing second output leaves no first output behind
+
+
+def test_json_errors_are_json_on_stdout(capsys):
+    assert main(["frf", "small_drive", "--input", "motor.tau", "--output", "rotor.w", "--fmax", "nan",
+                 "--json"]) == 2
+    d = json.loads(capsys.readouterr().out)
+    assert d["type"] == "UsageError" and "--fmax" in d["error"] and d["hint"]
+    assert main(["modes", "nope", "--json"]) == 2
+    assert json.loads(capsys.readouterr().out)["type"] == "UnknownNameError"
+
+
+def test_debug_shows_the_traceback():
+    from bscomp.errors import UnknownNameError
+
+    with pytest.raises(UnknownNameError):
+        main(["modes", "nope", "--debug"])
+
+
+def test_error_in_a_users_system_file_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.py"
+    bad.write_text("def build():\n    return 1 / 0\n")
+    assert main(["modes", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "ZeroDivisionError" in err[0]
+
+
+def test_systems_lists_the_registered_drives(capsys):
+    assert main(["systems", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert "testbed_axial_torsional" in rows and all(isinstance(v, str) and v for v in rows.values())
 
 
 def test_console_script_unknown_system_exit_code():

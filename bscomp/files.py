@@ -1,0 +1,147 @@
+"""Writing files so that nothing is ever half-written (a leaf module: imports nothing from bscomp).
+
+Every file bscomp writes (CSV, JSON, PNG, HTML) goes to a temporary name in the same folder and is
+renamed into place only when complete, so an interrupted or failing write (full disk, ``ulimit -f``, an
+exception while formatting) leaves the previous file intact. :func:`staged` does the same for a group of
+outputs: either all of them are replaced or none is.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import tempfile
+from pathlib import Path
+
+__all__ = ["atomic_write", "atomic_path", "atomic_dir", "staged", "writable_path"]
+
+
+def writable_path(path, what: str = "output file", suffixes=None) -> Path:
+    """Check up front that ``path`` can be written: not a directory, its folder exists, known suffix.
+
+    Raises :class:`bscomp.errors.OutputFileError` naming the path and how to fix it.
+    """
+    from bscomp.errors import OutputFileError
+
+    p = Path(path)
+    if p.is_dir():
+        example = str(p / ("out" + (suffixes[0] if suffixes else "")))
+        raise OutputFileError(f"{what} {str(p)!r} is a directory: give a file name, e.g. {example!r}")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise OutputFileError(f"{what} {str(p)!r}: folder {str(parent)!r} does not exist (create it first)")
+    if not os.access(parent, os.W_OK):
+        raise OutputFileError(f"{what} {str(p)!r}: folder {str(parent)!r} is not writable")
+    if suffixes is not None and p.suffix.lower() not in suffixes:
+        raise OutputFileError(f"{what} {str(p)!r} has the extension {p.suffix or '(none)'!r}; use one of "
+                              f"{', '.join(suffixes)}")
+    return p
+
+
+def _publish(tmp, target) -> None:
+    """Give ``tmp`` the mode a plainly created file would have (or the old file's), then rename it."""
+    try:
+        mode = os.stat(target).st_mode & 0o7777
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        mode = 0o666 & ~umask
+    os.chmod(tmp, mode)
+    os.replace(tmp, target)
+
+
+@contextlib.contextmanager
+def atomic_path(path):
+    """Yield a temporary path next to ``path``; on success rename it onto ``path``, else delete it.
+
+    For writers that take a file name (``matplotlib.Figure.savefig``, ``numpy.savetxt``). The temporary
+    name keeps the suffix, so format detection by extension still works.
+    """
+    p = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent if str(p.parent) else ".")
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        _publish(tmp, p)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_write(path, mode: str = "w", encoding: str | None = "utf-8", newline: str | None = None):
+    """``open(path, mode)`` that replaces ``path`` only when the block completes without error.
+
+    ``path`` may also be an open text stream (e.g. ``sys.stdout``), which is written directly.
+    """
+    if isinstance(path, io.IOBase) or hasattr(path, "write"):
+        yield path
+        return
+    with atomic_path(path) as tmp:
+        kw = {} if "b" in mode else {"encoding": encoding, "newline": newline}
+        with open(tmp, mode, **kw) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+
+
+class staged:
+    """Stage several outputs and commit them together: all are renamed into place at the end, or none.
+
+    >>> with staged() as st:                     # doctest: +SKIP
+    ...     md.to_csv(st.path("modes.csv"))
+    ...     md.plot(st.path("modes.png"))
+    """
+
+    def __init__(self):
+        self._pending: list[tuple[Path, Path]] = []
+
+    def path(self, target) -> Path:
+        """A temporary path to write ``target`` to (same folder and suffix)."""
+        p = Path(target)
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent if str(p.parent) else ".")
+        os.close(fd)
+        self._pending.append((Path(tmp), p))
+        return Path(tmp)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            for tmp, target in self._pending:
+                _publish(tmp, target)
+        else:
+            for tmp, _ in self._pending:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+        self._pending.clear()
+        return False
+
+
+@contextlib.contextmanager
+def atomic_dir(path):
+    """Yield a fresh temporary folder; on success it replaces ``path`` (a report is complete or absent).
+
+    An existing ``path`` is moved aside first and deleted only after the new folder is in place.
+    """
+    import shutil
+
+    p = Path(path)
+    parent = p.parent if str(p.parent) else Path(".")
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{p.name}.", dir=parent))
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    old = None
+    if p.exists():
+        old = Path(tempfile.mkdtemp(prefix=f".{p.name}.old.", dir=parent))
+        os.replace(p, old / p.name)
+    os.replace(tmp, p)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
