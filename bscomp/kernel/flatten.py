@@ -40,6 +40,7 @@ from bscomp.errors import (
 from bscomp.kernel.component import Constraint, _Context, _PortBinding
 from bscomp.kernel.dae import Dae, MechanicalInfo, dm_sparse
 from bscomp.kernel.system import System
+from bscomp.kernel.system_damping import apply_system_damping
 
 __all__ = ["flatten"]
 
@@ -515,36 +516,11 @@ def flatten(system: System, *, check: bool = True) -> Dae:
         eq_origin=origins, observables=observables, substitutions=stages,
         structural_parameters=sorted(structural), system=system)
     if getattr(system, "damping", None) is not None:
-        _apply_system_damping(dae, system.damping)
+        apply_system_damping(dae, system.damping)
     dae.stats["flatten_s"] = time.perf_counter() - t_start
     if check:
         dae.check_index1()
     return dae
-
-
-def _apply_system_damping(dae, damping):
-    """Add a system-level damping matrix (modal or Rayleigh, Eq A.10-A.15) to the structural C."""
-    from bscomp.errors import SingularSystemError
-    from bscomp.linear.damping import system_damping_matrix
-    from bscomp.linear.linearize import second_order
-
-    m = dae.mech
-    if m.static or m.damped:
-        names = [m.coordinate_names[j] for j in m.static + m.damped]
-        raise SingularSystemError(f"system damping {damping!r} needs inertia on every coordinate of "
-                                  f"'{dae.name}'; without inertia: {names[:10]} (add masses or drop the option)")
-    dae.check_index1()
-    so = second_order(dae, inputs=[], outputs=[])
-    Cadd = sp.csc_matrix(system_damping_matrix(damping, so.M, so.K, so.coordinates))
-    m.C = (m.C + Cadd).tocsc()
-    # everything built on the structural C goes; the scalar equations' Jacobian does not depend on it
-    for key in [k for k in dae._cache if k not in ("jac_sx", "mx")]:
-        del dae._cache[key]
-    dae.stats["system_damping"] = repr(damping)
-    # what the damping was computed from: second_order re-derives it when parameters or the operating
-    # point change M or K (modal damping follows the modes), see linear._refresh_system_damping
-    dae.system_damping = damping
-    dae.system_damping_basis = (so.M, so.K, Cadd)
 
 
 def _apply_stages(e, stages):

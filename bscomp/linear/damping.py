@@ -28,6 +28,8 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from bscomp.kernel.system_damping import system_damping_matrix
+
 __all__ = [
     "system_damping_matrix",
     "modal_damping_matrix",
@@ -349,17 +351,6 @@ def matrix_from_ratios(option, M, K, coordinates=None) -> np.ndarray:
     rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
     z = option.modal_ratios(lam, phi, Md, coordinates)
     return modal_damping_matrix(Md, Kd, z, n_rigid=int(rigid.sum()))
-
-
-def system_damping_matrix(damping, M, K, coordinates) -> np.ndarray:
-    """The matrix of a system-level damping option (``System.damping``) for the mechanical (M, K).
-
-    Options with ``needs_coordinates = True`` assign their ratios by mode character and are given the
-    coordinate names; the others only see M and K.
-    """
-    if getattr(damping, "needs_coordinates", False):
-        return damping.matrix(M, K, coordinates=list(coordinates))
-    return damping.matrix(M, K)
 
 
 class ModalDamping:

@@ -26,6 +26,14 @@ import scipy.sparse.linalg as spla
 
 from bscomp.errors import NotLinearError, SingularSystemError, UnknownNameError
 from bscomp.kernel.dae import Dae, _sp
+from bscomp.kernel.mechanics import (
+    OperatingPoint,
+    operating_point,
+    require_second_order,
+    second_order_blocks,
+    sparse_jacobians,
+)
+from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.model import resolve_model
 
 __all__ = ["linearize", "second_order", "SecondOrderModel", "OperatingPoint", "resolve_model", "control_labels"]
@@ -35,39 +43,6 @@ def control_labels(names):
     """bscomp names as python-control signal labels: python-control forbids '.', so ``motor.tau`` ->
     ``motor/tau``."""
     return [n.replace(".", "/") for n in names]
-
-
-@dataclass
-class OperatingPoint:
-    """Numeric operating point of a Dae: ``x``, ``x'``, ``z``, ``u``, ``p``."""
-
-    xd: np.ndarray
-    x: np.ndarray
-    z: np.ndarray
-    u: np.ndarray
-    p: np.ndarray
-
-
-def operating_point(dae: Dae, at: dict | None = None, params: dict | None = None) -> OperatingPoint:
-    """Consistent operating point: states and inputs set by name in ``at``; (x', z) solved."""
-    p = dae.parameter_vector({k: v for k, v in (params or {}).items() if k not in dae.structural_parameters})
-    x = dae.x_start.copy()
-    u = np.zeros(dae.nu)
-    for k, v in (at or {}).items():
-        if k in dae.x_names:
-            x[dae.x_names.index(k)] = float(v)
-        elif k in dae.u_names:
-            u[dae.u_names.index(k)] = float(v)
-        else:
-            raise UnknownNameError(f"operating point names '{k}', which is neither a state {dae.x_names[:10]}... "
-                                   f"nor an input {dae.u_names} of '{dae.name}'")
-    xd, z = dae.initialize(x, u, p)
-    return OperatingPoint(xd, x, z, u, p)
-
-
-def _jac(dae: Dae, op: OperatingPoint):
-    _, Jxd, Jx, Jz, Ju = dae.jacobians(op.xd, op.x, op.z, op.u, op.p)
-    return _sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju)
 
 
 def _output_jac(dae: Dae, names, op: OperatingPoint):
@@ -141,7 +116,7 @@ def linearize(model, inputs=None, outputs=None, at: dict | None = None, params: 
 
     dae = resolve_model(model, params)
     op = operating_point(dae, at, params)
-    Jxd, Jx, Jz, Ju = _jac(dae, op)
+    Jxd, Jx, Jz, Ju = sparse_jacobians(dae, op)
     uidx, unames = _select_inputs(dae, inputs)
     if not uidx:
         raise NotLinearError(f"'{dae.name}' has no inputs and python-control's StateSpace needs at least one: add a "
@@ -310,8 +285,6 @@ def _refresh_system_damping(dae, M, K, C):
     M0, K0, Cadd0 = dae.system_damping_basis
     if _close(M, M0) and _close(K, K0):
         return C
-    from bscomp.linear.damping import system_damping_matrix
-
     Cadd = system_damping_matrix(damping, M, K, dae.mech.coordinate_names)
     return sp.csr_matrix(C - Cadd0 + sp.csr_matrix(Cadd))
 
@@ -332,69 +305,29 @@ def second_order(model, inputs=None, outputs=None, at: dict | None = None, param
     """
     dae = resolve_model(model, params, damping_refreshed=True)
     m = dae.mech
-    if m.has_internal_states:
-        raise NotLinearError(f"'{dae.name}' has internal differential states (not only mechanical coordinates); "
-                             "its linearization has no second-order form: use linearize()")
+    require_second_order(dae)
     op = _op if _op is not None else operating_point(dae, at, params)
-    Jxd, Jx, Jz, Ju = _jac(dae, op)
+    jac = sparse_jacobians(dae, op)
     uidx, unames = _select_inputs(dae, inputs)
-    nr = len(m.coordinate_names)
-    nx, nz = dae.nx, dae.nz
-
-    def S(where, n):
-        rows = [where[j] for j in where]
-        cols = list(where)
-        return sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, nr))
-
-    Sq_x, Sq_z = S(m.q_in_x, nx), S(m.q_in_z, nz)
-    Sv_x, Sv_xd, Sa_xd = S(m.v_in_x, nx), S(m.v_in_xd, nx), S(m.a_in_xd, nx)
-    # derivative of an inertial position (dt(q)) is its velocity: for outputs only
-    Sv_xd_out = Sv_xd + S({j: i for i, j in enumerate(m.inertial)}, nx)
-    zint = [i for i in range(nz) if i not in set(m.q_in_z.values())]
-    Sw = sp.csr_matrix((np.ones(len(zint)), (zint, np.arange(len(zint)))), shape=(nz, len(zint)))
-    ni = len(m.inertial)
-    rows_R = m.balance_rows
-    rows_G = list(range(ni + nr, Jx.shape[0]))
-
-    def blocks(rows):
-        Jxd_r, Jx_r, Jz_r = Jxd[rows], Jx[rows], Jz[rows]
-        return (Jx_r @ Sq_x + Jz_r @ Sq_z, Jx_r @ Sv_x + Jxd_r @ Sv_xd, Jxd_r @ Sa_xd, Jz_r @ Sw,
-                Ju[rows][:, uidx])
-
-    Rq, Rv, Ra, Rw, Ru = blocks(rows_R)
-    if zint:
-        Gq, Gv, Ga, Gw, Gu = blocks(rows_G)
-        try:
-            lu = spla.splu(sp.csc_matrix(Gw))
-        except RuntimeError as exc:
-            raise SingularSystemError(f"'{dae.name}': internal algebraic equations are singular") from exc
-
-        def schur(Rx, Gx):
-            Gx = sp.csc_matrix(Gx)
-            if Gx.nnz == 0:
-                return sp.csr_matrix(Rx)
-            return sp.csr_matrix(Rx - Rw @ sp.csr_matrix(lu.solve(Gx.toarray())))
-
-        Kq, Cv_, Ma, Bu = schur(Rq, Gq), schur(Rv, Gv), schur(Ra, Ga), schur(Ru, Gu)
-    else:
-        Kq, Cv_, Ma, Bu = sp.csr_matrix(Rq), sp.csr_matrix(Rv), sp.csr_matrix(Ra), sp.csr_matrix(Ru)
-        Gq = Gv = Ga = Gu = None
+    b = second_order_blocks(dae, jac, uidx)
     if outputs is None:
         outputs = list(m.coordinate_names)
     Gxd, Gx, Gz, Gu_y = _output_jac(dae, outputs, op)
-    Cq = Gx @ Sq_x + Gz @ Sq_z
-    Cv = Gx @ Sv_x + Gxd @ Sv_xd_out
-    Ca = Gxd @ Sa_xd
+    Cq = Gx @ b.Sq_x + Gz @ b.Sq_z
+    Cv = Gx @ b.Sv_x + Gxd @ b.Sv_xd_out
+    Ca = Gxd @ b.Sa_xd
     Dy = Gu_y[:, uidx]
-    Yw = Gz @ Sw
-    if zint and Yw.nnz:
+    Yw = Gz @ b.Sw
+    if b.zint and Yw.nnz:
         def ysub(Yx, Gx_):
-            return sp.csr_matrix(Yx - Yw @ lu.solve(sp.csc_matrix(Gx_).toarray()))
+            return sp.csr_matrix(Yx - Yw @ b.lu.solve(sp.csc_matrix(Gx_).toarray()))
+        Gq, Gv, Ga, Gu = b.G
         Cq, Cv, Ca, Dy = ysub(Cq, Gq), ysub(Cv, Gv), ysub(Ca, Ga), ysub(Dy, Gu)
+    C = b.C
     if refresh_damping:
-        Cv_ = _refresh_system_damping(dae, sp.csr_matrix(Ma), sp.csr_matrix(Kq), sp.csr_matrix(Cv_))
+        C = _refresh_system_damping(dae, sp.csr_matrix(b.M), sp.csr_matrix(b.K), sp.csr_matrix(C))
     return SecondOrderModel(
-        M=sp.csr_matrix(Ma), C=sp.csr_matrix(Cv_), K=sp.csr_matrix(Kq), B=-sp.csr_matrix(Bu),
+        M=sp.csr_matrix(b.M), C=sp.csr_matrix(C), K=sp.csr_matrix(b.K), B=-sp.csr_matrix(b.Bu),
         Cq=sp.csr_matrix(Cq), Cv=sp.csr_matrix(Cv), Ca=sp.csr_matrix(Ca), D=sp.csr_matrix(Dy),
         coordinates=list(m.coordinate_names), units=list(m.coordinate_units), inputs=unames,
         outputs=list(outputs))
