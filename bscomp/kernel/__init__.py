@@ -1,5 +1,12 @@
 """The modelling kernel: ports, components and their partial bases, System, flattening and the Dae.
 
+Flattening (:func:`flatten`, orchestrated in :mod:`bscomp.kernel.flatten`) runs in steps, one module
+each: :mod:`~bscomp.kernel.aliases` (connection sets), :mod:`~bscomp.kernel.templates` and
+:mod:`~bscomp.kernel.instances` (component equations), :mod:`~bscomp.kernel.signals`,
+:mod:`~bscomp.kernel.constraints` (constraint elimination), :mod:`~bscomp.kernel.states` (state
+selection), :mod:`~bscomp.kernel.system_damping` (with :mod:`~bscomp.kernel.mechanics`, the
+second-order ``M, K`` it needs) and :mod:`~bscomp.kernel.checks`.
+
 Imports nothing above it (only :mod:`bscomp.errors`); every analysis and every component builds on it.
 """
 

@@ -1,0 +1,324 @@
+"""Component templates: the symbolic processing of one component class, done once (flattening step 2).
+
+A Modelica tool instantiates each model's equations per component instance; here the equations of a
+component *class* (with a given port layout, parameter shapes and configuration, see
+:func:`template_key`) are built once with local CasADi symbols, and every instance calls the resulting
+``Function`` with its own global symbols (inlined), so N identical components cost one symbolic pass,
+not N.
+
+While building a template, **explicit equations are solved locally** (:func:`eliminate_explicit`): an
+equation affine in one unknown with a constant or parameter coefficient (``port.f - expr``,
+``y - expr``, ``var - expr``) defines that unknown, which is substituted and never becomes a DAE
+unknown -- the causalisation of trivially solvable equations a Modelica compiler does before tearing.
+Port flows so defined enter the force balance of their coordinate (thesis Eq 3.44); flows a template
+leaves undefined must be reactions of its ideal constraints (:mod:`bscomp.kernel.constraints`).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from bscomp.errors import ModelDefinitionError
+from bscomp.kernel.component import Constraint, _Context, _PortBinding
+
+__all__ = ["Template", "template_key", "eliminate_explicit", "vc", "parameter_symbol"]
+
+
+def vc(lst):
+    """``vertcat`` of a list of SX, an empty column for an empty list."""
+    return ca.vertcat(*lst) if lst else ca.SX(0, 1)
+
+
+def parameter_symbol(name, value):
+    """SX symbol shaped like a parameter value (scalar, vector as column, or matrix)."""
+    shape = np.shape(value)
+    return ca.SX.sym(name, *(shape if len(shape) == 2 else (shape[0], 1) if shape else (1, 1)))
+
+
+def template_key(comp, ports, params, variables):
+    """What decides whether two instances share a template: class, ports, parameter shapes, variables and
+    the instance configuration that shapes equations/constraints beyond parameters (dof subsets,
+    shape-function coefficients, attachment offsets: ``Component.template_key``)."""
+    return (type(comp), tuple((n, s.kind.name, s.optional) for n, s in ports.items()),
+            tuple((n, np.shape(comp._values[n])) for n in params), tuple(variables),
+            getattr(comp, "template_key", lambda: None)())
+
+
+def _batch_single_occurrence(remaining, usyms, U, deps):
+    """Unknowns that occur in one equation only, with a constant non-zero coefficient, solved from it
+    without touching any other equation (typically a port flow ``p.f - f(q) = 0``): one Jacobian and one
+    substitution pass over the shared graph for all of them. Returns ``{equation: unknown}`` and the
+    Jacobian."""
+    occurs = {}
+    for k, dk in enumerate(deps):
+        for i in dk:
+            occurs.setdefault(i, []).append(k)
+    J = ca.jacobian(ca.vertcat(*remaining), U)
+    batch = {}
+    for k, dk in enumerate(deps):
+        for i in sorted(dk):
+            if len(occurs[i]) != 1 or i in batch.values():
+                continue
+            coef = J[k, i]
+            if not coef.is_constant():
+                continue
+            c = float(ca.evalf(coef))
+            if c != 0.0 and np.isfinite(c):
+                batch[k] = i
+            break
+    return batch, J
+
+
+def eliminate_explicit(eqs, unknowns, pvals):
+    """Solve equations that are affine in one unknown with a constant (or parameter) coefficient.
+
+    Returns (solutions {index: expr}, remaining equations, indices of equations used). Which equation
+    depends on which unknown is tracked structurally (Jacobian sparsity, updated on substitution), so a
+    solution is substituted only where it occurs: a component with hundreds of port flows over one big
+    expression graph costs one pass per solved flow, not one per (flow, equation) pair.
+    """
+    solved = {}
+    remaining = list(eqs)
+    used = set()
+    if not unknowns or not eqs:
+        return solved, remaining, used
+    usyms = list(unknowns)
+    U = ca.vertcat(*usyms)
+    pattern = ca.jacobian_sparsity(ca.vertcat(*remaining), U)
+    deps = [set() for _ in remaining]
+    for r, c in zip(*pattern.get_triplet(), strict=True):
+        deps[r].add(c)
+    sdeps = {}
+    batch, J = _batch_single_occurrence(remaining, usyms, U, deps)
+    if batch:
+        ks = sorted(batch)
+        rest = ca.substitute(ca.vertcat(*[remaining[k] for k in ks]), ca.vertcat(*[usyms[batch[k]] for k in ks]),
+                             ca.SX.zeros(len(ks)))
+        for r, k in enumerate(ks):
+            i = batch[k]
+            solved[i] = -rest[r] / float(ca.evalf(J[k, i]))
+            used.add(k)
+            sdeps[i] = deps[k] - {i}
+    progress = True
+    while progress:
+        progress = False
+        for k, eq in enumerate(remaining):
+            if k in used:
+                continue
+            for i in sorted(deps[k]):
+                if i in solved:
+                    continue
+                u = usyms[i]
+                coef = ca.jacobian(eq, u)
+                if ca.depends_on(coef, U) or ca.depends_on(coef, pvals[2]):
+                    continue
+                if coef.is_constant():
+                    c = float(ca.evalf(coef))
+                else:
+                    c = float(ca.evalf(ca.substitute(coef, pvals[0], pvals[1])))
+                if c == 0.0 or not np.isfinite(c):
+                    continue
+                rest = ca.substitute(eq, u, ca.SX(0))
+                expr = -rest / coef
+                solved[i] = expr
+                used.add(k)
+                edeps = deps[k] - {i}
+                sdeps[i] = edeps
+                for j in range(len(remaining)):
+                    if j not in used and i in deps[j]:
+                        remaining[j] = ca.substitute(remaining[j], u, expr)
+                        deps[j] = (deps[j] - {i}) | edeps
+                for j in list(solved):
+                    if j != i and i in sdeps[j]:
+                        solved[j] = ca.substitute(solved[j], u, expr)
+                        sdeps[j] = (sdeps[j] - {i}) | edeps
+                progress = True
+                break
+    return solved, remaining, used
+
+
+class Template:
+    """Symbolic processing of one component class, done once and reused for every instance.
+
+    The component's methods are called with local symbols; explicit equations are solved; the result
+    is a CasADi Function ``fun`` of (q, q', q'', signals, p, vars, der(vars)) returning (flows, outputs,
+    remaining equations, observables) that each instance calls with its own global symbols.
+
+    Attributes
+    ----------
+    phys_ports, sig_ports : list of str
+    var_names : list of str
+    diff_vars, alg_unsolved : set of str
+        Variables whose derivative appears (differential states), algebraic ones left unsolved.
+    flow_status : list of str
+        Per flow: ``"solved"`` (explicit), ``"constrained"`` (a constraint reaction) or ``"undefined"``.
+    n_cons, cons_fun, cons_solve_for, cons_params
+        Ideal constraints: count, ``p -> (A, b)`` of ``A q + b = 0``, preferred pivots, parameters read.
+    """
+
+    def __init__(self, comp, path, ports, params, variables):
+        self.phys_ports = [n for n, s in ports.items() if not s.kind.is_signal]
+        self.sig_ports = [n for n, s in ports.items() if s.kind.is_signal]
+        ctx, psyms, q, qd, qdd, flows, sig, out_sig, vs, ds = self._bind(comp, ports, params, variables)
+        ceqs, cons, obs = self._call(comp, path, ctx)
+        p_loc = vc(psyms)
+        pv = np.concatenate([np.asarray(comp._values[n], float).reshape(-1, order="F") for n in params]) \
+            if params else np.zeros(0)
+        self.diff_vars = {n for n, d in zip(self.var_names, ds) if any(ca.depends_on(e, d) for e in ceqs)}
+        alg = [n for n in self.var_names if n not in self.diff_vars]
+        unknowns = flows + [sig[k] for k in out_sig] + [ctx.vars[n] for n in alg]
+        forbid = vc([ctx.dvars[n] for n in self.var_names])
+        solved, remaining, used = eliminate_explicit(ceqs, unknowns, (p_loc, pv, forbid))
+        sub_from = [unknowns[i] for i in solved]
+        sub_to = [solved[i] for i in solved]
+
+        def _sub(e):
+            if not sub_from:
+                return e
+            return ca.substitute(e, ca.vertcat(*sub_from), ca.densify(ca.vertcat(*sub_to)))
+
+        con_q = self._constraints(comp, path, ctx, cons, p_loc, q, qd, qdd, vs, flows)
+        fl_out = self._flows(comp, path, flows, solved, remaining, used, con_q)
+        outs = self._outputs(comp, path, out_sig, len(flows), solved)
+        self.alg_unsolved = {n for j, n in enumerate(alg) if len(flows) + len(out_sig) + j not in solved}
+        self.rem_index = [k for k in range(len(remaining)) if k not in used]
+        rem = [remaining[k] for k in self.rem_index]
+        self.obs_names = list(self.var_names) + list(obs)
+        obs_e = [_sub(v) for v in vs] + [_sub(ca.SX(e)) for e in obs.values()]
+        obs_e = [e if e.numel() == 1 else e[0] for e in obs_e]
+        self.fun = ca.Function(
+            f"tpl_{type(comp).__name__}",
+            [vc(q), vc(qd), vc(qdd), vc(sig), p_loc, vc(vs), vc(ds)],
+            [vc(fl_out), vc(outs), vc(rem), vc(obs_e)])
+
+    def _bind(self, comp, ports, params, variables):
+        """Local symbols for parameters, port potentials (and their derivatives), flows, signals and
+        variables, bound to the component's names in a fresh context."""
+        ctx = _Context()
+        psyms = []
+        for n in params:
+            sym = parameter_symbol(n, comp._values[n])
+            ctx.params[n] = sym
+            psyms.append(ca.vec(sym))
+        q, qd, qdd, flows, flow_port = [], [], [], [], []
+        for pname in self.phys_ports:
+            spec = ports[pname]
+            pq = [ca.SX.sym(f"{pname}.{pot}") for pot, _ in spec.kind.potentials]
+            pqd = [ca.SX.sym(f"der({pname}.{pot})") for pot, _ in spec.kind.potentials]
+            pqdd = [ca.SX.sym(f"der(der({pname}.{pot}))") for pot, _ in spec.kind.potentials]
+            fl = [ca.SX.sym(f"{pname}.{fn}") for fn, _ in spec.kind.flows]
+            q += pq
+            qd += pqd
+            qdd += pqdd
+            flows += fl
+            flow_port += [pname] * len(fl)
+            ctx.ports[pname] = _PortBinding(spec, pq, fl, None)
+            for a, b_, c in zip(pq, pqd, pqdd):
+                ctx.der_pairs += [(a, b_), (b_, c)]
+        self.flow_port = flow_port
+        sig = []
+        out_sig = []
+        for k, pname in enumerate(self.sig_ports):
+            spec = ports[pname]
+            s = ca.SX.sym(pname)
+            sig.append(s)
+            ctx.ports[pname] = _PortBinding(spec, [s], [], None)
+            if spec.kind.signal == "out":
+                out_sig.append(k)
+        self.var_names = list(variables)
+        vs = [ca.SX.sym(n) for n in self.var_names]
+        ds = [ca.SX.sym(f"der({n})") for n in self.var_names]
+        for n, v, d in zip(self.var_names, vs, ds):
+            ctx.vars[n] = v
+            ctx.dvars[n] = d
+            ctx.der_pairs.append((v, d))
+        return ctx, psyms, q, qd, qdd, flows, sig, out_sig, vs, ds
+
+    @staticmethod
+    def _call(comp, path, ctx):
+        """The component's equations (scalarised), constraints and observables, built in ``ctx``."""
+        comp.__dict__["_ctx"] = ctx
+        try:
+            ceqs = [ca.SX(e) for e in comp.connector_equations() + comp.equations()]
+            cons = comp.constraints()
+            obs = comp.observables()
+        except ModelDefinitionError:
+            raise
+        except Exception as exc:  # a bug in a component file: say which one
+            raise ModelDefinitionError(f"component '{path}' ({type(comp).__name__}) failed while building its "
+                                       f"equations: {type(exc).__name__}: {exc}") from exc
+        finally:
+            comp.__dict__["_ctx"] = None
+        return [e[j] for e in ceqs for j in range(e.numel())], cons, obs
+
+    def _constraints(self, comp, path, ctx, cons, p_loc, q, qd, qdd, vs, flows):
+        """Affine constraints ``A(p) q + b(p) = 0`` as a Function of the parameters (numeric coefficients
+        are evaluated per instance). Returns the local potentials they involve."""
+        cexprs, self.cons_solve_for = [], []
+        for cexpr in cons:
+            solve_for = None
+            if isinstance(cexpr, Constraint):
+                solve_for, cexpr = cexpr.solve_for, cexpr.expr
+            cexpr = ca.SX(cexpr)
+            for j in range(cexpr.numel()):
+                cexprs.append(cexpr[j])
+                sf = None
+                if solve_for is not None:
+                    for i, qq in enumerate(q):
+                        if ca.is_equal(qq, ca.SX(solve_for)):
+                            sf = i
+                self.cons_solve_for.append(sf)
+        self.n_cons = len(cexprs)
+        con_q = set()
+        qv = vc(q)
+        if cexprs:
+            C = ca.vertcat(*cexprs)
+            for o in [vc(qd), vc(qdd)] + vs + flows:
+                if o.numel() and ca.depends_on(C, o):
+                    raise ModelDefinitionError(
+                        f"constraint of '{path}' ({type(comp).__name__}) involves velocities, flows or variables: "
+                        "constraints must be affine in port potentials (write other laws as equations)")
+            J = ca.jacobian(C, qv)
+            if ca.depends_on(J, qv):
+                raise ModelDefinitionError(f"constraint of '{path}' ({type(comp).__name__}) is not affine in the "
+                                           "port potentials; only linear holonomic constraints are eliminated")
+            b = ca.substitute(C, qv, ca.DM.zeros(qv.shape))
+            self.cons_fun = ca.Function("cons", [p_loc], [ca.densify(J), ca.densify(b)])
+            spj = J.sparsity()
+            con_q = set(int(c) for c in spj.get_col())
+            self.cons_params = [n for n, s in ctx.params.items() if ca.depends_on(C, ca.vec(s))]
+        else:
+            self.cons_params = []
+        return con_q
+
+    def _flows(self, comp, path, flows, solved, remaining, used, con_q):
+        """Classify each port flow (solved / constrained / undefined); returns the solved expressions."""
+        self.flow_status, self.flow_pos = [], []
+        fl_out = []
+        for i, f in enumerate(flows):
+            if i in solved:
+                self.flow_status.append("solved")
+                self.flow_pos.append(len(fl_out))
+                fl_out.append(solved[i])
+                continue
+            self.flow_pos.append(None)
+            if any(ca.depends_on(e, f) for k, e in enumerate(remaining) if k not in used):
+                raise ModelDefinitionError(
+                    f"component '{path}' ({type(comp).__name__}) defines flow '{f.name()}' implicitly; write it "
+                    "explicitly as an equation 'port.f - expr' (or introduce a Variable)")
+            self.flow_status.append("constrained" if i in con_q else "undefined")
+        return fl_out
+
+    def _outputs(self, comp, path, out_sig, nflow, solved):
+        """Signal outputs must be explicit (``port.y - expr``); returns their expressions."""
+        outs = []
+        self.out_sig_idx = []
+        for j, k in enumerate(out_sig):
+            if nflow + j not in solved:
+                raise ModelDefinitionError(
+                    f"component '{path}' ({type(comp).__name__}) does not define its output '{self.sig_ports[k]}' "
+                    "explicitly; add an equation 'port.y - expr'")
+            outs.append(solved[nflow + j])
+            self.out_sig_idx.append(k)
+        return outs
