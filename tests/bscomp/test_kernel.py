@@ -1,10 +1,13 @@
 """Kernel: components -> System -> flatten -> Dae -> linearize, checked against analytic results."""
 
+import ast
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.linalg as sl
+import scipy.sparse.linalg as spla
 
 import bscomp
 from bscomp import Component, Parameter, System, Variable, flatten, linearize, second_order
@@ -21,7 +24,9 @@ from bscomp.components import (
     TorsionalDamper,
     VelocitySensor,
 )
+from bscomp.kernel.mechanics import start_matrices
 from bscomp.kernel.partials import PartialCompliant
+from bscomp.linear.modal import modes
 
 
 def two_mass(m1=2.0, m2=3.0, k1=1.0e4, k2=2.5e4):
@@ -162,7 +167,6 @@ def test_chain_of_1000_flattens_and_linearizes():
     assert dae.nx == 2 * N and dae.nz == 0
     so = second_order(dae)
     assert so.M.nnz == N and so.K.nnz == 3 * N - 2
-    import scipy.sparse.linalg as spla
     ev = spla.eigsh(so.K.tocsc(), k=3, M=so.M.tocsc(), sigma=0, which="LM", return_eigenvectors=False)
     w = np.sort(np.sqrt(ev))
     ref = [2 * math.sqrt(k / m) * math.sin((2 * j - 1) * math.pi / (2 * (2 * N + 1))) for j in (1, 2, 3)]
@@ -258,11 +262,34 @@ def test_insert_a_compliance_between_connected_ports():
     s = two_mass(k2=2.5e4)
     s.insert("joint", Spring(c=2.5e4), between=("m1.flange_b", "k2.flange_a"))
     # k2 in series with the joint: 1.25e4
-    from bscomp.linear.modal import modes  # the joint adds a massless node: modes() condenses it statically
-
+    # the joint adds a massless node: modes() condenses it statically
     np.testing.assert_allclose(modes(s).frequencies, analytic_two_mass(2.0, 3.0, 1.0e4, 1.25e4), rtol=1e-9)
     s.remove("joint")
     s.connect("m1.flange_b", "k2.flange_a")
     np.testing.assert_allclose(freqs_of(second_order(s)), analytic_two_mass(2.0, 3.0, 1.0e4, 2.5e4), rtol=1e-9)
     with pytest.raises(bscomp.UnknownNameError, match="no connection"):
         s.disconnect("m1.flange_a", "m2.flange_b")
+
+
+def test_kernel_imports_nothing_above_it():
+    """Every kernel module imports only the kernel and bscomp.errors of bscomp (DESIGN.md layer table)."""
+    kernel = Path(bscomp.__file__).parent / "kernel"
+    bad = []
+    for f in sorted(kernel.glob("*.py")):
+        for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                [node.module or ""] if isinstance(node, ast.ImportFrom) and not node.level else []
+            bad += [f"{f.name}: {n}" for n in names if n.split(".")[0] == "bscomp"
+                    and not (n == "bscomp.errors" or n.startswith("bscomp.kernel"))]
+    assert not bad
+
+
+def test_start_matrices_are_the_undamped_second_order_form():
+    """The M, K flattening gives a system damping are those of second_order at the start point."""
+    dae = flatten(two_mass())
+    M, K = start_matrices(dae)
+    so = second_order(dae, inputs=[], outputs=[])
+    np.testing.assert_array_equal(M.toarray(), so.M.toarray())
+    np.testing.assert_array_equal(K.toarray(), so.K.toarray())
+    np.testing.assert_allclose(np.sqrt(sl.eigh(K.toarray(), M.toarray(), eigvals_only=True)) / (2 * np.pi),
+                               analytic_two_mass(2.0, 3.0, 1.0e4, 2.5e4), rtol=1e-9)

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import scipy.linalg as sl
 
 import bscomp
 from bscomp import System, second_order
@@ -44,7 +45,6 @@ def test_modal_damping_gives_the_ratios_and_leaves_rigid_body_free():
 def test_rayleigh_damping_hits_two_targets():
     s = free_chain()
     so0 = second_order(s, inputs=["F.f"])
-    import scipy.linalg as sl
     w = np.sqrt(np.clip(sl.eigh(so0.K.toarray(), so0.M.toarray(), eigvals_only=True), 0, None))[1:]
     f1, f2 = w / (2 * np.pi)
     s.damping = RayleighDamping(zeta=0.03, f1=f1, f2=f2)
