@@ -100,8 +100,8 @@ from bscomp.components import (
 )
 from bscomp.components._beam_fe import Section
 from bscomp.errors import ModelDefinitionError
+from bscomp.kernel.damping import matrix_from_ratios
 from bscomp.kernel.interface import InsertionPoint, UncertainParameter, ValidationInterface
-from bscomp.linear.damping import matrix_from_ratios
 
 from ._params import get_value, load_parameters
 
@@ -178,7 +178,7 @@ class DriveModalDamping:
 
     Tables 4.1/4.2 damp the first and second modes seen from the motor -- the axial screw-nut mode
     (6 %) and the coupling torsion mode (10 %). In the 6-DOF model screw bending modes can fall between
-    them (e.g. at the L position), so ascending order (:class:`bscomp.linear.damping.ModalDamping`) would give
+    them (e.g. at the L position), so ascending order (:class:`bscomp.kernel.damping.ModalDamping`) would give
     10 % to a bending mode. Here ``zeta1``/``zeta2`` go to the first two elastic modes whose kinetic
     energy is mostly axial/torsional (:func:`drive_fraction` > 0.5), ``zeta_other`` to every other
     elastic mode; the rigid-body mode gets none (Sec 5.2.2.1). Without coordinate names (older

@@ -37,7 +37,7 @@ class System:
         self._parent = None
         self.description = ""
         self.sources: dict[str, str] = {}
-        self.damping = None  # system-level option: bscomp.linear.damping.ModalDamping / RayleighDamping
+        self.damping = None  # system-level option: bscomp.kernel.damping.ModalDamping / RayleighDamping
 
     # ---- building -----------------------------------------------------------------------------
     def add(self, name: str, component):

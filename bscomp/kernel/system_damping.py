@@ -1,12 +1,12 @@
 """System-level damping applied at flattening (thesis Sec 3.4, Appendix A.3, Eq A.10-A.15).
 
-A System may carry a damping option (``system.damping``, e.g. ``bscomp.linear.damping.ModalDamping``
+A System may carry a damping option (``system.damping``, e.g. :class:`bscomp.kernel.damping.ModalDamping`
 or ``RayleighDamping``): an object whose ``matrix(M, K[, coordinates])`` turns the undamped mechanical
 matrices into a viscous damping matrix ``C`` (modal ratios under the proportional-damping assumption,
 rigid-body modes undamped, Sec 5.2.2.1). Flattening extracts ``M, K`` of the reduced coordinates at the
 start point (:func:`bscomp.kernel.mechanics.start_matrices`), asks the option for ``C`` and adds it to
 the structural damping, so every analysis of the Dae sees the same damped model. Only the option's
-interface is used here; the formulas live with the options in :mod:`bscomp.linear.damping`.
+interface is used here; the formulas live with the options in :mod:`bscomp.kernel.damping`.
 """
 
 from __future__ import annotations

@@ -1,12 +1,14 @@
 """Linear analysis of a Dae: linearization, second-order form, modes, FRFs, sweeps, damping, reduction."""
 
-from bscomp.linear.damping import (
+from bscomp.kernel.damping import (  # damping models live in the kernel (flattening applies them)
+    ModalDamping,
+    RayleighDamping,
     damped_modal_properties,
     modal_damping_matrix,
     rayleigh_coefficients,
     rayleigh_damping_matrix,
-    system_damping_matrix,
 )
+from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.linearize import (
     OperatingPoint,
     SecondOrderModel,
@@ -20,7 +22,8 @@ from bscomp.linear.reduction import ReducedModel, ReducedPort, cms_reduce, reduc
 from bscomp.linear.response import Frf, ModalSection, frf, transfer_function
 from bscomp.linear.sweeps import PositionSweep, build_system, position_sweep
 
-__all__ = ["damped_modal_properties", "modal_damping_matrix", "rayleigh_coefficients", "rayleigh_damping_matrix",
+__all__ = ["ModalDamping", "RayleighDamping", "damped_modal_properties", "modal_damping_matrix",
+           "rayleigh_coefficients", "rayleigh_damping_matrix",
            "system_damping_matrix", "OperatingPoint", "SecondOrderModel", "control_labels", "linearize",
            "resolve_model", "second_order", "Modes", "modal_poles", "modes", "ReducedModel", "ReducedPort",
            "cms_reduce", "reduce_second_order", "Frf", "ModalSection", "frf", "transfer_function",

@@ -172,7 +172,7 @@ class _TangentUpdate:
         import scipy.linalg as sla
         import scipy.sparse as sp
 
-        from bscomp.linear.damping import system_damping_matrix
+        from bscomp.kernel.system_damping import system_damping_matrix
 
         L, W, A0 = self._factor()
         t = self._tangent_at(x)

@@ -391,7 +391,7 @@ class CompiledModel(TimeSeriesMixin):
             if hasattr(self.damping, "modal_ratios"):
                 zeta = np.asarray(self.damping.modal_ratios(lam, phi, M, coords), float)
             else:
-                from bscomp.linear.damping import system_damping_matrix
+                from bscomp.kernel.system_damping import system_damping_matrix
 
                 csd = csd + _dense(system_damping_matrix(self.damping, M, K, coords))
                 zeta = np.zeros(lam.size)

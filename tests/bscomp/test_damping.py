@@ -1,11 +1,11 @@
-"""Tests for bscomp.linear.damping (thesis Appendix A.3, Eq A.10-A.15, and Rayleigh damping)."""
+"""Tests for bscomp.kernel.damping (thesis Appendix A.3, Eq A.10-A.15, and Rayleigh damping)."""
 
 import numpy as np
 import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from bscomp.linear.damping import (
+from bscomp.kernel.damping import (
     damped_modal_properties,
     modal_damping_matrix,
     rayleigh_coefficients,

@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from bscomp.components._beam_fe import BeamModel, DofSelection, assemble_shaft, select_dofs
 from bscomp.components._beam_fe import thesis_table_b1_sections as table_b1
 from bscomp.errors import SingularSystemError
-from bscomp.linear.damping import modal_damping_matrix
+from bscomp.kernel.damping import modal_damping_matrix
 from bscomp.linear.reduction import ReducedModel, cms_reduce
 from bscomp.systems._params import get_value, load_parameters
 

@@ -7,7 +7,7 @@ import scipy.linalg as sl
 import bscomp
 from bscomp import System, second_order
 from bscomp.components import Force, Mass, Spring
-from bscomp.linear.damping import ModalDamping, RayleighDamping
+from bscomp.kernel.damping import ModalDamping, RayleighDamping
 
 
 def free_chain():

@@ -117,7 +117,7 @@ def test_slow_creep_matches_frozen_quasi_static_stretch():
     The stretch itself changes by ~35 % over the window, so a joint stuck at its start position fails.
     """
     from bscomp import flatten
-    from bscomp.linear.damping import ModalDamping
+    from bscomp.kernel.damping import ModalDamping
     from bscomp.simulation.dispatch import simulate
 
     F, v, z0 = 2000.0, 0.4, 0.25

@@ -133,7 +133,7 @@ def _with_damper():
 
 def test_tangent_sweep_agrees_with_rebuild_sweep():
     """position_sweep(method='tangent') = method='rebuild' (exact FRF with modal damping + a discrete damper)."""
-    from bscomp.linear.damping import ModalDamping
+    from bscomp.kernel.damping import ModalDamping
 
     def build():
         s = _with_damper()

@@ -26,7 +26,7 @@ from bscomp.components import (
 )
 from bscomp.components._beam_fe import Section
 from bscomp.components._node_dofs import t_point_com
-from bscomp.linear.damping import modal_damping_matrix
+from bscomp.kernel.damping import modal_damping_matrix
 
 E, RHO, NU = 210e9, 7800.0, 0.27
 G = E / (2 * (1 + NU))

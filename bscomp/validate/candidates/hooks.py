@@ -22,7 +22,7 @@ class AddedModalDamping:
     """System-level damping: a base option with ``modal_ratios`` plus ``zeta`` on every elastic mode.
 
     Wraps e.g. :class:`~bscomp.systems.testbed.DriveModalDamping`; rigid-body modes stay undamped
-    (Sec 5.2.2.1). The matrix follows Eq A.10-A.15 (:func:`bscomp.linear.damping.modal_damping_matrix`).
+    (Sec 5.2.2.1). The matrix follows Eq A.10-A.15 (:func:`bscomp.kernel.damping.modal_damping_matrix`).
     """
 
     needs_coordinates = True
@@ -42,7 +42,7 @@ class AddedModalDamping:
         return z
 
     def matrix(self, M, K, coordinates=None):
-        from bscomp.linear.damping import matrix_from_ratios
+        from bscomp.kernel.damping import matrix_from_ratios
 
         return matrix_from_ratios(self, M, K, coordinates)
 
@@ -63,7 +63,8 @@ class AddedDampingOnMatrix:
     def matrix(self, M, K, coordinates=None):
         import scipy.linalg as sla
 
-        from bscomp.linear.damping import modal_damping_matrix, system_damping_matrix
+        from bscomp.kernel.damping import modal_damping_matrix
+        from bscomp.kernel.system_damping import system_damping_matrix
 
         Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
         Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
@@ -96,7 +97,7 @@ class DetachedBodyDamping:
         self.bodies = list(bodies)
 
     def matrix(self, M, K, coordinates=None):
-        from bscomp.linear.damping import system_damping_matrix
+        from bscomp.kernel.system_damping import system_damping_matrix
 
         M = M.toarray() if hasattr(M, "toarray") else np.array(M, float)
         K = K.toarray() if hasattr(K, "toarray") else np.array(K, float)

@@ -18,6 +18,10 @@ damped_modal_properties
     Natural frequencies and damping ratios recovered from the eigenvalues of the damped system.
 
 Only numpy and scipy are used. ``M`` and ``K`` may be dense arrays or ``scipy.sparse`` matrices.
+
+These are damping *models* (what a drive declares, ``system.damping = ModalDamping(...)``, and what
+flattening applies, :mod:`bscomp.kernel.system_damping`), so they live in the kernel where systems and
+the flattening can reach them; :mod:`bscomp.linear` re-exports them for analyses.
 """
 
 from __future__ import annotations
@@ -28,14 +32,14 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from bscomp.kernel.system_damping import system_damping_matrix
-
 __all__ = [
-    "system_damping_matrix",
     "modal_damping_matrix",
     "rayleigh_damping_matrix",
     "rayleigh_coefficients",
     "damped_modal_properties",
+    "matrix_from_ratios",
+    "ModalDamping",
+    "RayleighDamping",
 ]
 
 _SYM_RTOL = 1e-9
@@ -343,8 +347,6 @@ def damped_modal_properties(
 def matrix_from_ratios(option, M, K, coordinates=None) -> np.ndarray:
     """The damping matrix (Eq A.10-A.15) of an option that gives a ratio per mode (``modal_ratios(lam,
     phi, M, coordinates)``): one ``eigh`` of (K, M), the ratios, :func:`modal_damping_matrix`."""
-    import scipy.linalg as sla
-
     Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
     Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
     lam, phi = sla.eigh(Kd, Md)
