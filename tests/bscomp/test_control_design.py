@@ -12,7 +12,6 @@ from bscomp.control.closed_loop import (
     plant_from_system,
     rigid_plant,
     rst_loop,
-    thesis_modal_plant,
     velocity_loop,
 )
 from bscomp.control.design import (
@@ -25,6 +24,7 @@ from bscomp.control.design import (
     zoh_polynomials,
 )
 from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.thesis_plants import thesis_modal_plant
 
 P = load_parameters()
 K_A, K_T, H_G = (get_value(P, f"electrical.{k}") for k in ("K_a", "K_t", "H_g"))
