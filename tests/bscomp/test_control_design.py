@@ -221,6 +221,51 @@ def test_result_outputs(tmp_path, rigid):
     assert (tmp_path / "r.png").stat().st_size > 1000
 
 
+def test_loop_curves_are_numbers_and_the_figures_draw_them(tmp_path, rigid):
+    """Plotting receives the curves (numbers); the comparison helpers compute only what they draw."""
+    from bscomp.control.loop_analysis import freqresp, plot_bode_comparison, plot_disturbance_comparison
+    from bscomp.plotting.control import sensitivity_comparison_plot, step_comparison_plot
+
+    r = p_pi_loop(rigid, *VEL, K_p=7000.0, Ts=TS)
+    c = r.curves(n=200, parts=("L",))
+    assert c.t is None and c.S is None and c.y_d is None
+    np.testing.assert_allclose(c.L, freqresp(r.L, 2 * np.pi * c.f_hz), rtol=1e-12)
+    full = r.curves(n=200)
+    t, y = r.step()
+    np.testing.assert_array_equal(full.t, t)
+    np.testing.assert_array_equal(full.y, y)
+    assert full.D is not None and full.y_d is not None
+    with pytest.raises(bscomp.UnknownNameError):
+        r.curves(parts=("Bode",))
+    draws = (lambda f: plot_bode_comparison([r], f), lambda f: plot_disturbance_comparison([r], f),
+             lambda f: sensitivity_comparison_plot([full], f), lambda f: step_comparison_plot([full], f))
+    for k, draw in enumerate(draws):
+        draw(tmp_path / f"{k}.png")
+        assert (tmp_path / f"{k}.png").stat().st_size > 1000
+
+
+def test_control_import_does_not_import_matplotlib_or_systems():
+    import subprocess
+    import sys
+
+    code = ("import sys, bscomp.control; print('matplotlib' in sys.modules, "
+            "any(m.startswith('bscomp.systems') for m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False False"
+
+
+def test_thesis_plants_table_4_1_and_bad_names():
+    from bscomp.systems.thesis_plants import thesis_modes
+
+    assert thesis_modes("4.1", "C") == [(117.69, 0.06, 14.52, -0.227), (270.92, 0.10, 27.29, 4.06e-2)]
+    assert thesis_modes("4.2", "L", n_modes=1) == [(112.46, 0.06, 10.18, -0.191)]
+    assert thesis_modal_plant("4.2", "R", n_modes=1).sys.nstates == 4  # rigid body (2) + one mode (2)
+    with pytest.raises(bscomp.UnknownNameError):
+        thesis_modal_plant("4.3")
+    with pytest.raises(bscomp.UnknownNameError):
+        thesis_modal_plant("4.1", "M")
+
+
 def test_rigid_design_on_our_own_testbed_at_C_collapses_like_the_thesis():
     """P-PI at K_p = 7000 on bscomp's full test bed at C: margins near the thesis's 3.12 dB / 65.3 deg."""
     from bscomp.control.closed_loop import modal_plant
