@@ -19,11 +19,10 @@ from bscomp.control.closed_loop import (
     plant_from_system,
     rigid_plant,
     rst_loop,
-    thesis_modal_plant,
     velocity_loop,
 )
 from bscomp.control.design import notch, pi_gains, ppc_polynomials, rst_design, split_polynomial
-from bscomp.plotting.control import (
+from bscomp.control.loop_analysis import (
     plot_bode_comparison,
     plot_disturbance_comparison,
     plot_sensitivity_comparison,
@@ -31,6 +30,7 @@ from bscomp.plotting.control import (
 )
 from bscomp.systems import small_drive
 from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.thesis_plants import thesis_modal_plant
 
 
 def main(outdir: str | Path = "controller_design_out") -> dict:

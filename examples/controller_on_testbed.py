@@ -14,10 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from bscomp.control.closed_loop import modal_plant, p_pi_loop, thesis_modal_plant
+from bscomp.control.closed_loop import modal_plant, p_pi_loop
 from bscomp.control.design import pi_gains, zoh_polynomials
 from bscomp.systems._params import get_value, load_parameters
 from bscomp.systems.testbed_analysis import drive_parameters
+from bscomp.systems.thesis_plants import thesis_modal_plant
 
 THESIS_MARGINS_C = (3.12, 65.3)  # Sec 4.3.2 / Table 4.1 plant at C, K_p = 7000 V/m
 

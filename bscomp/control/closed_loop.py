@@ -4,11 +4,11 @@ Plants (:class:`DrivePlant`, continuous, inputs ``tau`` [N m] and optionally ``F
 [rad/s] and ``x`` [m]):
 
 * :func:`rigid_plant` -- rigid-body model, Eq (4.2);
-* :func:`modal_plant` -- rigid body plus normal modes, Eq (4.3)-(4.7); :func:`thesis_modal_plant` builds it
-  from the modal parameters of Table 4.1 or 4.2 (L/C/R positions);
+* :func:`modal_plant` -- rigid body plus normal modes, Eq (4.3)-(4.7); the thesis plants of Tables 4.1
+  and 4.2 (L/C/R positions) are :func:`bscomp.systems.thesis_plants.thesis_modal_plant`;
 * :func:`plant_from_system` -- any bscomp model, through :func:`bscomp.linearize` (e.g. ``small_drive``).
 
-Loops (each returns a :class:`LoopAnalysis`):
+Loops (each returns a :class:`~bscomp.control.loop_analysis.LoopAnalysis`):
 
 * :func:`velocity_loop` -- analog PI velocity loop (Fig 4.3, Eq 4.10), open loop broken at the
   tachometer feedback: ``L(s) = C(s) K_a K_t G_w(s) H_g``;
@@ -20,28 +20,27 @@ Loops (each returns a :class:`LoopAnalysis`):
 
 Sign convention of the disturbance: ``F_d`` acts on the table in ``+x`` (``G_d^r = r_g/(J s + B)``, Eq
 4.2). The thesis's "sensitivity" plots of Figs 4.5, 4.8, 4.11, 4.18 and 4.24 show the disturbance response
-(``w/F_d`` or ``x/F_d``; its -172 dB peak is in m/N), not ``1/(1 + L)``: a :class:`LoopAnalysis` reports
+(``w/F_d`` or ``x/F_d``; its -172 dB peak is in m/N), not ``1/(1 + L)``: a ``LoopAnalysis`` reports
 both (``S_peak_db`` and ``D_peak_db``).
 """
 
 from __future__ import annotations
 
-import json
 import math
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from bscomp.control.loop_analysis import LoopAnalysis, freqresp, loop_metrics, margins
 from bscomp.errors import ParameterError, UnknownNameError
+from bscomp.linear.linearize import control_labels, linearize
 
 __all__ = [
-    "DrivePlant", "rigid_plant", "modal_plant", "thesis_modal_plant", "plant_from_system", "LoopAnalysis",
-    "velocity_loop", "p_pi_loop", "rst_loop", "loop_metrics", "margins", "freqresp",
+    "DrivePlant", "rigid_plant", "modal_plant", "plant_from_system", "velocity_loop", "p_pi_loop", "rst_loop",
+    # the result and its metrics, defined in bscomp.control.loop_analysis
+    "LoopAnalysis", "loop_metrics", "margins", "freqresp",
 ]
-
-_POSITIONS = {"L": 0, "C": 1, "R": 2}
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -129,30 +128,6 @@ def modal_plant(J: float, B: float, r_g: float, modes, name: str = "modal") -> D
     return _plant_ss(A, Bm, C, np.zeros((2, 2)), ["tau", "F_d"], name)
 
 
-def thesis_modal_plant(table: str = "4.1", position: str = "C", n_modes: int = 2) -> DrivePlant:
-    """Modal plant of Eq (4.5)-(4.7) with the parameters of Table 4.1 (jaw coupling) or 4.2 (bellows).
-
-    J, B, r_g come from ``systems/data/fadal_vmc2216_x.toml`` (``control`` group, Sec 4.2.1).
-    """
-    from bscomp.systems._params import get_value, load_parameters
-
-    if table not in ("4.1", "4.2"):
-        raise UnknownNameError(f"table '{table}': use '4.1' (jaw coupling) or '4.2' (bellows coupling)")
-    if position not in _POSITIONS:
-        raise UnknownNameError(f"position '{position}': use one of {sorted(_POSITIONS)}")
-    p = load_parameters()
-    t = "table41" if table == "4.1" else "table42"
-    i = _POSITIONS[position]
-    zetas = (get_value(p, "damping.zeta_mode1"), get_value(p, "damping.zeta_mode2"))
-    modes = []
-    ref = p["reference_results"]
-    for k in (1, 2)[:n_modes]:
-        modes.append((ref[f"{t}_fn{k}"]["value"][i], zetas[k - 1], ref[f"{t}_Rw{k}"]["value"][i],
-                      ref[f"{t}_Rm{k}"]["value"][i]))
-    J, B, r_g = (get_value(p, f"control.{k}") for k in ("J", "B", "r_g"))
-    return modal_plant(J, B, r_g, modes, name=f"Table {table} {position}-position, {n_modes} mode(s)")
-
-
 def plant_from_system(model, tau: str = "motor.tau", w: str = "rotor.w", x: str = "table.s",
                       F_d: str | None = None, name: str | None = None) -> DrivePlant:
     """A :class:`DrivePlant` from a bscomp System/Dae (linearized) or a python-control StateSpace.
@@ -169,12 +144,8 @@ def plant_from_system(model, tau: str = "motor.tau", w: str = "rotor.w", x: str 
     """
     import control
 
-    from bscomp.linear.linearize import control_labels
-
     inputs = [tau] + ([F_d] if F_d else [])
     if not isinstance(model, control.StateSpace):
-        from bscomp.linear.linearize import linearize
-
         model = linearize(model, inputs=inputs, outputs=[w, x])
     labels_in, labels_out = list(model.input_labels), list(model.output_labels)
     try:
@@ -188,96 +159,7 @@ def plant_from_system(model, tau: str = "motor.tau", w: str = "rotor.w", x: str 
 
 
 # ---------------------------------------------------------------------------------------------------
-# result
-@dataclass
-class LoopAnalysis:
-    """Frequency- and time-domain figures of one loop.
-
-    Attributes
-    ----------
-    name : str
-    L, S, T : control.LTI
-        Open loop, sensitivity ``1/(1+L)`` and complementary sensitivity ``L/(1+L)`` (Eq 4.15);
-        ``T`` is also the reference-to-output transfer (normalised to unit DC gain for the velocity loop).
-    D : control.LTI or None
-        Disturbance response (``F_d`` to the controlled output, loop closed).
-    metrics : dict
-        ``gm_db``, ``pm_deg``, ``f_pc_hz`` (phase crossover), ``f_gc_hz`` (gain crossover),
-        ``bandwidth_hz`` (T -3 dB), ``S_peak_db``/``f_S_peak_hz``, ``T_peak_db``/``f_T_peak_hz``,
-        ``D_peak_db``/``f_D_peak_hz``, ``rise_time_s`` (10-90 %), ``settling_time_s`` (2 %),
-        ``overshoot_pct``, ``dist_peak``, ``dist_settling_time_s``.
-    info : dict
-        Controller and plant description.
-    """
-
-    name: str
-    L: Any
-    S: Any
-    T: Any
-    D: Any = None
-    metrics: dict = field(default_factory=dict)
-    info: dict = field(default_factory=dict)
-    t_final: float = 0.1
-
-    def to_dict(self) -> dict:
-        return {"name": self.name, "info": self.info, "metrics": self.metrics}
-
-    def to_json(self, path) -> Path:
-        path = Path(path)
-        path.write_text(json.dumps(self.to_dict(), indent=2, default=_json_default))
-        return path
-
-    def table(self) -> str:
-        """Plain-text table of the metrics."""
-        rows = [f"{self.name}"]
-        for k, v in self.metrics.items():
-            rows.append(f"  {k:<22} {v:12.5g}" if isinstance(v, (int, float)) else f"  {k:<22} {v}")
-        return "\n".join(rows)
-
-    def step(self, t=None):
-        """Unit step response of ``T`` (reference to output): ``(t, y)``."""
-        import control
-
-        t = self._time(t)
-        r = control.step_response(self.T, T=t)
-        return r.time, np.squeeze(r.outputs)
-
-    def disturbance_step(self, t=None):
-        """Response to a unit step of ``F_d`` [N]: ``(t, y)`` (y in m or rad/s)."""
-        import control
-
-        if self.D is None:
-            raise UnknownNameError(f"'{self.name}': the plant has no disturbance input F_d")
-        t = self._time(t)
-        r = control.step_response(self.D, T=t)
-        return r.time, np.squeeze(r.outputs)
-
-    def _time(self, t):
-        if t is not None:
-            return t
-        dt = self.T.dt if self.T.dt else self.t_final / 4000
-        return np.arange(0.0, self.t_final + dt / 2, dt)
-
-    def frequencies(self, n: int = 4000) -> np.ndarray:
-        """Frequency grid [rad/s]: 0.1 Hz to the Nyquist frequency (discrete) or 10 kHz (continuous)."""
-        top = math.pi / self.L.dt * (1 - 1e-9) if self.L.dt else 2 * math.pi * 1e4
-        return np.logspace(math.log10(2 * math.pi * 0.1), math.log10(top), n)
-
-    def plot(self, path=None):
-        """Bode of L, |S|, |T|, |D| and the step responses (matplotlib, imported lazily)."""
-        from bscomp.plotting.control import plot_loop
-
-        return plot_loop(self, path)
-
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
-
-
+# loops
 def _sub(sys, outputs, inputs):
     """Sub-system by signal names (python-control 0.10 indexes by integer or single name only)."""
     import control
@@ -294,118 +176,6 @@ def _sub(sys, outputs, inputs):
                       outputs=outputs)
 
 
-def freqresp(sys, w) -> np.ndarray:
-    """Complex SISO response of a state-space system at ``w`` [rad/s] (``z = exp(j w dt)`` if discrete),
-    one batched solve instead of python-control's per-frequency loop."""
-    import control
-
-    sys = control.ss(sys)
-    w = np.asarray(w, float)
-    s = np.exp(1j * w * sys.dt) if sys.dt else 1j * w
-    n = sys.A.shape[0]
-    D = complex(sys.D[0, 0])
-    if n == 0:
-        return np.full(w.shape, D)
-    M = s[:, None, None] * np.eye(n) - sys.A[None, :, :]
-    X = np.linalg.solve(M, np.broadcast_to(sys.B[:, :1], (w.size, n, 1)))
-    return (sys.C[:1, :] @ X)[:, 0, 0] + D
-
-
-def _mag(sys, w):
-    return np.abs(freqresp(sys, w))
-
-
-def margins(L, w) -> tuple[float, float, float, float]:
-    """Gain margin [dB], phase margin [deg] and their crossover frequencies [rad/s] from a dense grid.
-
-    Crossings are located by linear interpolation in ``log w``; when there are several, the margin
-    closest to instability (smallest magnitude) is returned, as python-control's ``stability_margins``.
-    """
-    H = freqresp(L, w)
-    lw = np.log10(w)
-    mag_db = 20 * np.log10(np.abs(H))
-    ph = np.degrees(np.unwrap(np.angle(H)))
-    gm, wpc = float("inf"), float("nan")
-    pm, wgc = float("inf"), float("nan")
-    k = np.nonzero(np.diff(np.sign(mag_db)) != 0)[0]
-    for i in k:
-        f = mag_db[i] / (mag_db[i] - mag_db[i + 1])
-        p = ph[i] + f * (ph[i + 1] - ph[i])
-        m = (p + 180.0) % 360.0
-        m = m - 360.0 if m > 180.0 else m
-        if abs(m) < abs(pm):
-            pm, wgc = m, 10 ** (lw[i] + f * (lw[i + 1] - lw[i]))
-    shifted = (ph + 180.0) / 360.0  # integer crossings = phase -180 + k 360
-    k = np.nonzero(np.floor(shifted[:-1]) != np.floor(shifted[1:]))[0]
-    for i in k:
-        target = np.floor(max(shifted[i], shifted[i + 1]))
-        f = (target - shifted[i]) / (shifted[i + 1] - shifted[i])
-        g = -(mag_db[i] + f * (mag_db[i + 1] - mag_db[i]))
-        if abs(g) < abs(gm):
-            gm, wpc = g, 10 ** (lw[i] + f * (lw[i + 1] - lw[i]))
-    return gm, pm, wpc, wgc
-
-
-def _peak(sys, w):
-    m = _mag(sys, w)
-    k = int(np.argmax(m))
-    return 20 * math.log10(m[k]), w[k] / (2 * math.pi)
-
-
-def _bandwidth(T, w):
-    """First frequency [Hz] where |T| falls 3 dB below its low-frequency value (log interpolation)."""
-    m = 20 * np.log10(_mag(T, w))
-    ref = m[0] - 3.0103
-    below = np.nonzero(m < ref)[0]
-    if below.size == 0:
-        return float("nan")
-    k = below[0]
-    if k == 0:
-        return w[0] / (2 * math.pi)
-    lw = np.interp(ref, [m[k], m[k - 1]], [math.log10(w[k]), math.log10(w[k - 1])])
-    return 10**lw / (2 * math.pi)
-
-
-def _settling(t, y, band=0.02):
-    """Last time |y - y_final| leaves ``band * max|y - y(0)|`` (works for responses returning to 0)."""
-    yf = y[-1]
-    scale = max(abs(yf - y[0]), np.max(np.abs(y - y[0])))
-    out = np.nonzero(np.abs(y - yf) > band * scale)[0]
-    return float(t[out[-1] + 1]) if out.size and out[-1] + 1 < t.size else (float(t[-1]) if out.size else 0.0)
-
-
-def loop_metrics(res: LoopAnalysis) -> dict:
-    """Fill ``res.metrics`` (see :class:`LoopAnalysis`) and return it."""
-    import control
-
-    w = res.frequencies()
-    gm, pm, wpc, wgc = margins(res.L, w)
-    m = {
-        "gm_db": float(gm),
-        "pm_deg": float(pm),
-        "f_pc_hz": float(wpc) / (2 * math.pi),
-        "f_gc_hz": float(wgc) / (2 * math.pi),
-        "bandwidth_hz": _bandwidth(res.T, w),
-    }
-    m["S_peak_db"], m["f_S_peak_hz"] = _peak(res.S, w)
-    m["T_peak_db"], m["f_T_peak_hz"] = _peak(res.T, w)
-    t, y = res.step()
-    info = control.step_info(y, t, yfinal=y[-1])
-    m["rise_time_s"] = float(info["RiseTime"])
-    m["settling_time_s"] = float(info["SettlingTime"])
-    m["overshoot_pct"] = float(info["Overshoot"])
-    if res.D is not None:
-        m["D_peak_db"], m["f_D_peak_hz"] = _peak(res.D, w)
-        td, yd = res.disturbance_step()
-        k = int(np.argmax(np.abs(yd)))
-        m["dist_peak"] = float(yd[k])
-        m["dist_settling_time_s"] = _settling(td, yd)
-    res.metrics = m
-    return m
-
-
-# ---------------------------------------------------------------------------------------------------
-# loops
 def _gain(k, inp, out, dt=None):
     import control
 

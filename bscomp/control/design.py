@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from bscomp.components import NotchFilter, RSTController
 from bscomp.errors import ParameterError, SingularSystemError
 
 __all__ = [
@@ -153,8 +154,6 @@ class NotchCoefficients:
 
     def filter(self):
         """The sampled block (:class:`bscomp.components.NotchFilter`)."""
-        from bscomp.components import NotchFilter
-
         return NotchFilter(self.n1, self.n2, self.d1, self.d2, self.K_N, self.T_s)
 
     def tf(self):
@@ -363,8 +362,6 @@ class RSTDesign:
 
     def controller(self):
         """The sampled block (:class:`bscomp.components.RSTController`)."""
-        from bscomp.components import RSTController
-
         return RSTController(self.R, self.S, self.T, self.Ts)
 
     def closed_loop_residual(self) -> float:

@@ -1,6 +1,8 @@
 """Controller design and closed-loop analysis against thesis Chapter 4 (Eq 4.10-4.38, Tables 4.3-4.6)."""
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -12,7 +14,6 @@ from bscomp.control.closed_loop import (
     plant_from_system,
     rigid_plant,
     rst_loop,
-    thesis_modal_plant,
     velocity_loop,
 )
 from bscomp.control.design import (
@@ -24,7 +25,10 @@ from bscomp.control.design import (
     split_polynomial,
     zoh_polynomials,
 )
+from bscomp.control.loop_analysis import freqresp, plot_bode_comparison, plot_disturbance_comparison
+from bscomp.plotting.control import sensitivity_comparison_plot, step_comparison_plot
 from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.thesis_plants import thesis_modal_plant, thesis_modes
 
 P = load_parameters()
 K_A, K_T, H_G = (get_value(P, f"electrical.{k}") for k in ("K_a", "K_t", "H_g"))
@@ -219,6 +223,43 @@ def test_result_outputs(tmp_path, rigid):
     assert data["metrics"]["gm_db"] == pytest.approx(r.metrics["gm_db"])
     r.plot(tmp_path / "r.png")
     assert (tmp_path / "r.png").stat().st_size > 1000
+
+
+def test_loop_curves_are_numbers_and_the_figures_draw_them(tmp_path, rigid):
+    """Plotting receives the curves (numbers); the comparison helpers compute only what they draw."""
+    r = p_pi_loop(rigid, *VEL, K_p=7000.0, Ts=TS)
+    c = r.curves(n=200, parts=("L",))
+    assert c.t is None and c.S is None and c.y_d is None
+    np.testing.assert_allclose(c.L, freqresp(r.L, 2 * np.pi * c.f_hz), rtol=1e-12)
+    full = r.curves(n=200)
+    t, y = r.step()
+    np.testing.assert_array_equal(full.t, t)
+    np.testing.assert_array_equal(full.y, y)
+    assert full.D is not None and full.y_d is not None
+    with pytest.raises(bscomp.UnknownNameError):
+        r.curves(parts=("Bode",))
+    draws = (lambda f: plot_bode_comparison([r], f), lambda f: plot_disturbance_comparison([r], f),
+             lambda f: sensitivity_comparison_plot([full], f), lambda f: step_comparison_plot([full], f))
+    for k, draw in enumerate(draws):
+        draw(tmp_path / f"{k}.png")
+        assert (tmp_path / f"{k}.png").stat().st_size > 1000
+
+
+def test_control_import_does_not_import_matplotlib_or_systems():
+    code = ("import sys, bscomp.control; print('matplotlib' in sys.modules, "
+            "any(m.startswith('bscomp.systems') for m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False False"
+
+
+def test_thesis_plants_table_4_1_and_bad_names():
+    assert thesis_modes("4.1", "C") == [(117.69, 0.06, 14.52, -0.227), (270.92, 0.10, 27.29, 4.06e-2)]
+    assert thesis_modes("4.2", "L", n_modes=1) == [(112.46, 0.06, 10.18, -0.191)]
+    assert thesis_modal_plant("4.2", "R", n_modes=1).sys.nstates == 4  # rigid body (2) + one mode (2)
+    with pytest.raises(bscomp.UnknownNameError):
+        thesis_modal_plant("4.3")
+    with pytest.raises(bscomp.UnknownNameError):
+        thesis_modal_plant("4.1", "M")
 
 
 def test_rigid_design_on_our_own_testbed_at_C_collapses_like_the_thesis():
