@@ -355,7 +355,7 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
 
 def _simulate_fixed(dae, t, U, xs, p, outputs, controllers, substeps, newton_iter, progress, jit):
     """Fixed-step SDIRK3 on the nonlinear DAE (see ``simulate(method="fixed")`` and :mod:`._fixed_step`)."""
-    from bscomp import _fixed_step as fs
+    from bscomp.simulation import fixed_step as fs
 
     if outputs:
         dae.output_function(outputs)  # unknown output names fail before integrating
