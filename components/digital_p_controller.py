@@ -8,8 +8,7 @@ the simulator calls :meth:`step` once per sample and holds the output.
 """
 
 from bscomp.errors import ParameterError
-
-from ._sampled import SampledBlock
+from bscomp.kernel.sampled import SampledBlock
 
 
 class DigitalPController(SampledBlock):

@@ -8,8 +8,7 @@ d_2 = 0.8600, K_N = 0.9402 at T_s = 200 us). A sampled block (see ``_sampled.py`
 """
 
 from bscomp.errors import ParameterError
-
-from ._sampled import SampledBlock
+from bscomp.kernel.sampled import SampledBlock
 
 
 class NotchFilter(SampledBlock):

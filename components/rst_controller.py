@@ -11,8 +11,7 @@ reference ``r`` and the measured table position ``y`` [m]; the closed loop is
 import numpy as np
 
 from bscomp.errors import ParameterError
-
-from ._sampled import SampledBlock
+from bscomp.kernel.sampled import SampledBlock
 
 
 class RSTController(SampledBlock):

@@ -51,9 +51,9 @@ from bscomp.components import (
     PIController,
     Tachometer,
 )
-from bscomp.components._sampled import sampled_controller
 from bscomp.control.design import ppc_polynomials, rst_design, split_polynomial
 from bscomp.simulation.dispatch import simulate
+from bscomp.simulation.sampled import sampled_controller
 from bscomp.systems._params import get_value, load_parameters
 from bscomp.systems.testbed import testbed_axial_torsional
 

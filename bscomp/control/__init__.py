@@ -12,7 +12,6 @@ runtime that runs designed controllers inside a time simulation.
 The thesis plants of Tables 4.1/4.2 are data and live in :mod:`bscomp.systems.thesis_plants`.
 """
 
-from bscomp.components._sampled import sampled_controller
 from bscomp.control.closed_loop import (
     DrivePlant,
     modal_plant,
@@ -49,6 +48,7 @@ from bscomp.control.loop_analysis import (
     plot_step_comparison,
 )
 from bscomp.simulation.dispatch import SampledController
+from bscomp.simulation.sampled import sampled_controller
 
 __all__ = ["DrivePlant", "modal_plant", "p_pi_loop", "plant_from_system", "rigid_plant", "rst_loop", "velocity_loop",
            "NotchCoefficients", "PIGains", "PPCPolynomials", "RSTDesign", "diophantine", "notch", "pi_gains",

@@ -16,9 +16,10 @@ from bscomp.kernel.flatten import flatten
 from bscomp.kernel.interface import InsertionPoint, NotApplicable, UncertainParameter, ValidationInterface
 from bscomp.kernel.partials import PartialCompliant, PartialRotCompliant
 from bscomp.kernel.ports import Flange, Generalized, Node6, RealInput, RealOutput, RotFlange
+from bscomp.kernel.sampled import SampledBlock
 from bscomp.kernel.system import System
 
 __all__ = ["Component", "Constraint", "LinearStructure", "Parameter", "PortRef", "Variable", "Dae",
            "MechanicalInfo", "flatten", "InsertionPoint", "NotApplicable", "UncertainParameter",
            "ValidationInterface", "PartialCompliant", "PartialRotCompliant", "Flange", "Generalized", "Node6",
-           "RealInput", "RealOutput", "RotFlange", "System"]
+           "RealInput", "RealOutput", "RotFlange", "SampledBlock", "System"]

@@ -1,9 +1,20 @@
 """Time simulation: one :func:`simulate`, one :class:`SimulationResult`, one file per method, and the
-compiled exact-ZOH simulator (:class:`CompiledModel`) that diagnose and others reuse."""
+compiled exact-ZOH simulator (:class:`CompiledModel`) that diagnose and others reuse.
+
+Modules: :mod:`~bscomp.simulation.dispatch` (``simulate`` and its table of methods),
+:mod:`~bscomp.simulation.idas`, :mod:`~bscomp.simulation.fixed_step`, :mod:`~bscomp.simulation.zoh`,
+:mod:`~bscomp.simulation.split` (with ``split_regime``, ``split_kernels``) one per method;
+:mod:`~bscomp.simulation.common` (problem set-up, held inputs, sampled-controller schedule, output
+evaluation, progress), :mod:`~bscomp.simulation.sampled` (sampled controllers in the loop),
+:mod:`~bscomp.simulation.result`, :mod:`~bscomp.simulation.native` (C compilation, native messages);
+:mod:`~bscomp.simulation.compiled` / :mod:`~bscomp.simulation.compiled_time` (CompiledModel).
+"""
 
 from bscomp.simulation.compiled import CompiledModel, ModalModel, nonlinear_elements
 from bscomp.simulation.compiled_time import CompiledModelError
-from bscomp.simulation.dispatch import SampledController, SimulationError, SimulationResult, simulate
+from bscomp.simulation.dispatch import METHODS, simulate
+from bscomp.simulation.result import SimulationError, SimulationResult
+from bscomp.simulation.sampled import SampledController, sampled_controller
 
-__all__ = ["simulate", "SimulationResult", "SimulationError", "SampledController", "CompiledModel",
-           "ModalModel", "nonlinear_elements", "CompiledModelError"]
+__all__ = ["simulate", "METHODS", "SimulationResult", "SimulationError", "SampledController", "sampled_controller",
+           "CompiledModel", "ModalModel", "nonlinear_elements", "CompiledModelError"]

@@ -38,7 +38,12 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from bscomp.components.force_between import ForceBetween
 from bscomp.errors import UnknownNameError
+from bscomp.kernel.component import _Context
+from bscomp.kernel.flatten import flatten
+from bscomp.kernel.system_damping import system_damping_matrix
+from bscomp.linear.linearize import second_order
 from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin, _dense
 
 __all__ = ["CompiledModel", "ModalModel", "nonlinear_elements"]
@@ -55,8 +60,6 @@ def nonlinear_elements(system) -> list:
 
 def _with_params(comp, values: dict):
     """Call-context in which ``comp.<param>`` reads ``values`` (numbers or CasADi symbols)."""
-    from bscomp.kernel.component import _Context
-
     ctx = _Context()
     ctx.params = values
     return ctx
@@ -98,8 +101,6 @@ class _Element:
 
 def _cut_nonlinear(system, elements):
     """The linear system: each nonlinear element -> small-signal equivalent + ForceBetween ``<path>``."""
-    from bscomp.components import ForceBetween
-
     lin = system.copy()
     for el in elements:
         path = el.path
@@ -147,9 +148,6 @@ class CompiledModel(TimeSeriesMixin):
     """
 
     def __init__(self, system, inputs, outputs, free=(), f_keep: float = 6000.0, participation: float = 1e-9):
-        from bscomp.kernel.flatten import flatten
-        from bscomp.linear.linearize import second_order
-
         self.system = system
         self.inputs, self.outputs = list(inputs), list(outputs)
         self.f_keep, self.participation = float(f_keep), float(participation)
@@ -269,9 +267,6 @@ class CompiledModel(TimeSeriesMixin):
 
     def _flatten_sensitivity(self, name, v0, steps=(1.1, 0.9)):
         """Sensitivity by re-flattening at ``v0 * step`` (one step: forward difference, used to verify)."""
-        from bscomp.kernel.flatten import flatten
-        from bscomp.linear.linearize import second_order
-
         mats = []
         for f in steps:
             d = flatten(self.linear_system.with_parameters({name: v0 * f}))
@@ -359,9 +354,6 @@ class CompiledModel(TimeSeriesMixin):
         return mm
 
     def _modal(self, lin, struct, extra_damping, delay):
-        from bscomp.kernel.flatten import flatten
-        from bscomp.linear.linearize import second_order
-
         refl = {k: v for k, v in struct.items() if k in self._reflatten}
         if refl:
             d = flatten(self.linear_system.with_parameters(refl))
@@ -391,8 +383,6 @@ class CompiledModel(TimeSeriesMixin):
             if hasattr(self.damping, "modal_ratios"):
                 zeta = np.asarray(self.damping.modal_ratios(lam, phi, M, coords), float)
             else:
-                from bscomp.kernel.system_damping import system_damping_matrix
-
                 csd = csd + _dense(system_damping_matrix(self.damping, M, K, coords))
                 zeta = np.zeros(lam.size)
             c = 2.0 * zeta * np.sqrt(lam)

@@ -1,8 +1,8 @@
 """Fixed-step L-stable SDIRK integration of the implicit DAE, compiled into CasADi chunks.
 
-Used by :func:`bscomp.simulation.simulate` with ``method="fixed"``. The scheme is Alexander's 3-stage,
-order 3, stiffly accurate and L-stable singly diagonally implicit Runge–Kutta method (SDIRK3). On the
-implicit DAE ``F(x', x, z, u, p) = 0`` stage ``i`` solves
+Used by :func:`bscomp.simulation.simulate` with ``method="fixed"`` (:func:`simulate_fixed`). The scheme is
+Alexander's 3-stage, order 3, stiffly accurate and L-stable singly diagonally implicit Runge–Kutta method
+(SDIRK3). On the implicit DAE ``F(x', x, z, u, p) = 0`` stage ``i`` solves
 
 .. math:: F\\Big(K_i,\\; x_n + h \\sum_{j<i} a_{ij} K_j + h\\gamma K_i,\\; Z_i,\\; u_n,\\; p\\Big) = 0
 
@@ -23,10 +23,16 @@ per-step Python; sampled controllers split the run into chunks between their sam
 
 from __future__ import annotations
 
+import time
+
 import casadi as ca
 import numpy as np
 
-from bscomp.errors import BscompError
+from bscomp.simulation.common import Progress, SampledLoop, finish
+from bscomp.simulation.native import native_function
+from bscomp.simulation.result import SimulationError
+
+__all__ = ["simulate_fixed", "Stepper", "chunk_function", "nonlinear_rows"]
 
 GAMMA = 0.43586652150845899941601945
 _B1 = -(6 * GAMMA ** 2 - 16 * GAMMA + 1) / 4
@@ -126,42 +132,6 @@ def _line_search(dae, v, s, base, u, p, h, rscale, alphas=(1.0, 0.5, 0.25, 0.125
     return best_step
 
 
-def compiled(f, cache_dir=None):
-    """``f`` generated as C, compiled with the system C compiler and loaded; cached on disk by source hash.
-
-    The cache directory is ``$BSCOMP_CACHE_DIR`` or ``~/.cache/bscomp``; a model compiled once loads in
-    milliseconds in later runs and in worker processes.
-    """
-    import hashlib
-    import os
-    import shutil
-    import subprocess
-    import tempfile
-    from pathlib import Path
-
-    cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
-    if not cc:
-        raise BscompError("jit=True needs a C compiler (cc or gcc on PATH, or $CC)")
-    cg = ca.CodeGenerator(f.name() + ".c", {"with_header": False})
-    cg.add(f)
-    src = cg.dump()
-    key = hashlib.sha1(src.encode()).hexdigest()[:16]
-    root = Path(cache_dir or os.environ.get("BSCOMP_CACHE_DIR") or Path.home() / ".cache" / "bscomp") / "jit"
-    root.mkdir(parents=True, exist_ok=True)
-    so = root / f"{f.name()}_{key}.so"
-    if not so.exists():
-        with tempfile.TemporaryDirectory(dir=root) as tmp:
-            c = Path(tmp) / f"{f.name()}.c"
-            c.write_text(src)
-            out = Path(tmp) / so.name
-            run = subprocess.run([cc, "-O2", "-shared", "-fPIC", str(c), "-o", str(out)], capture_output=True,
-                                 text=True)
-            if run.returncode:
-                raise BscompError(f"compiling the fixed-step kernel failed: {run.stderr[-500:]}")
-            os.replace(out, so)  # atomic: concurrent workers never load a half-written file
-    return ca.external(f.name(), str(so))
-
-
 def chunk_function(dae, n, n_iter, substeps, jit=False, line_search=False):
     """``n`` output intervals in one Function ``(x0, v0, U[nu x n], p, h, Wi, G, W0r, rscale) -> (X, V, E)``."""
     nl = nonlinear_rows(dae)
@@ -192,7 +162,7 @@ def chunk_function(dae, n, n_iter, substeps, jit=False, line_search=False):
             es.append(e)
         f = ca.Function("sdirk3_chunk", [x, v, U, p, h, Wi, G, W0r, rs], [ca.horzcat(*xs), ca.horzcat(*vs),
                                                                           ca.horzcat(*es)])
-        cache[key] = compiled(f) if jit else f
+        cache[key] = native_function(f) if jit else f
     return cache[key]
 
 
@@ -254,3 +224,74 @@ class Stepper:
         for i, a in enumerate((X, V, E)):
             buf.set_res(i, memoryview(a.reshape(-1)))
         ev()
+
+
+def simulate_fixed(problem, options):
+    """``simulate(method="fixed")``: fixed-step SDIRK3 on the nonlinear DAE, ``substeps`` steps per output
+    interval, chunks of up to ``CHUNK`` intervals per call (cut at sampled-controller instants).
+
+    Parameters
+    ----------
+    problem : SimulationProblem
+    options : SimulationOptions
+        ``substeps``, ``newton_iter`` (per stage, when the model has nonlinear equations), ``jit``.
+
+    Returns
+    -------
+    SimulationResult
+        ``stats``: ``scheme``, ``step``, ``chunk_calls``, ``newton_iterations``, ``nonlinear_equations``,
+        ``newton_max_update``, ``newton_retries``, ``jit``.
+    """
+    substeps, newton_iter = options.fixed_steps()
+    jit = bool(options.jit)
+    dae, t, U, p, xs = problem.dae, problem.t, problem.U, problem.p, problem.x0
+    t_wall = time.perf_counter()
+    nx, nz, nu, nt = dae.nx, dae.nz, dae.nu, len(t)
+    xd0, z0 = dae.initialize(xs, U[:, 0], p, store=False)
+    X = np.empty((nt, nx))
+    V = np.empty((nt, nx + nz))  # [x', z]
+    E = np.zeros(nt)
+    Uh = np.empty((nt, nu))
+    X[0], V[0], Uh[0] = xs, np.concatenate([xd0, z0]), U[:, 0]
+    Ut = np.ascontiguousarray(U.T)
+    stepper = Stepper(dae, p, xs, xd0, z0, U[:, 0], newton_iter, substeps, jit)
+    h_all = np.diff(t)
+    loop = SampledLoop(dae, problem.controllers, t[0])
+    progress = Progress(dae.name, t, problem.progress)
+    n_calls, k = 0, 0
+    while k < nt - 1:
+        h = h_all[k]
+        if loop:
+            loop.sample(t[k], Ut[k].copy(), lambda uk, k=k: loop.measure(V[k, :nx], X[k], V[k, nx:], uk, p))
+        t_next = loop.next_time
+        n = 1
+        while (k + n < nt - 1 and n < CHUNK and abs(h_all[k + n] - h) < 1e-9 * h
+               and t[k + n] + 1e-12 < t_next):
+            n += 1
+        Uc = loop.hold(Ut[k:k + n])
+        stepper.run(n, h, X[k], V[k], Uc, X[k + 1:k + 1 + n], V[k + 1:k + 1 + n], E[k + 1:k + 1 + n])
+        Uh[k + 1:k + 1 + n] = Uc
+        n_calls += 1
+        if not (np.isfinite(X[k + n]).all() and np.max(E[k + 1:k + 1 + n]) <= NEWTON_TOL):  # NaN propagates
+            _failure(dae, t, X, E, k, n, substeps, stepper)
+        k += n
+        progress.update(n_calls, k)
+    stats = {"method": "fixed", "scheme": "SDIRK3 (L-stable, order 3)", "step": float(np.min(h_all)) / substeps,
+             "chunk_calls": n_calls, "newton_iterations": stepper.n_iter, "nonlinear_equations": len(stepper.nl),
+             "newton_max_update": stepper.max_newton, "newton_retries": stepper.retries, "jit": jit}
+    return finish(problem, X, V[:, :nx], V[:, nx:], Uh, stats, t_wall)
+
+
+def _failure(dae, t, X, E, k, n, substeps, stepper):
+    """Raise SimulationError for the first failed interval of the chunk ``k .. k + n``."""
+    tol = NEWTON_TOL
+    bad = ~np.isfinite(X[k + 1:k + 1 + n]).all(axis=0)
+    Ec = E[k + 1:k + 1 + n]
+    j = k + 1 + int(np.argmax(~np.isfinite(X[k + 1:k + 1 + n]).all(axis=1) | ~(Ec <= tol)))
+    what = (f"state '{dae.x_names[int(np.argmax(bad))]}' became non-finite" if bad.any() else
+            f"Newton did not converge (last update {E[j]:.2g} of the unknowns' size)")
+    raise SimulationError(
+        f"fixed-step SDIRK3 on '{dae.name}': {what} between t = {t[j - 1]:.6g} s and t = {t[j]:.6g} s. "
+        f"Hints: more substeps (now {substeps}) or newton_iter (now {stepper.n_iter}, retried with "
+        f"{4 * stepper.n_iter} and a line search); a stiff contact or a "
+        "switching element may need method='idas'")

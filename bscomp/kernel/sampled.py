@@ -1,10 +1,10 @@
-"""Sampled (discrete-time) blocks: a MISO difference equation with memory (private base class).
+"""Sampled (discrete-time) blocks: a MISO difference equation with memory, the base of the digital controllers.
 
-The continuous DAE cannot hold a sampled block, so digital controllers are plain objects that
-(i) hold the coefficients of their difference equation, (ii) give the python-control discrete
-``TransferFunction`` for linear analysis, and (iii) advance one sample per :meth:`SampledBlock.step`
-call for a simulator that runs them every ``T_s`` and holds the output over the next period (the
-zero-order hold of Eq 4.16, the D/A converter of Fig 4.3).
+The continuous DAE cannot hold a sampled block, so digital controllers (``DigitalPController``,
+``NotchFilter``, ``RSTController``) are plain objects that (i) hold the coefficients of their difference
+equation, (ii) give the python-control discrete ``TransferFunction`` for linear analysis, and (iii) advance
+one sample per :meth:`SampledBlock.step` call for a simulator that runs them every ``T_s`` and holds the
+output over the next period (the zero-order hold of Eq 4.16, the D/A converter of Fig 4.3).
 
 With polynomials in ``z`` (descending powers, ``deg num_j <= deg den = n``) the block computes
 
@@ -13,8 +13,8 @@ With polynomials in ``z`` (descending powers, ``deg num_j <= deg den = n``) the 
 i.e. ``a_0 y_k = sum_j sum_i b_{j,i} u_{j,k-i} - sum_{i>=1} a_i y_{k-i}``, realised in transposed
 direct form II (n delay states, no history buffers).
 
-:func:`sampled_controller` (or :meth:`SampledBlock.controller`) wraps one block, or a series chain of
-blocks (e.g. the P controller and the notch filter of Fig 4.14), as a
+Closing a loop with blocks is the simulation's business: :func:`bscomp.simulation.sampled_controller`
+wraps one block, or a series chain of blocks (e.g. the P controller and the notch filter of Fig 4.14), as a
 :class:`bscomp.simulation.SampledController` for ``simulate(..., controllers=[...])``.
 """
 
@@ -23,6 +23,8 @@ from __future__ import annotations
 import numpy as np
 
 from bscomp.errors import ParameterError
+
+__all__ = ["SampledBlock"]
 
 
 class SampledBlock:
@@ -126,79 +128,6 @@ class SampledBlock:
         D = b[:, 0].reshape(1, -1)
         return control.ss(A, B, C, D, self.T_s, inputs=self.inputs, outputs=[self.output])
 
-    def controller(self, measure: str, actuate: str, reference, then=(), measure_gain: float = 1.0):
-        """This block (followed by the blocks ``then`` in series) as a ``SampledController``.
-
-        See :func:`sampled_controller`.
-        """
-        return sampled_controller([self, *then], measure, actuate, reference, measure_gain=measure_gain)
-
     def __repr__(self):
         return f"<{type(self).__name__} order {self.order}, T_s = {self.T_s:g} s, inputs {self.inputs}>"
 
-
-def sampled_controller(blocks, measure: str, actuate: str, reference, measure_gain: float = 1.0):
-    """Run sampled blocks in series as a :class:`bscomp.simulation.SampledController`.
-
-    At each sample ``t_k`` the first block gets the reference and the measurement,
-    ``r_k = g reference(t_k)`` and ``y_k = g y(t_k)`` (two inputs ``r, y`` as :class:`DigitalPController`
-    and :class:`RSTController`), or the error ``r_k - y_k`` (one input); each further block takes the
-    previous block's output (one input, e.g. :class:`NotchFilter`). The last output is held on the
-    actuated input until the next sample (zero-order hold, Eq 4.16).
-
-    Parameters
-    ----------
-    blocks : sequence of SampledBlock
-        The chain, all with the same sampling period ``T_s``. Their memory is cleared here.
-    measure : str
-        Observable read at each sample (e.g. ``"table.s"``).
-    actuate : str
-        System input driven by the chain (e.g. ``"pi.u_s"`` or ``"amp.u"``).
-    reference : callable or float
-        ``reference(t)`` in the units of ``measure`` (a float is a constant set point).
-    measure_gain : float
-        Sensor gain and polarity ``g`` applied to both measurement and reference: the controller works
-        in the coordinate ``g * measure`` (``-1`` when the positive motor direction moves the table
-        towards ``-z``).
-
-    Returns
-    -------
-    bscomp.simulation.SampledController
-        Its ``law`` also records the samples: ``law.t``, ``law.u`` (lists of ``t_k`` and ``u_k``).
-
-    Raises
-    ------
-    ParameterError
-        Empty chain, different sampling periods, or a block with the wrong number of inputs.
-    """
-    from bscomp.simulation.dispatch import SampledController  # lazy: components do not import solvers at load
-
-    blocks = list(blocks)
-    if not blocks:
-        raise ParameterError("sampled_controller: no blocks given")
-    T_s = blocks[0].T_s
-    for b in blocks:
-        if abs(b.T_s - T_s) > 1e-12 * T_s:
-            raise ParameterError(f"sampled_controller: {b!r} has T_s = {b.T_s:g} s, the chain runs at {T_s:g} s")
-    if len(blocks[0].inputs) not in (1, 2):
-        raise ParameterError(f"sampled_controller: the first block {blocks[0]!r} must take (r, y) or the error")
-    for b in blocks[1:]:
-        if len(b.inputs) != 1:
-            raise ParameterError(f"sampled_controller: {b!r} in series must have one input")
-    g = float(measure_gain)
-    ref = reference if callable(reference) else (lambda t, c=float(reference): c)
-    for b in blocks:
-        b.reset()
-
-    def law(t_k, y):
-        r_k, y_k = g * float(ref(t_k)), g * float(y[0])
-        first = blocks[0]
-        v = first.step(r_k, y_k) if len(first.inputs) == 2 else first.step(r_k - y_k)
-        for b in blocks[1:]:
-            v = b.step(v)
-        law.t.append(t_k)
-        law.u.append(v)
-        return [v]
-
-    law.t, law.u = [], []
-    return SampledController(law=law, measure=[measure], actuate=[actuate], Ts=T_s)

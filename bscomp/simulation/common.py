@@ -1,0 +1,266 @@
+"""The pieces every simulation method shares, each written once: the problem a method receives (model
+resolved, grid checked, start point, inputs held on the intervals), the sampled-controller schedule, the
+output evaluation, the progress bar and the assembly of the :class:`~.result.SimulationResult`.
+
+Held inputs: input ``u`` is piecewise constant on the output grid ``t``, ``u(t) = U_k`` on
+``[t_k, t_{k+1})`` (arrays: the value at the interval start, or one value per interval; callables: the
+value at the interval midpoint). A sampled controller (:class:`~.sampled.SampledController`) is updated at
+the first grid time at or after each of its sample instants and holds its output until the next one (the
+zero-order hold of Eq 4.16); its actuated inputs overwrite the given ones.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from bscomp.errors import UnknownNameError
+from bscomp.kernel.dae import Dae
+from bscomp.kernel.system import System
+from bscomp.model import as_dae
+from bscomp.simulation.result import SimulationResult
+
+__all__ = ["SimulationProblem", "SimulationOptions", "prepare", "input_matrix", "SampledLoop",
+           "evaluate_outputs", "Progress", "finish"]
+
+
+@dataclass
+class SimulationProblem:
+    """What every method receives: the resolved model and one run of it.
+
+    Attributes
+    ----------
+    dae : Dae
+    t : ndarray (nt,)
+        Output times, increasing.
+    U : ndarray (nu, nt - 1)
+        Inputs held on each interval ``[t_k, t_{k+1})`` (:func:`input_matrix`).
+    x0 : ndarray (nx,)
+        Start states.
+    p : ndarray (np,)
+        Parameter vector.
+    outputs : list of str
+        Observables to record (checked to exist).
+    controllers : list of SampledController
+    progress : bool
+        Print a progress bar.
+    """
+
+    dae: Dae
+    t: np.ndarray
+    U: np.ndarray
+    x0: np.ndarray
+    p: np.ndarray
+    outputs: list = field(default_factory=list)
+    controllers: list = field(default_factory=list)
+    progress: bool = False
+
+
+@dataclass
+class SimulationOptions:
+    """The method settings of :func:`bscomp.simulation.simulate` (each method reads the ones it has)."""
+
+    rtol: float = 1e-6
+    atol: float = 1e-9
+    max_order: int = 2
+    max_num_steps: int = 100000
+    substeps: int = 1
+    newton_iter: int = 2
+    jit: bool = False
+
+    def fixed_steps(self) -> tuple[int, int]:
+        """``(substeps, newton_iter)`` of the fixed-step methods, both at least 1."""
+        if int(self.substeps) < 1 or int(self.newton_iter) < 1:
+            raise ValueError(f"substeps and newton_iter must be >= 1, got {self.substeps} and {self.newton_iter}")
+        return int(self.substeps), int(self.newton_iter)
+
+
+def prepare(model, t, inputs=None, x0=None, params=None, outputs=None, controllers=None,
+            progress=None) -> SimulationProblem:
+    """The :class:`SimulationProblem` of a ``simulate`` call (arguments as there).
+
+    The model is anything :func:`bscomp.model.as_dae` takes (a name, ``.py`` path, build function, System,
+    Dae or ModelSpec); for a System or Dae, ``params`` are dotted parameter values, for the other forms
+    also build keywords (applied when the system is built).
+    """
+    dae = as_dae(model, params)
+    t = np.asarray(t, float)
+    if t.ndim != 1 or len(t) < 2 or np.any(np.diff(t) <= 0):
+        raise ValueError("t must be an increasing 1-D array of at least two times")
+    controllers = list(controllers or [])
+    own = (params or {}) if isinstance(model, (System, Dae)) else {}  # the other forms built them in
+    p = dae.parameter_vector({k: v for k, v in own.items() if k not in dae.structural_parameters})
+    xs = dae.x_start.copy()
+    for k, v in (x0 or {}).items():
+        if k not in dae.x_names:
+            raise UnknownNameError(f"x0 names '{k}', which is not a state of '{dae.name}' ({dae.x_names[:8]}...)")
+        xs[dae.x_names.index(k)] = float(v)
+    U = input_matrix(dae, t, inputs, [a for c in controllers for a in c.actuate])
+    outputs = list(outputs or [])
+    if outputs:
+        dae.output_function(outputs)  # unknown output names fail before integrating
+    if progress is None:
+        progress = len(t) > 200 and sys.stderr.isatty()
+    return SimulationProblem(dae, t, U, xs, p, outputs, controllers, bool(progress))
+
+
+def input_matrix(dae, t, inputs, fixed=()):
+    """``(nu, nt - 1)`` input values held on each interval ``[t_k, t_{k+1})``.
+
+    ``inputs`` maps input names to a scalar, an array with one value per time point (the interval takes
+    its start value) or per interval, or a function of ``t`` (taken at the interval midpoint); the others
+    are zero. ``fixed`` are inputs a controller drives (checked to exist).
+    """
+    nint = len(t) - 1
+    U = np.zeros((dae.nu, max(nint, 1)))
+    for k, v in (inputs or {}).items():
+        if k not in dae.u_names:
+            raise UnknownNameError(f"'{k}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
+        i = dae.u_names.index(k)
+        if callable(v):
+            tm = 0.5 * (t[:-1] + t[1:])
+            U[i] = np.array([float(v(tt)) for tt in tm])
+        else:
+            arr = np.asarray(v, float)
+            if arr.ndim == 0:
+                U[i] = float(arr)
+            elif arr.shape == (len(t),):
+                U[i] = arr[:-1]
+            elif arr.shape == (nint,):
+                U[i] = arr
+            else:
+                raise ValueError(f"input '{k}' has {arr.shape[0]} values; give one per time point ({len(t)}) or per "
+                                 f"interval ({nint}), a scalar, or a function of t")
+    for k in fixed:
+        if k not in dae.u_names:
+            raise UnknownNameError(f"'{k}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
+    return U
+
+
+class SampledLoop:
+    """The sampled controllers of one run: when each is due, what it holds on its actuated inputs.
+
+    A method calls :meth:`sample` at every grid time ``t_k`` where it may stop (a controller due at a
+    time between grid points is updated at the next grid point) and :meth:`hold` on the input rows of the
+    steps it takes; :attr:`next_time` is where it must stop next.
+    """
+
+    def __init__(self, dae, controllers, t0):
+        self.controllers = list(controllers)
+        self.next = [float(t0) for _ in self.controllers]
+        self.held = [None for _ in self.controllers]
+        self.columns = [[dae.u_names.index(a) for a in c.actuate] for c in self.controllers]
+        names = [m for c in self.controllers for m in c.measure]
+        self.offsets = np.cumsum([0] + [len(c.measure) for c in self.controllers])
+        self.measured = dae.output_function(names) if names else None
+
+    def __bool__(self):
+        return bool(self.controllers)
+
+    @property
+    def next_time(self) -> float:
+        """The next sample instant of any controller (``inf`` without controllers)."""
+        return min(self.next) if self.controllers else np.inf
+
+    def measure(self, xd, x, z, u, p):
+        """The measured outputs of all controllers (in their order) at one point."""
+        if self.measured is None:
+            return np.zeros(0)
+        return np.asarray(self.measured(xd, x, z, u, p)).ravel()
+
+    def sample(self, t_k, u_k, y_of):
+        """Update the controllers due at ``t_k`` and write every held value into ``u_k`` (in place).
+
+        ``y_of(u_k)`` returns the measured outputs (:meth:`measure`) at ``t_k``; it is called once, when
+        the first controller is due.
+        """
+        y = None
+        for ci, c in enumerate(self.controllers):
+            if t_k + 1e-12 >= self.next[ci]:
+                if y is None:
+                    y = y_of(u_k)
+                ym = y[self.offsets[ci]:self.offsets[ci + 1]]
+                self.held[ci] = np.atleast_1d(np.asarray(c.law(t_k, ym), float))
+                while self.next[ci] <= t_k + 1e-12:
+                    self.next[ci] += c.Ts
+            if self.held[ci] is not None:
+                for col, v in zip(self.columns[ci], self.held[ci]):
+                    u_k[col] = v
+        return u_k
+
+    def hold(self, Uc):
+        """Input rows ``Uc`` (steps x nu) with every controller's actuated inputs replaced by its held value."""
+        if not self.controllers:
+            return Uc
+        Uc = Uc.copy()
+        for cols, val in zip(self.columns, self.held):
+            if val is not None:
+                for col, v in zip(cols, val):
+                    Uc[:, col] = v
+        return Uc
+
+
+def evaluate_outputs(dae, names, XD, X, Z, Uh, p, chunk=1000):
+    """Named outputs at every time point: ``{name: (nt,) array}``.
+
+    The output Function is mapped over chunks of time points and called through zero-copy buffers on
+    the (nt, n) arrays (CasADi is column-major, so their rows are its columns); converting large arrays
+    to and from DM costs ~0.1 µs per number, which would dominate a fast run.
+    """
+    if not names:
+        return {}
+    nt = X.shape[0]
+    n = min(chunk, nt)
+    key = ("outmap", tuple(names), n)
+    if key not in dae._cache:
+        dae._cache[key] = dae.output_function(names).map("ymap", "serial", n, [4], [])
+    fm = dae._cache[key]
+    data = [np.ascontiguousarray(a, dtype=float) for a in (XD, X, Z, Uh)]
+    pc = np.ascontiguousarray(p, dtype=float)
+    Y = np.zeros((nt, len(names)))
+    buf, ev = fm.buffer()
+    buf.set_arg(4, memoryview(pc))
+    starts = list(range(0, nt - n + 1, n))
+    if starts[-1] + n < nt:
+        starts.append(nt - n)  # last chunk overlaps the previous one: no padding needed
+    for k in starts:
+        ys = np.zeros((n, len(names)))
+        for i, a in enumerate(data):
+            buf.set_arg(i, memoryview(a[k:k + n].reshape(-1)))
+        buf.set_res(0, memoryview(ys.reshape(-1)))
+        ev()
+        Y[k:k + n] = ys
+    return {name: Y[:, i].copy() for i, name in enumerate(names)}
+
+
+class Progress:
+    """The progress bar of one run on stderr: one overwritten line, updated every ``every`` calls of the
+    method's stepping kernel and at the end (then a newline)."""
+
+    def __init__(self, name, t, enabled, every=20):
+        self.name, self.t, self.enabled, self.every = name, t, bool(enabled), int(every)
+
+    def update(self, calls, k):
+        """After ``calls`` kernel calls the run has reached grid index ``k``."""
+        last = len(self.t) - 1
+        if self.enabled and (calls % self.every == 0 or k == last):
+            frac = k / last
+            sys.stderr.write(f"\r  simulating '{self.name}' [{'#' * int(30 * frac):<30}] {100 * frac:5.1f}%  "
+                             f"t = {self.t[k]:.4g} s")
+            if frac >= 1.0:
+                sys.stderr.write("\n")
+
+
+def finish(problem, X, XD, Z, Uh, stats, t_wall) -> SimulationResult:
+    """The :class:`SimulationResult` of a run: the outputs evaluated, ``wall_s`` (from ``t_wall``, a
+    ``time.perf_counter()`` reading) and ``real_time_factor`` added to the method's ``stats``."""
+    dae, t = problem.dae, problem.t
+    out = evaluate_outputs(dae, problem.outputs, XD, X, Z, Uh, problem.p)
+    wall = time.perf_counter() - t_wall
+    stats = {"wall_s": wall, **stats, "real_time_factor": (t[-1] - t[0]) / wall if wall > 0 else np.inf}
+    return SimulationResult(t=t, x=X, xd=np.ascontiguousarray(XD), z=np.ascontiguousarray(Z), u=Uh,
+                            x_names=list(dae.x_names), z_names=list(dae.z_names), u_names=list(dae.u_names),
+                            outputs=out, stats=stats)
