@@ -34,6 +34,7 @@ from bscomp.kernel.mechanics import (
     sparse_jacobians,
 )
 from bscomp.kernel.system_damping import system_damping_matrix
+from bscomp.linear.frf_engine import direct_frf, state_space_decomposition, state_space_modal_frf
 from bscomp.model import resolve_model
 
 __all__ = ["linearize", "second_order", "SecondOrderModel", "OperatingPoint", "resolve_model", "control_labels"]
@@ -191,57 +192,17 @@ class SecondOrderModel:
         if method != "direct" and self.n <= 1500:
             dec = self._modal_decomposition()
             if dec is not None:
-                return self._frf_modal(f, dec)
+                return state_space_modal_frf(dec, self.D, f)
             if method == "modal":
                 raise SingularSystemError("frf(method='modal') needs a non-singular mass matrix")
-        H = np.zeros((len(f), len(self.outputs), len(self.inputs)), complex)
-        M, C, K = (sp.csc_matrix(m, dtype=complex) for m in (self.M, self.C, self.K))
-        B = self.B.toarray() if sp.issparse(self.B) else np.asarray(self.B)
-        D = np.asarray(self.D.toarray() if sp.issparse(self.D) else self.D)
-        for k, fk in enumerate(f):
-            w = 2 * np.pi * fk
-            Z = (K + 1j * w * C - w * w * M).tocsc()
-            X = spla.splu(Z).solve(B.astype(complex)) if B.size else np.zeros((self.n, 0), complex)
-            Y = (self.Cq + 1j * w * self.Cv - w * w * self.Ca) @ X
-            H[k] = np.asarray(Y) + D
-        return H
+        return direct_frf(self.M, self.C, self.K, self.B, self.Cq, self.Cv, self.Ca, self.D, f)
 
     def _modal_decomposition(self):
-        """Eigen-decomposition of ``A = [[0, I], [-M^-1 K, -M^-1 C]]`` (cached), or None if M is singular."""
+        """:func:`~bscomp.linear.frf_engine.state_space_decomposition` of this model (cached)."""
         cache = self.__dict__.setdefault("_cache", {})
-        if "modal" in cache:
-            return cache["modal"]
-        import scipy.linalg as sla
-
-        n = self.n
-        M = self.M.toarray() if sp.issparse(self.M) else np.asarray(self.M)
-        try:
-            cho = sla.cho_factor(M)
-        except np.linalg.LinAlgError:
-            cache["modal"] = None
-            return None
-        K = self.K.toarray() if sp.issparse(self.K) else np.asarray(self.K)
-        C = self.C.toarray() if sp.issparse(self.C) else np.asarray(self.C)
-        B = self.B.toarray() if sp.issparse(self.B) else np.asarray(self.B)
-        A = np.block([[np.zeros((n, n)), np.eye(n)], [-sla.cho_solve(cho, K), -sla.cho_solve(cho, C)]])
-        lam, V = sla.eig(A)
-        if np.linalg.cond(V) > 1e12:  # defective (repeated rigid-body poles): use the direct solve
-            cache["modal"] = None
-            return None
-        W = np.linalg.solve(V, np.vstack([np.zeros((n, B.shape[1])), sla.cho_solve(cho, B)]))
-        dense = [m.toarray() if sp.issparse(m) else np.asarray(m) for m in (self.Cq, self.Cv, self.Ca)]
-        cache["modal"] = (lam, W, dense[0] @ V[:n], dense[1] @ V[n:], dense[2] @ V[n:])
+        if "modal" not in cache:
+            cache["modal"] = state_space_decomposition(self.M, self.C, self.K, self.B, self.Cq, self.Cv, self.Ca)
         return cache["modal"]
-
-    def _frf_modal(self, f, dec):
-        lam, W, CqV, CvV, CaV = dec
-        D = np.asarray(self.D.toarray() if sp.issparse(self.D) else self.D)
-        H = np.zeros((len(f), len(self.outputs), len(self.inputs)), complex)
-        for k, fk in enumerate(f):
-            s = 2j * np.pi * fk
-            G = W / (s - lam)[:, None]
-            H[k] = (CqV + CvV + s * CaV) @ G + D  # y = Cq q + Cv v + Ca s v, x = (q, v)
-        return H
 
     def to_statespace(self):
         """First-order form x = (q, q') (Eq 5.3); needs a non-singular M."""

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp.errors import UnknownNameError
+from bscomp.linear.frf_engine import modal_frf
 from bscomp.model import ModelSpec, as_system
 
 __all__ = ["position_sweep", "PositionSweep", "build_system"]
@@ -212,56 +213,6 @@ class _TangentUpdate:
         return second_order(self.dae, inputs=self.inputs, outputs=self.outputs, params={self.parameter: float(x)})
 
 
-def modal_lowrank_frf(lam, phi, c_modal, C_struct, B, Cq, Cv, Ca, D, freqs):
-    """Exact FRF ``(Cq + jw Cv - w^2 Ca) (K - w^2 M + jw C)^{-1} B + D`` from mass-normalised modes.
-
-    ``C = M phi diag(c_modal) phi^T M + C_struct`` (proportional modal damping plus discrete dampers):
-    the modal part is diagonal, and the discrete dampers, which act on the few coordinates ``S`` where
-    ``C_struct`` is non-zero, enter by the Woodbury identity
-    ``(Dg + U^T W U)^{-1} = Dg^{-1} - Dg^{-1} U^T (I + W U Dg^{-1} U^T)^{-1} W U Dg^{-1}``
-    with ``U = phi[S]`` and ``W = jw C_struct[S, S]``. Cost per frequency O(m (r + n_in + n_out)) for m
-    modes and r damped coordinates. Returns H of shape (nf, n_out, n_in), or None if r > 40.
-    """
-    import scipy.sparse as sp
-
-    def dense(A):
-        return np.asarray(A.toarray() if hasattr(A, "toarray") else A, float)
-
-    w = 2.0 * np.pi * np.asarray(freqs, float)
-    nf, m = w.size, lam.size
-    Cs = sp.csr_matrix(C_struct)
-    S = np.unique(np.concatenate([Cs.nonzero()[0], Cs.nonzero()[1]])) if Cs.nnz else np.zeros(0, int)
-    if S.size > 40:
-        return None
-    re = lam[None, :] - w[:, None] ** 2                                                   # Dg = re + j im
-    im = w[:, None] * c_modal[None, :]
-    den = re * re + im * im
-    Dr, Dm = re / den, -im / den                                                           # Dg^-1 (nf, m)
-    # output rows (Cq + jw Cv - w^2 Ca) phi, grouped by their factor (1, jw, -w^2)
-    A = [(dense(Cq) @ phi, np.ones(nf))]
-    if sp.csr_matrix(Cv).nnz:
-        A.append((dense(Cv) @ phi, 1j * w))
-    if sp.csr_matrix(Ca).nnz:
-        A.append((dense(Ca) @ phi, -(w ** 2)))
-    b = phi.T @ dense(B)                                                                   # (m, ni)
-    U = phi[S]                                                                             # (r, m)
-    # every sum_k X[:, k] Dg^-1[f, k] Y[k, :] needed below as one pair of real GEMMs
-    X = np.vstack([a for a, _ in A] + [U])
-    Y = np.hstack([b, U.T])
-    P = np.einsum("ak,kb->kab", X, Y).reshape(m, -1)
-    XY = (Dr @ P + 1j * (Dm @ P)).reshape(nf, X.shape[0], Y.shape[1])
-    no, ni, r = A[0][0].shape[0], b.shape[1], S.size
-    aD = [(XY[:, j * no:(j + 1) * no], f_) for j, (_, f_) in enumerate(A)]
-    H = sum(f_[:, None, None] * blk[:, :, :ni] for blk, f_ in aD)                           # a Dg^-1 b
-    if r:
-        W = 1j * w[:, None, None] * Cs[S][:, S].toarray()[None]                              # (nf, r, r)
-        G = XY[:, -r:, ni:]                                                                  # U Dg^-1 U^T
-        inner = np.linalg.solve(np.eye(r)[None] + W @ G, W @ XY[:, -r:, :ni])               # (nf, r, ni)
-        aDU = sum(f_[:, None, None] * blk[:, :, ni:] for blk, f_ in aD)                     # a Dg^-1 U^T
-        H = H - aDU @ inner
-    return H + dense(D)[None]
-
-
 def _fast_sweep(upd, positions, freqs, n_modes, progress):
     """Frequencies, modal damping and FRFs at every position by the tangent update (one eigh each)."""
     so = upd.so0
@@ -280,10 +231,7 @@ def _fast_sweep(upd, positions, freqs, n_modes, progress):
         F.append(f)
         Z.append(z)
         if freqs is not None:
-            h = modal_lowrank_frf(lam, phi, c, Cs, so.B, so.Cq, so.Cv, so.Ca, so.D, freqs)
-            if h is None:
-                return None
-            H.append(h)
+            H.append(modal_frf(lam, phi, c, Cs, so.B, so.Cq, so.Cv, so.Ca, so.D, freqs))
         if progress is not None:
             progress(k + 1, len(positions))
     return F, Z, H
@@ -406,7 +354,7 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
         the exact tangent of the component that owns a non-structural position parameter (e.g.
         ``sn.z0`` of :class:`~components.moving_screw_nut.MovingScrewNut`, ``testbed`` with
         ``nut_joint="moving"``), then one symmetric eigen-decomposition per position gives the modes
-        and the exact FRF (:func:`modal_lowrank_frf`); the update is checked against a full
+        and the exact FRF (:func:`~bscomp.linear.frf_engine.modal_frf`); the update is checked against a full
         linearization at the position farthest from the nominal one (relative 1e-8 on K and C).
         Reported frequencies are the undamped natural frequencies and damping the modal ratios
         (diagonal of the modal damping; the ``rebuild`` path reports damped eigenvalues, which differ

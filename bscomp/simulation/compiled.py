@@ -43,6 +43,7 @@ from bscomp.errors import UnknownNameError
 from bscomp.kernel.component import _Context
 from bscomp.kernel.flatten import flatten
 from bscomp.kernel.system_damping import system_damping_matrix
+from bscomp.linear.frf_engine import modal_frf
 from bscomp.linear.linearize import second_order
 from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin, _dense
 
@@ -117,9 +118,12 @@ def _cut_nonlinear(system, elements):
 class ModalModel:
     """The linear part at one parameter vector, in modal coordinates (see the module docstring)."""
 
-    def __init__(self, lam, phi, Ckk, Rt, so, keep, delay, f_keep):
+    def __init__(self, lam, phi, Ckk, Rt, so, keep, delay, f_keep, c_modal=None, C_struct=None):
         self.lam, self.phi, self.Ckk, self.Rt, self.so, self.keep = lam, phi, Ckk, Rt, so, keep
         self.delay, self.f_keep = delay, f_keep
+        # what Ckk was made of, for the FRF engine: diagonal modal damping + physical discrete dampers
+        self.c_modal = np.zeros(lam.size) if c_modal is None else c_modal
+        self.C_struct = sp.csr_matrix((phi.shape[0],) * 2) if C_struct is None else sp.csr_matrix(C_struct)
 
     @property
     def frequencies(self):
@@ -405,7 +409,7 @@ class CompiledModel(TimeSeriesMixin):
             raise CompiledModelError("a rigid-body mode is not excited by the inputs: check the model's inputs")
         Rt = (pt / lam[trunc]) @ pt.T if trunc.size else np.zeros_like(Md)
         self.stats["evaluations"] += 1
-        return ModalModel(lam, phi, Ckk, Rt, so, keep, delay, self.f_keep)
+        return ModalModel(lam, phi, Ckk, Rt, so, keep, delay, self.f_keep, c_modal=c, C_struct=csd)
 
     # ---- FRF ------------------------------------------------------------------------------------------
     def frf(self, params, freqs, pairs, extra_damping: float = 0.0, delay: float = 0.0, mm: ModalModel = None):
@@ -419,17 +423,8 @@ class CompiledModel(TimeSeriesMixin):
         B = _dense(so.B)[:, bi]
         Cq, Cv, Ca = (_dense(m)[yo] for m in (so.Cq, so.Cv, so.Ca))
         D = _dense(so.D)[yo][:, bi]
-        pk = mm.phi[:, mm.keep]
-        lk = mm.lam[mm.keep]
-        w = 2 * np.pi * np.asarray(freqs, float)
-        s = 1j * w
-        Z = (lk[None, :, None] * np.eye(lk.size)[None] + s[:, None, None] * mm.Ckk[None]
-             + (s ** 2)[:, None, None] * np.eye(lk.size)[None])
-        eta = np.linalg.solve(Z, np.broadcast_to((pk.T @ B).astype(complex), (w.size, lk.size, len(ins))))
-        q = pk[None] @ eta + (mm.Rt @ B)[None]
-        H = (Cq[None] + s[:, None, None] * Cv[None] + (s ** 2)[:, None, None] * Ca[None]) @ q + D[None]
-        if delay:
-            H = H * np.exp(-s * delay)[:, None, None]
+        H = modal_frf(mm.lam, mm.phi, mm.c_modal, mm.C_struct, B, Cq, Cv, Ca, D, freqs, modes=mm.keep,
+                      delay=delay)
         return {(i, o): H[:, outs.index(o), ins.index(i)] for i, o in pairs}
 
     # ---- time series ------------------------------------------------------------------------------------

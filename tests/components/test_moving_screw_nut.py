@@ -19,7 +19,8 @@ from bscomp.components import (
 )
 from bscomp.components._beam_fe import Section
 from bscomp.errors import BscompError
-from bscomp.linear.sweeps import modal_lowrank_frf, position_sweep
+from bscomp.linear.frf_engine import modal_frf
+from bscomp.linear.sweeps import position_sweep
 
 SECTIONS = [Section(length=0.8, d_out=0.04, n_elements=8)]
 NUT = dict(m=1.49 + 250.0, I=[2.56e-3, 2.56e-3, 1.31e-3])
@@ -91,7 +92,7 @@ def test_joint_is_conservative_and_carries_no_force_at_rest(dae):
 
 
 def test_lowrank_frf_equals_direct_solve():
-    """modal_lowrank_frf (eigh + Woodbury for discrete dampers) against (K - w^2 M + jw C)^-1 per frequency."""
+    """modal_frf (eigh + Woodbury for discrete dampers) against (K - w^2 M + jw C)^-1 per frequency."""
     rng = np.random.default_rng(1)
     n = 12
     A = rng.normal(size=(n, n))
@@ -111,7 +112,7 @@ def test_lowrank_frf_equals_direct_solve():
     Ca = np.zeros((3, n))
     D = np.zeros((3, 2))
     f = np.linspace(0.05, 3.0, 40)
-    H = modal_lowrank_frf(lam, phi, c_modal, Cs, B, Cq, Cv, Ca, D, f)
+    H = modal_frf(lam, phi, c_modal, Cs, B, Cq, Cv, Ca, D, f)
     for k, fk in enumerate(f):
         w = 2 * np.pi * fk
         ref = (Cq + 1j * w * Cv) @ np.linalg.solve(K - w * w * M + 1j * w * C, B)
