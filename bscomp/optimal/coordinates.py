@@ -209,6 +209,8 @@ class ModalDae:
 
     @classmethod
     def from_dae(cls, dae, p, x0, zero_tol=1e-7):
+        """The linear model ``dae`` (parameters ``p``) in modal coordinates about the state ``x0``; raises
+        :class:`ModalError` if it is not linear or not block-diagonalisable."""
         lin = affine_model(dae, p, x0)
         check_linear(dae, p, lin)
         basis = modal_basis(lin["A"], zero_tol)
