@@ -31,7 +31,7 @@ from bscomp.optimal.coordinates import ModalDae, ModalError, modal_basis, output
 from bscomp.optimal.guess import from_simulation, initial_guess, reference_motion
 from bscomp.optimal.modal import solve_modal
 from bscomp.optimal.result import OcpError, OcpResult
-from bscomp.simulation.dispatch import SimulationResult
+from bscomp.simulation.result import SimulationResult
 
 __all__ = ["Ocp"]
 
