@@ -37,7 +37,7 @@ import bscomp
 from bscomp import System
 from bscomp.components import FixedRotational, Inertia, SecondOrderBlock, Torque, TorsionalDamper
 from bscomp.linear.reduction import reduce_second_order
-from bscomp.optimal.problem import Ocp
+from bscomp.optimal import Ocp
 from bscomp.systems.testbed import testbed_axial_torsional
 
 R_G = 0.010 / (2 * math.pi)   # lead / 2 pi [m/rad] (Sec B.1)

@@ -51,7 +51,7 @@ import bscomp
 from bscomp import System
 from bscomp.components import SecondOrderBlock
 from bscomp.linear.reduction import reduce_second_order
-from bscomp.optimal.problem import Ocp
+from bscomp.optimal import Ocp
 from bscomp.simulation.dispatch import simulate
 from bscomp.systems.testbed import nut_positions, testbed_axial_torsional
 

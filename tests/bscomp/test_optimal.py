@@ -7,7 +7,7 @@ import pytest
 
 from bscomp import System
 from bscomp.components import Inertia, Torque
-from bscomp.optimal.problem import Ocp, OcpError
+from bscomp.optimal import Ocp, OcpError
 from bscomp.systems import small_drive
 
 
@@ -293,3 +293,100 @@ def test_rate_limit_is_refused_in_modal_coordinates():
         ocp.solve()
     with pytest.raises(ValueError, match="> 0"):
         ocp.bound_rate("rotor.a", 0.0)
+
+
+# ---- the optimal package: collocation tables, model forms, warm start from a simulation (issue 14) -----------
+def _hand_written_radau(d):
+    """The Radau IIA tables the transcription used to build by hand (Lagrange basis on [0, tau_1..tau_d]):
+    ``C[j, r] = l_j'(tau_r)`` and the quadrature weights ``B[j-1] = ∫_0^1 l_j``."""
+    import casadi as ca
+
+    tau = np.append(0.0, ca.collocation_points(d, "radau"))
+    C, B = np.zeros((d + 1, d + 1)), np.zeros(d)
+    for j in range(d + 1):
+        p = np.poly1d([1.0])
+        for r in range(d + 1):
+            if r != j:
+                p *= np.poly1d([1.0, -tau[r]]) / (tau[j] - tau[r])
+        dp = np.polyder(p)
+        C[j] = [dp(t) for t in tau]
+        if j:
+            P = np.polyint(p)
+            B[j - 1] = P(1.0) - P(0.0)
+    return tau, C, B
+
+
+@pytest.mark.parametrize("d", [1, 2, 3, 4, 5])
+def test_collocation_matrices_from_casadi_match_the_hand_written_radau_tables(d):
+    """casadi.collocation_coeff gives the tables the hand-written Lagrange construction gave (derivative
+    weights at the collocation points, end value = last stage, quadrature weights), and they are what Radau
+    IIA must be: exact derivatives of polynomials up to degree d, quadrature exact up to degree 2d - 2 (d >= 2;
+    at d = 1 both give the weight 1/2, see RadauScheme)."""
+    from bscomp.optimal.collocation import radau
+
+    s = radau(d)
+    tau, C_old, B_old = _hand_written_radau(d)
+    assert s.C.shape == (d + 1, d) and s.D.shape == (d + 1,) and s.B.shape == (d,)
+    np.testing.assert_allclose(s.tau, tau, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(s.C, C_old[:, 1:], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(s.B, B_old, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(s.D, np.eye(d + 1)[-1], atol=1e-12)
+    assert tau[-1] == pytest.approx(1.0, abs=1e-15)
+    for m in range(d + 1):                                  # d/dt t^m at the collocation points
+        np.testing.assert_allclose(tau**m @ s.C, m * tau[1:] ** max(m - 1, 0) if m else 0.0, atol=1e-10)
+    for m in range(2 * d - 1 if d >= 2 else 0):             # ∫_0^1 t^m = 1 / (m + 1)
+        assert s.B @ tau[1:] ** m == pytest.approx(1.0 / (m + 1), rel=1e-12)
+
+
+def test_ocp_accepts_every_model_form(tmp_path):
+    """Ocp(model) resolves its model through bscomp.model.as_dae: a registered name, a .py path, a build
+    function, a System, a Dae and a ModelSpec give the same problem (same states, same parameter vector with
+    the overrides applied; build keywords for the forms that build), and the same optimum."""
+    import bscomp
+    from bscomp.model import ModelSpec
+
+    path = tmp_path / "my_drive.py"
+    path.write_text("from bscomp.systems import small_drive\n\n\ndef build(k_T=3938.0):\n"
+                    "    return small_drive(k_T=k_T)\n")
+    built = {"k_T": 5000.0, "table.m": 30.0}
+    dotted = {"table.m": 30.0}
+    forms = [("small_drive", built), (str(path), built), (small_drive, built), (ModelSpec("small_drive"), built),
+             (small_drive(k_T=5000.0), dotted), (bscomp.flatten(small_drive(k_T=5000.0)), dotted)]
+    ocps = [Ocp(m, N=30, params=p) for m, p in forms]
+    ref = ocps[-1]
+    assert ref.p[ref.dae.p_names.index("table.m")] == 30.0
+    assert not np.array_equal(ref.p, bscomp.flatten(small_drive()).parameter_vector({}))
+    for o in ocps:
+        assert o.dae.x_names == ref.dae.x_names and o.dae.u_names == ref.dae.u_names
+        np.testing.assert_array_equal(o.p, ref.p)
+    T = [o.bound("motor.tau", -8, 8).initial({}).final({"table.s": 0.02}).minimize_time(T_guess=0.3).solve().T
+         for o in (ocps[0], ref)]
+    assert T[0] == pytest.approx(T[1], rel=1e-9)
+    with pytest.raises(OcpError, match="did not converge"):     # still the same named errors
+        Ocp("small_drive", N=10).bound("motor.tau", -1e-3, 1e-3).initial({}).final({"table.s": 0.1}) \
+            .minimize_effort(T=0.01).solve({"max_iter": 20})
+
+
+def test_warm_start_from_a_simulation():
+    """A simulation of a hand-made input (bang-bang switched at the wrong time) is a warm start: the solve
+    finds the same bang-bang optimum as from a cold start; a simulation of another model is refused."""
+    from bscomp.errors import UnknownNameError
+    from bscomp.simulation.dispatch import simulate
+
+    J, tau_max, theta = 8.55e-3, 5.0, 10.0
+    T_an = 2 * math.sqrt(theta * J / tau_max)
+    t = np.linspace(0.0, 0.3, 301)
+    sim = simulate(rotor(), t, inputs={"motor.tau": lambda tt: tau_max if tt < 0.12 else -tau_max},
+                   outputs=["rotor.phi"])
+    ocp = (Ocp(rotor(), N=40).bound("motor.tau", -tau_max, tau_max).initial({"rotor.phi": 0.0})
+           .final({"rotor.phi": theta}).minimize_time())
+    r = ocp.warm_start(sim).solve()
+    assert ocp.warm.T == pytest.approx(0.3) and ocp.warm.u.shape == (300, 1)
+    assert r.T == pytest.approx(T_an, rel=1e-3)
+    load = System("load")
+    load.add("drive", Torque())
+    load.add("load", Inertia(J=1.0))
+    load.connect("drive.flange", "load.flange_a")
+    other = simulate(load, np.linspace(0, 0.01, 11), outputs=["load.phi"])
+    with pytest.raises(UnknownNameError, match="warm start"):
+        ocp.warm_start(other)
