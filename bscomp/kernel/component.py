@@ -11,6 +11,11 @@ symbols bound to every declared name, so equations read like the maths::
         def equations(self):
             return [self.f - self.c * (self.s_rel - self.s_rel0)]
 
+Parameters are declared once: the unit string is parsed when the class is created (a typo is a
+:class:`~bscomp.errors.ModelDefinitionError`), the class docstring's numpydoc ``Parameters`` section is
+generated from the declarations (name, unit, bounds, default, ``doc``), and values may be given as
+``"<number> <unit>"`` strings converted to the declared unit (:meth:`Parameter.from_text`).
+
 What a component may contribute
 --------------------------------
 ``equations()``
@@ -155,9 +160,10 @@ class Parameter:
                                  f"those units, not the string {text!r}")
         declared = self.units[0]
         if not same_dimension(given, declared, angle=True):
-            raise ParameterError(f"parameter {where}: {text!r} is given in '{given.text}' (SI {given.si}), which is "
-                                 f"not a unit of the dimension of its declared unit '{self.unit}'; give it in "
-                                 f"'{self.unit}' or a unit convertible to it")
+            si = f" (SI {given.si})" if given.si != given.text else ""
+            raise ParameterError(f"parameter {where}: {text!r} is given in '{given.text}'{si}, which is not a unit "
+                                 f"of the dimension of its declared unit '{self.unit}'; give it in '{self.unit}' or a "
+                                 "unit convertible to it")
         return number * given.scale / declared.scale
 
     def doc_entry(self) -> list[str]:
