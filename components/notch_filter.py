@@ -4,8 +4,8 @@ Placed in the position loop after the P controller (Fig 4.14) to cancel the firs
 numerator zeros sit on the mode's poles (Eq 4.20), the denominator has the same frequency with more
 damping (Eq 4.21) and ``K_N`` makes the static gain one (Eq 4.19). :func:`notch_coefficients` computes
 them from the mode (it is what :func:`bscomp.control.design.notch` returns; Table 4.3: n_1 = -1.9521,
-n_2 = 0.9745, d_1 = -1.8390, d_2 = 0.8600, K_N = 0.9402 at T_s = 200 us). A sampled block (see
-``_sampled.py``).
+n_2 = 0.9745, d_1 = -1.8390, d_2 = 0.8600, K_N = 0.9402 at T_s = 200 us). A sampled block
+(:class:`bscomp.kernel.sampled.SampledBlock`).
 """
 
 import math
