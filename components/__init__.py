@@ -1,5 +1,6 @@
 """Physical components, one per file (``bscomp.components``)."""
 
+from ._beam_fe import Section
 from .acceleration_sensor import AccelerationSensor
 from .angle_sensor import AngleSensor
 
@@ -32,6 +33,7 @@ from .moving_screw_nut import MovingScrewNut
 from .node_to_flange import NodeToFlange
 from .node_to_rot_flange import NodeToRotFlange
 from .notch_filter import NotchFilter  # noqa: E402
+from .pade_delay import PadeDelay
 from .pi_controller import PIController  # noqa: E402
 from .position_sensor import PositionSensor
 from .rigid_body import RigidBody
@@ -67,4 +69,4 @@ __all__ += [
     "DigitalPController", "NotchFilter", "RSTController",
 ]
 __all__ += ["Backlash", "CoulombFriction", "RotationalBacklash", "StribeckFriction"]
-__all__ += ["Housing"]
+__all__ += ["Housing", "PadeDelay", "Section"]

@@ -26,9 +26,17 @@ __all__ = ["PartialJoint6"]
 class PartialJoint6(Component):
     """Two Node6 ports (``node_a``, ``node_b``) joined by linear 6x6 stiffness and damping.
 
-    # Connectors
-    - ``node_a``: Node6 (required)
-    - ``node_b``: Node6 (required), absent if ``grounded=True``
+    Parameters
+    ----------
+    grounded : bool
+        True: ``node_b`` is the rigid frame and only ``node_a`` exists.
+
+    Attributes
+    ----------
+    node_a : Node6
+        First node (required).
+    node_b : Node6
+        Second node (required), absent if ``grounded=True``.
     """
 
     node_a = Node6("first node (e.g. the shaft side)", optional=False)

@@ -7,9 +7,12 @@ from bscomp.kernel.ports import Flange, RealOutput
 class AccelerationSensor(Component):
     """Absolute acceleration sensor.
 
-    # Connectors
-    - ``flange``: measured flange (draws no force)
-    - ``a``: real output [m/s^2]
+    Attributes
+    ----------
+    flange : Flange
+        Measured flange (draws no force).
+    a : RealOutput
+        Absolute acceleration [m/s^2].
     """
 
     flange = Flange("measured flange")

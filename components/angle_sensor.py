@@ -7,9 +7,12 @@ from bscomp.kernel.ports import RealOutput, RotFlange
 class AngleSensor(Component):
     """Absolute angle sensor.
 
-    # Connectors
-    - ``flange``: measured flange (draws no torque)
-    - ``phi``: real output [rad]
+    Attributes
+    ----------
+    flange : RotFlange
+        Measured flange (draws no torque).
+    phi : RealOutput
+        Absolute angle [rad].
     """
 
     flange = RotFlange("measured flange")

@@ -70,26 +70,22 @@ def contact_force(delta, v, b, c, d, eps):
 class Backlash(PartialCompliant):
     """Translational backlash: clearance ``b`` with a spring-damper contact on either side.
 
-    # Parameters
-    - ``b`` [m]: total clearance (dead-zone width ``L`` of Eq 5.8; 0.001885 rad r_g = 3.0 um at the
-      test-bed table, Table 5.2)
-    - ``c`` [N/m]: contact stiffness (> 0)
-    - ``d`` [N.s/m]: contact damping, active only in contact (>= 0)
-    - ``s_rel0`` [m]: relative position of the gap centre
-    - ``eps`` [m]: width of the smoothed corners (0 = sharp dead zone)
-
-    # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialCompliant`)
-
-    # Observables
-    - ``f`` [N], ``s_rel`` [m], ``v_rel`` [m/s], ``penetration`` [m] (``e``; 0 in the gap)
+    Attributes
+    ----------
+    flange_a, flange_b : Flange
+        The two flanges (from :class:`~bscomp.kernel.partials.PartialCompliant`).
+    f, s_rel, v_rel : observable
+        Element force [N], relative position [m] and relative velocity [m/s].
+    penetration : observable
+        Contact penetration ``e`` [m] (0 in the gap).
     """
 
-    b = Parameter(unit="m", min=0.0, doc="total clearance (dead-zone width)")
+    b = Parameter(unit="m", min=0.0, doc="total clearance, the dead-zone width L of Eq 5.8 (0.001885 rad r_g = "
+                  "3.0 um at the test-bed table, Table 5.2)")
     c = Parameter(unit="N/m", positive=True, doc="contact stiffness")
     d = Parameter(0.0, unit="N.s/m", min=0.0, doc="contact damping (only in contact)")
     s_rel0 = Parameter(0.0, unit="m", doc="relative position of the gap centre")
-    eps = Parameter(0.0, unit="m", min=0.0, doc="width of the smoothed dead-zone corners (0: sharp)")
+    eps = Parameter(0.0, unit="m", min=0.0, doc="width of the smoothed corners (0: sharp)")
 
     def linear_equivalent(self):
         """Small-signal equivalent for FRFs: the contact in engagement (spring ``c``, with the contact

@@ -2,9 +2,10 @@
 
 The shaft is split into 2-node Timoshenko elements with six DOF per node, ``(u, v, w, θx, θy, θz)``
 (Eq 3.27, Fig 3.5), z = screw axis, node 0 at z = 0. The consistent mass and stiffness matrices of
-Eq (A.1)-(A.6) come from :func:`components._beam_fe.assemble_shaft` (threaded sections: stiffness from
-the root diameter, mass from the equivalent diameter of Eq 3.1) and enter the system as one sparse
-``LinearStructure`` over the node ports ``n0, n1, ...``:
+Eq (A.1)-(A.6) (:mod:`components._beam_element`) are assembled by
+:func:`components._beam_fe.assemble_shaft` (threaded sections: stiffness from the root diameter, mass
+from the equivalent diameter of Eq 3.1) and enter the system as one sparse ``LinearStructure`` over the
+node ports ``n0, n1, ...``:
 
 .. math:: M_{BS}\\,\\ddot d + K_{BS}\\,d = F
 
@@ -15,7 +16,7 @@ follow the element shape functions (Eq 3.27 / A.7) through ideal constraints
 ``dofs`` keeps a subset of the six fields per node: ``("w", "tz")`` is the axial + torsional model of
 thesis Chapter 5 (exact for a straight shaft, whose axial, torsional and bending fields are
 uncoupled); the other potentials of every port are constrained to zero. Sign conventions are those of
-:mod:`components._beam_fe` (right-hand rotations; ``θy = +du/dz``, ``θx = -dv/dz``).
+:mod:`components._beam_element` (right-hand rotations; ``θy = +du/dz``, ``θx = -dv/dz``).
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ from bscomp.errors import ModelDefinitionError
 from bscomp.kernel.component import Component, Constraint, LinearStructure, Parameter
 from bscomp.kernel.ports import Node6
 
-from ._beam_fe import STEEL_E, STEEL_NU, STEEL_RHO, assemble_shaft, select_dofs, thesis_table_b1_sections
+from ._beam_element import STEEL_E, STEEL_NU, STEEL_RHO
+from ._beam_fe import assemble_shaft, select_dofs
 from ._node_dofs import DOF_NAMES, check_dofs, pin_unused
 
 
@@ -36,29 +38,24 @@ class Ballscrew(Component):
     Parameters
     ----------
     sections : sequence of Section
-        Shaft sections in order of increasing z (:class:`components._beam_fe.Section`).
+        Shaft sections in order of increasing z (:class:`bscomp.components.Section`).
     dofs : tuple of str
         Kept fields per node, a subset of ``("u", "v", "w", "tx", "ty", "tz")``.
     points : dict of str -> float
         Extra ports at axial positions z [m] (0 <= z <= length), reached through N(z) (Eq 3.27).
-    **params
-        ``E`` [Pa], ``rho`` [kg/m^3], ``nu`` [1], ``kappa`` [1] (see below).
 
-    # Parameters
-    - ``E`` [Pa]: Young's modulus (210 GPa, App B.1)
-    - ``rho`` [kg/m^3]: density (7800, App B.1)
-    - ``nu`` [1]: Poisson's ratio, ``G = E / (2 (1 + nu))`` (0.27, App B.1)
-    - ``kappa`` [1]: shear correction factor (9/10, text after Eq A.6)
-
-    # Connectors
-    - ``n0 ... n<N>``: one Node6 per FE node (optional: a free end is force-free)
-    - one Node6 per entry of ``points``
+    Attributes
+    ----------
+    n0 ... n<N> : Node6
+        One port per FE node (optional: a free end is force-free).
+    <point> : Node6
+        One port per entry of ``points``.
     """
 
-    E = Parameter(STEEL_E, unit="Pa", positive=True, doc="Young's modulus")
-    rho = Parameter(STEEL_RHO, unit="kg/m3", positive=True, doc="density")
-    nu = Parameter(STEEL_NU, unit="1", min=0.0, max=0.5, doc="Poisson's ratio")
-    kappa = Parameter(0.9, unit="1", positive=True, doc="shear correction factor (Eq A.6)")
+    E = Parameter(STEEL_E, unit="Pa", positive=True, doc="Young's modulus (steel: 210 GPa, App B.1)")
+    rho = Parameter(STEEL_RHO, unit="kg/m^3", positive=True, doc="density (steel: 7800 kg/m^3, App B.1)")
+    nu = Parameter(STEEL_NU, unit="1", min=0.0, max=0.5, doc="Poisson's ratio (steel: 0.27, App B.1)")
+    kappa = Parameter(0.9, unit="1", positive=True, doc="shear correction factor (9/10, text after Eq A.6)")
 
     def __init__(self, sections, dofs=DOF_NAMES, points: dict | None = None, **params):
         super().__init__(**params)
@@ -76,17 +73,6 @@ class Ballscrew(Component):
                                            f"[0, {self.length:.6g}] m")
             self.points[name] = z
             self.add_port(name, Node6(f"point on the screw axis at z = {z:.6g} m (shape functions, Eq 3.27)"))
-
-    @classmethod
-    def thesis_table_b1(cls, dofs=DOF_NAMES, points: dict | None = None, d_root: float = 35.5e-3,
-                        d_equiv: float = 37.35e-3, reverse: bool = False, **params) -> "Ballscrew":
-        """The test-bed screw of thesis Table B.1 (47 elements, 48 nodes, 920.5 mm; steel of App B.1).
-
-        ``d_root`` / ``d_equiv`` are the stiffness / mass diameters of the threaded section C (see
-        THESIS-NOTES: Table 3.1's 40 mm vs Table B.1's 35.5 mm); ``reverse`` puts section F at z = 0.
-        """
-        return cls(thesis_table_b1_sections(d_root=d_root, d_equiv=d_equiv, reverse=reverse), dofs=dofs,
-                   points=points, **params)
 
     @property
     def length(self) -> float:

@@ -29,17 +29,15 @@ class Bearing(PartialJoint6):
     grounded : bool
         True: the housing is the rigid frame and only ``node_a`` (the shaft node) exists.
 
-    # Parameters
-    - ``k_axial`` [N/m]: axial stiffness (0 = floating bearing)
-    - ``k_radial`` [N/m]: radial stiffness, both x and y
-    - ``k_tilt`` [N.m/rad]: tilting stiffness about x and y (default 0)
-    - ``c_axial``, ``c_radial`` [N.s/m]: viscous damping (default 0)
-
-    # Connectors
-    - ``node_a``: shaft node; ``node_b``: housing node (absent if ``grounded``)
+    Attributes
+    ----------
+    node_a : Node6
+        Shaft node.
+    node_b : Node6
+        Housing node (absent if ``grounded``).
     """
 
-    k_axial = Parameter(unit="N/m", min=0.0, doc="axial stiffness (z)")
+    k_axial = Parameter(unit="N/m", min=0.0, doc="axial stiffness along z (0 = floating bearing)")
     k_radial = Parameter(unit="N/m", min=0.0, doc="radial stiffness (x and y)")
     k_tilt = Parameter(0.0, unit="N.m/rad", min=0.0, doc="tilting stiffness about x and y")
     c_axial = Parameter(0.0, unit="N.s/m", min=0.0, doc="axial viscous damping")

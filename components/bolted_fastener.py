@@ -22,18 +22,20 @@ from ._joint6 import PartialJoint6
 class BoltedFastener(PartialJoint6):
     """Axial spring-damper along a bolt axis.
 
-    # Parameters
-    - ``k`` [N/m]: axial stiffness of bolt + members in series
-    - ``c`` [N.s/m]: axial viscous damping (default 0)
-    - ``axis`` [1]: bolt direction (3-vector, normalised; default z)
+    Parameters
+    ----------
+    grounded : bool
+        True: ``node_b`` is the rigid frame and only ``node_a`` exists.
 
-    # Connectors
-    - ``node_a``, ``node_b``: Node6 (``node_b`` absent if ``grounded=True``)
+    Attributes
+    ----------
+    node_a, node_b : Node6
+        The two clamped parts (``node_b`` absent if ``grounded=True``).
     """
 
     k = Parameter(unit="N/m", positive=True, doc="axial stiffness (bolt and members in series)")
     c = Parameter(0.0, unit="N.s/m", min=0.0, doc="axial viscous damping")
-    axis = Parameter(np.array([0.0, 0.0, 1.0]), unit="1", doc="bolt axis direction")
+    axis = Parameter(np.array([0.0, 0.0, 1.0]), unit="1", doc="bolt axis direction (3-vector, normalised)")
 
     @staticmethod
     def series(k_bolt: float, k_members: float) -> float:

@@ -21,16 +21,20 @@ from ._node_dofs import as_6x6
 class Bushing(PartialJoint6):
     """Linear 6-DOF bushing.
 
-    # Parameters
-    - ``K`` [N/m, N, N.m/rad]: 6x6 stiffness (or 6-vector diagonal), symmetric PSD
-    - ``C`` [N.s/m, N.s, N.m.s/rad]: 6x6 damping (or 6-vector diagonal), default 0
+    Parameters
+    ----------
+    grounded : bool
+        True: ``node_b`` is the rigid frame and only ``node_a`` exists.
 
-    # Connectors
-    - ``node_a``, ``node_b``: Node6 (``node_b`` absent if ``grounded=True``)
+    Attributes
+    ----------
+    node_a, node_b : Node6
+        The two joined nodes (``node_b`` absent if ``grounded=True``).
     """
 
-    K = Parameter(unit="N/m|N|N.m/rad", doc="6x6 stiffness on (u, v, w, tx, ty, tz)")
-    C = Parameter(np.zeros(6), unit="N.s/m|N.s|N.m.s/rad", doc="6x6 viscous damping")
+    K = Parameter(unit="N/m|N|N.m/rad", doc="6x6 stiffness on (u, v, w, tx, ty, tz), or a 6-vector "
+                  "diagonal; symmetric positive semi-definite")
+    C = Parameter(np.zeros(6), unit="N.s/m|N.s|N.m.s/rad", doc="6x6 viscous damping (or a 6-vector diagonal)")
 
     def __init__(self, grounded: bool = False, **params):
         super().__init__(grounded=grounded, **params)

@@ -37,24 +37,29 @@ from bscomp.kernel.partials import PartialCompliant
 class CoulombFriction(PartialCompliant):
     """Regularised Coulomb + viscous friction, Eq (5.7), with asymmetric ``+/-`` constants.
 
-    # Parameters
-    - ``F_c_pos`` [N]: Coulomb force magnitude for ``v_rel > 0`` (``F_coul^+``, Table 5.2: 2066 N)
-    - ``F_c_neg`` [N]: Coulomb force magnitude for ``v_rel < 0`` (``|F_coul^-|``, Table 5.2: 2066 N)
-    - ``d_pos``, ``d_neg`` [N.s/m]: viscous coefficient ``B`` for ``v_rel > 0`` / ``< 0`` (Table 5.2: 12673)
-    - ``v_reg`` [m/s]: regularisation velocity of ``tanh(v/v_reg)`` (> 0)
+    Parameters
+    ----------
+    F_c, d : float, optional
+        Set both directions at once (symmetric friction): ``F_c_pos = F_c_neg = F_c`` [N],
+        ``d_pos = d_neg = d`` [N.s/m].
 
-    # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialCompliant`)
-
-    # Observables
-    - ``f`` [N], ``s_rel`` [m], ``v_rel`` [m/s], ``power`` [W] (dissipated, ``f v_rel >= 0``)
+    Attributes
+    ----------
+    flange_a, flange_b : Flange
+        The two flanges (from :class:`~bscomp.kernel.partials.PartialCompliant`).
+    f, s_rel, v_rel : observable
+        Friction force [N], relative position [m] and relative velocity [m/s].
+    power : observable
+        Dissipated power [W] (``f v_rel >= 0``).
     """
 
-    F_c_pos = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude for positive sliding")
-    F_c_neg = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude for negative sliding")
-    d_pos = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B for positive sliding")
-    d_neg = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B for negative sliding")
-    v_reg = Parameter(1.0e-4, unit="m/s", positive=True, doc="regularisation velocity of tanh(v/v_reg)")
+    F_c_pos = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude F_coul^+ for v_rel > 0 "
+                      "(Table 5.2: 2066 N)")
+    F_c_neg = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude |F_coul^-| for v_rel < 0 "
+                      "(Table 5.2: 2066 N)")
+    d_pos = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B for v_rel > 0 (Table 5.2: 12673 N.s/m)")
+    d_neg = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B for v_rel < 0 (Table 5.2: 12673 N.s/m)")
+    v_reg = Parameter(1.0e-4, unit="m/s", positive=True, doc="regularisation velocity of tanh(v_rel/v_reg)")
 
     def __init__(self, F_c=None, d=None, **params):
         """``F_c=`` and ``d=`` set both directions at once (symmetric friction)."""

@@ -36,18 +36,17 @@ class Coupling(Component):
     ends : {"flange", "node"}
         Port kind at both ends.
 
-    # Parameters
-    - ``k_T`` [N.m/rad]: torsional stiffness of the insert
-    - ``J1``, ``J2`` [kg.m^2]: jaw inertias at end a and end b (0 = massless end)
-    - ``d`` [N.m.s/rad]: torsional viscous damping (default 0)
-
-    # Connectors
-    - ``flange_a``, ``flange_b`` (RotFlange, optional) or ``node_a``, ``node_b`` (Node6, tz only, required)
+    Attributes
+    ----------
+    flange_a, flange_b : RotFlange
+        Ends a and b for ``ends="flange"`` (optional).
+    node_a, node_b : Node6
+        Ends a and b for ``ends="node"`` (``tz`` only, required).
     """
 
-    k_T = Parameter(unit="N.m/rad", positive=True, doc="torsional stiffness")
-    J1 = Parameter(0.0, unit="kg.m2", min=0.0, doc="jaw inertia lumped at end a")
-    J2 = Parameter(0.0, unit="kg.m2", min=0.0, doc="jaw inertia lumped at end b")
+    k_T = Parameter(unit="N.m/rad", positive=True, doc="torsional stiffness of the insert")
+    J1 = Parameter(0.0, unit="kg.m^2", min=0.0, doc="jaw inertia lumped at end a (0 = massless end)")
+    J2 = Parameter(0.0, unit="kg.m^2", min=0.0, doc="jaw inertia lumped at end b (0 = massless end)")
     d = Parameter(0.0, unit="N.m.s/rad", min=0.0, doc="torsional viscous damping")
 
     def __init__(self, ends: str = "flange", **params):

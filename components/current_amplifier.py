@@ -20,20 +20,19 @@ from ._limits import limit
 class CurrentAmplifier(Component):
     """Current amplifier (transconductance).
 
-    # Parameters
-    - ``K_a`` [A/V]: amplifier gain (> 0), 6.4898 A/V on the test bed (Eq 4.1)
-    - ``i_max`` [A]: output current limit, 0 = unlimited
-    - ``delta`` [A]: half-width of rounded limiter corners (0 = hard clip)
-
-    # Connectors
-    - ``u``: command voltage [V]; ``i``: output current [A]
+    Attributes
+    ----------
+    u : RealInput
+        Command voltage [V].
+    i : RealOutput
+        Output current [A].
     """
 
     u = RealInput("command voltage [V]", unit="V")
     i = RealOutput("motor current [A]", unit="A")
-    K_a = Parameter(6.4898, unit="A/V", positive=True, doc="current amplifier gain (Eq 4.1)")
+    K_a = Parameter(6.4898, unit="A/V", positive=True, doc="amplifier gain (Eq 4.1; 6.4898 A/V on the test bed)")
     i_max = Parameter(0.0, unit="A", min=0.0, doc="output current limit (0 = unlimited)")
-    delta = Parameter(0.0, unit="A", min=0.0, doc="half-width of the rounded limiter corners (0 = hard)")
+    delta = Parameter(0.0, unit="A", min=0.0, doc="half-width of the rounded limiter corners (0 = hard clip)")
 
     def equations(self):
         import casadi as ca

@@ -7,8 +7,10 @@ from bscomp.kernel.partials import PartialCompliant
 class Damper(PartialCompliant):
     """Linear translational damper.
 
-    # Parameters
-    - ``d`` [N.s/m]: damping constant (>= 0)
+    Attributes
+    ----------
+    flange_a, flange_b : Flange
+        The two flanges (from :class:`~bscomp.kernel.partials.PartialCompliant`).
     """
 
     d = Parameter(unit="N.s/m", min=0.0, doc="damping constant")

@@ -3,8 +3,8 @@
 The outer loop of the P-PI cascade (Fig 4.3) samples the table position every T_s = 200 us, multiplies
 the error by K_p [V/m] and writes the result to the D/A converter, a zero-order hold (Eq 4.16) that
 feeds the analog velocity loop. The open loop of Eq 4.17, ``L(z) = Z{ZOH K_p G_v(s) G_x(s)}``, is what
-:func:`bscomp.control.closed_loop.p_pi_loop` analyses. This object is a sampled block (see ``_sampled.py``):
-the simulator calls :meth:`step` once per sample and holds the output.
+:func:`bscomp.control.closed_loop.p_pi_loop` analyses. This object is a sampled block
+(:class:`bscomp.kernel.sampled.SampledBlock`): the simulator calls :meth:`step` once per sample and holds the output.
 """
 
 from bscomp.errors import ParameterError

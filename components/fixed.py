@@ -5,11 +5,7 @@ from bscomp.kernel.ports import Flange
 
 
 class Fixed(Component):
-    """Flange fixed at position ``s0``.
-
-    # Parameters
-    - ``s0`` [m]: fixed position
-    """
+    """Flange fixed at position ``s0``."""
 
     flange = Flange("fixed flange")
     s0 = Parameter(0.0, unit="m", doc="fixed position")

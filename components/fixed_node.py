@@ -20,8 +20,10 @@ class FixedNode(Component):
     dofs : tuple of str
         Potentials fixed to zero (default all six).
 
-    # Connectors
-    - ``node``: Node6 (required)
+    Attributes
+    ----------
+    node : Node6
+        The clamped node (required).
     """
 
     node = Node6("fixed node", optional=False)

@@ -5,11 +5,7 @@ from bscomp.kernel.ports import RotFlange
 
 
 class FixedRotational(Component):
-    """Rotational flange fixed at angle ``phi0``.
-
-    # Parameters
-    - ``phi0`` [rad]: fixed angle
-    """
+    """Rotational flange fixed at angle ``phi0``."""
 
     flange = RotFlange("fixed flange")
     phi0 = Parameter(0.0, unit="rad", doc="fixed angle")

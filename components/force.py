@@ -10,9 +10,12 @@ from bscomp.kernel.ports import Flange, RealInput
 class Force(Component):
     """Ideal force source.
 
-    # Connectors
-    - ``flange``: translational flange the force acts on
-    - ``f``: real input [N]; unconnected, it becomes the system input ``<name>.f``
+    Attributes
+    ----------
+    flange : Flange
+        Translational flange the force acts on.
+    f : RealInput
+        Force [N]; unconnected, it becomes the system input ``<name>.f``.
     """
 
     flange = Flange("flange the force acts on")

@@ -13,9 +13,12 @@ from bscomp.kernel.ports import RealInput
 class ForceBetween(PartialCompliant):
     """Signal-driven element force between two flanges.
 
-    # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialCompliant`)
-    - ``w``: real input [N], the element force ``f``; unconnected, it becomes the system input ``<name>.w``
+    Attributes
+    ----------
+    flange_a, flange_b : Flange
+        The two flanges (from :class:`~bscomp.kernel.partials.PartialCompliant`).
+    w : RealInput
+        Element force ``f`` [N]; unconnected, it becomes the system input ``<name>.w``.
     """
 
     w = RealInput("element force [N], positive in tension", unit="N")

@@ -7,16 +7,17 @@ from bscomp.kernel.ports import RealInput, RealOutput
 class Gain(Component):
     """Signal gain.
 
-    # Parameters
-    - ``k`` [-]: gain (units follow the connected signals)
-
-    # Connectors
-    - ``u``: real input; ``y``: real output
+    Attributes
+    ----------
+    u : RealInput
+        Input signal.
+    y : RealOutput
+        Output signal.
     """
 
     u = RealInput("input signal")
     y = RealOutput("output signal")
-    k = Parameter(1.0, unit="1", doc="gain")
+    k = Parameter(1.0, unit="1", doc="gain (its unit follows the connected signals, e.g. N.m/A for K_t)")
 
     def equations(self):
         return [self.y.y - self.k * self.u.u]

@@ -25,16 +25,14 @@ from ._node_dofs import pin_unused
 class Housing(Component):
     """Axially compliant bearing housing (mass on a fastener spring to ground).
 
-    # Parameters
-    - ``m`` [kg]: housing mass (> 0)
-    - ``c`` [N/m]: axial fastener stiffness to the frame (>= 0)
-    - ``d`` [N.s/m]: axial fastener damping (>= 0)
-
-    # Connectors
-    - ``node``: Node6, the housing side of the bearing (only ``w`` moves)
-
-    # Observables
-    - ``s`` [m] axial housing displacement, ``f`` [N] fastener force on the housing (``c w + d w'``)
+    Attributes
+    ----------
+    node : Node6
+        The housing side of the bearing (only ``w`` moves).
+    s : observable
+        Axial housing displacement [m].
+    f : observable
+        Fastener force on the housing [N] (``c w + d w'``).
     """
 
     node = Node6("housing node (bearing outer ring); only its axial potential w moves", optional=False)

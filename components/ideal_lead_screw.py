@@ -18,17 +18,19 @@ from bscomp.kernel.ports import Flange, RotFlange
 class IdealLeadScrew(Component):
     """Ideal lead screw (rotary -> linear).
 
-    # Parameters
-    - ``lead`` [m/rev]: lead p (advance per revolution); negative for a left-hand thread
-
-    # Connectors
-    - ``flange_a``: rotational flange (screw)
-    - ``flange_b``: translational flange (nut)
+    Attributes
+    ----------
+    flange_a : RotFlange
+        Rotational flange (screw).
+    flange_b : Flange
+        Translational flange (nut).
+    r_g : observable
+        Lead per radian ``p / (2 pi)`` [m/rad].
     """
 
     flange_a = RotFlange("screw side (rotation)")
     flange_b = Flange("nut side (translation)")
-    lead = Parameter(0.010, unit="m/rev", doc="lead p: advance per revolution")
+    lead = Parameter(0.010, unit="m/rev", doc="lead p: advance per revolution (negative for a left-hand thread)")
 
     @property
     def r_g(self):

@@ -12,19 +12,17 @@ from bscomp.kernel.ports import RotFlange
 class Inertia(Component):
     """Rotating inertia.
 
-    # Parameters
-    - ``J`` [kg.m^2]: moment of inertia about the rotation axis (> 0)
-
-    # Connectors
-    - ``flange_a``, ``flange_b``: rotational flanges (optional)
-
-    # Observables
-    - ``phi`` [rad], ``w`` [rad/s], ``a`` [rad/s^2]
+    Attributes
+    ----------
+    flange_a, flange_b : RotFlange
+        Rotational flanges (optional).
+    phi, w, a : observable
+        Angle [rad], angular speed [rad/s] and angular acceleration [rad/s^2] of the body.
     """
 
     flange_a = RotFlange("left flange of the body", optional=True)
     flange_b = RotFlange("right flange of the body", optional=True)
-    J = Parameter(unit="kg.m2", positive=True, doc="moment of inertia")
+    J = Parameter(unit="kg.m^2", positive=True, doc="moment of inertia about the rotation axis")
 
     coordinate_names = {"flange_a.phi": "phi"}  # name of the body coordinate in the DAE
 

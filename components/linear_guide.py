@@ -35,12 +35,10 @@ class LinearGuide(Component):
     vertical : {"y", "x"}
         Vertical axis; the lateral axis is the other radial axis.
 
-    # Parameters
-    - ``k_vertical``, ``k_lateral`` [N/m]: stiffness per slide
-    - ``c_vertical``, ``c_lateral`` [N.s/m]: viscous damping per slide (default 0)
-
-    # Connectors
-    - one Node6 per slide (required), connected to the table's attachment points
+    Attributes
+    ----------
+    s0 ... : Node6
+        One port per slide (required), connected to the table's attachment points.
     """
 
     k_vertical = Parameter(unit="N/m", min=0.0, doc="vertical stiffness per slide")

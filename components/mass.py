@@ -15,14 +15,12 @@ from bscomp.kernel.ports import Flange
 class Mass(Component):
     """Sliding mass.
 
-    # Parameters
-    - ``m`` [kg]: mass (> 0)
-
-    # Connectors
-    - ``flange_a``, ``flange_b``: translational flanges (optional: an unconnected flange is free)
-
-    # Observables
-    - ``s`` [m], ``v`` [m/s], ``a`` [m/s^2]
+    Attributes
+    ----------
+    flange_a, flange_b : Flange
+        Translational flanges (optional: an unconnected flange is free).
+    s, v, a : observable
+        Position [m], velocity [m/s] and acceleration [m/s^2] of the body.
     """
 
     flange_a = Flange("left flange of the body", optional=True)

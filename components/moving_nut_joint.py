@@ -51,22 +51,20 @@ class MovingNutJoint(Component):
     z_nodes : array
         Axial coordinates [m] of the screw nodes it attaches to (``Ballscrew.z_nodes``).
 
-    # Parameters
-    - ``k_w`` [N/m], ``k_t`` [N.m/rad], ``k_wt`` [N/rad]: (w, θz) block of K_SN (Eq 3.45)
-    - ``c_w`` [N.s/m], ``c_t`` [N.m.s/rad]: joint damping (default 0)
-    - ``z0`` [m]: nut position along the screw when ``nut.w = 0``
-
-    # Connectors
-    - ``n0 ... n<N>``: Node6, connect to the screw nodes (w and tz are used)
-    - ``nut``: Node6, the nut body (w and tz are used)
+    Attributes
+    ----------
+    n0 ... n<N> : Node6
+        Connect to the screw nodes (``w`` and ``tz`` are used).
+    nut : Node6
+        The nut body (``w`` and ``tz`` are used).
     """
 
     nut = Node6("nut node", optional=False)
-    k_w = Parameter(unit="N/m", positive=True, doc="axial stiffness k_zz")
-    k_t = Parameter(unit="N.m/rad", positive=True, doc="torsional stiffness k_θzθz")
-    k_wt = Parameter(0.0, unit="N/rad", doc="axial-torsional coupling k_zθz")
-    c_w = Parameter(0.0, unit="N.s/m", min=0.0, doc="axial damping")
-    c_t = Parameter(0.0, unit="N.m.s/rad", min=0.0, doc="torsional damping")
+    k_w = Parameter(unit="N/m", positive=True, doc="axial stiffness k_zz of the (w, θz) block of K_SN (Eq 3.45)")
+    k_t = Parameter(unit="N.m/rad", positive=True, doc="torsional stiffness k_θzθz of K_SN (Eq 3.45)")
+    k_wt = Parameter(0.0, unit="N/rad", doc="axial-torsional coupling k_zθz of K_SN (Eq 3.45)")
+    c_w = Parameter(0.0, unit="N.s/m", min=0.0, doc="axial joint damping")
+    c_t = Parameter(0.0, unit="N.m.s/rad", min=0.0, doc="torsional joint damping")
     z0 = Parameter(unit="m", doc="nut position along the screw at nut.w = 0")
 
     def __init__(self, z_nodes, **params):

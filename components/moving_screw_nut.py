@@ -37,7 +37,7 @@ from bscomp.errors import ModelDefinitionError
 from bscomp.kernel.component import Component, LinearStructure, Parameter
 from bscomp.kernel.ports import Node6
 
-from ._beam_fe import _shape_and_derivs
+from ._beam_element import _shape_and_derivs
 from ._node_dofs import DOF_NAMES
 
 _FLOWS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
@@ -69,19 +69,17 @@ class MovingScrewNut(Component):
         Interface stiffness, screw point P dofs first then nut dofs (``ScrewNut.stiffness_matrix()``).
     C : (12, 12) array_like, optional
         Interface damping on the same deflections (default none).
-    **params
-        ``z0`` [m].
 
-    # Parameters
-    - ``z0`` [m]: position of P along the screw axis when ``nut.w = 0`` (the nut position)
-
-    # Connectors
-    - ``n0 ... n<N>``: Node6, connect to the screw's nodes of the same name
-    - ``nut``: Node6, the nut node at P
+    Attributes
+    ----------
+    n0 ... n<N> : Node6
+        Connect to the screw's nodes of the same name.
+    nut : Node6
+        The nut node at P.
     """
 
     nut = Node6("nut node at P", optional=False)
-    z0 = Parameter(unit="m", doc="nut position along the screw at nut.w = 0")
+    z0 = Parameter(unit="m", doc="position of P along the screw axis when nut.w = 0 (the nut position)")
 
     def __init__(self, screw, K, C=None, **params):
         super().__init__(**params)

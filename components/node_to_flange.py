@@ -19,18 +19,18 @@ from bscomp.kernel.ports import Flange, Node6
 class NodeToFlange(Component):
     """Node6 ``w`` <-> Flange ``s`` (massless, rigid), ``flange.s = direction * node.w``.
 
-    # Parameters
-    - ``direction`` [1]: +1 (flange axis along the node's +z, default) or -1 (along -z)
-
-    # Connectors
-    - ``node``: Node6 (axial potential ``w``, flow ``Fz``)
-    - ``flange``: translational flange
+    Attributes
+    ----------
+    node : Node6
+        Axial potential ``w``, flow ``Fz``.
+    flange : Flange
+        Translational flange.
     """
 
     node = Node6("6-DOF node (its axial dof w is used)", optional=False)
     flange = Flange("translational flange, s = direction * node.w")
     direction = Parameter(1.0, unit="1", min=-1.0, max=1.0,
-                          doc="+1: flange axis along the node's +z; -1: along -z")
+                          doc="+1: flange axis along the node's +z (default); -1: along -z")
 
     def constraints(self):
         return [Constraint(self.flange.s - self.direction * self.node.w, solve_for=self.flange.s)]

@@ -13,9 +13,12 @@ from bscomp.kernel.ports import Node6, RotFlange
 class NodeToRotFlange(Component):
     """Node6 ``tz`` <-> RotFlange ``phi`` (massless, rigid).
 
-    # Connectors
-    - ``node``: Node6 (torsional potential ``tz``, flow ``Mz``)
-    - ``flange``: rotational flange
+    Attributes
+    ----------
+    node : Node6
+        Torsional potential ``tz``, flow ``Mz``.
+    flange : RotFlange
+        Rotational flange, ``phi = node.tz``.
     """
 
     node = Node6("6-DOF node (its rotation tz about the screw axis is used)", optional=False)

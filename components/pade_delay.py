@@ -42,19 +42,19 @@ from bscomp.kernel.ports import RealInput, RealOutput
 class PadeDelay(Component):
     """Signal delay ``y(t) ~ u(t - T)`` by a first- or second-order Padé approximant.
 
-    # Parameters
-    - ``T`` [s]: delay (> 0)
-
-    # Connectors
-    - ``u``: real input; ``y``: real output (units follow the connected signals)
-
-    # Variables
-    - ``x`` [-], ``v`` [1/s]: internal states (``v`` unused for order 1)
-
     Parameters
     ----------
     order : int
         1 or 2 (structural, fixed at construction). Default 2.
+
+    Attributes
+    ----------
+    u : RealInput
+        Input signal.
+    y : RealOutput
+        Delayed signal (units follow the connected signals).
+    x, v : variable
+        Internal states [1] and [1/s] (``v`` unused for order 1).
     """
 
     u = RealInput("input signal")

@@ -18,22 +18,23 @@ from bscomp.kernel.ports import RealInput, RealOutput
 class PIController(Component):
     """Parallel PI controller with set-point and measurement inputs.
 
-    # Parameters
-    - ``K_v`` [V/V]: proportional gain
-    - ``K_i`` [1/s]: integral gain (parallel form, Eq 4.10)
-
-    # Connectors
-    - ``u_s``: set point [V]; ``u_m``: measurement [V] (e.g. a :class:`Tachometer`); ``y``: output [V]
-
-    # Variables
-    - ``x_i`` [V.s]: integral of the error (a differential state)
+    Attributes
+    ----------
+    u_s : RealInput
+        Set point [V].
+    u_m : RealInput
+        Measurement [V] (e.g. a :class:`Tachometer`).
+    y : RealOutput
+        Output [V].
+    x_i : variable
+        Integral of the error [V.s] (a differential state).
     """
 
     u_s = RealInput("set point [V]", unit="V")
     u_m = RealInput("measurement [V]", unit="V")
     y = RealOutput("control signal [V]", unit="V")
     K_v = Parameter(18.217, unit="V/V", min=0.0, doc="proportional gain (Eq 4.14)")
-    K_i = Parameter(4081.2, unit="1/s", min=0.0, doc="integral gain, parallel form (Eq 4.14)")
+    K_i = Parameter(4081.2, unit="1/s", min=0.0, doc="integral gain, parallel form (Eq 4.10; value of Eq 4.14)")
     x_i = Variable("V.s", start=0.0, doc="integral of the error")
 
     @property

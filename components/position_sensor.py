@@ -7,9 +7,12 @@ from bscomp.kernel.ports import Flange, RealOutput
 class PositionSensor(Component):
     """Absolute position sensor.
 
-    # Connectors
-    - ``flange``: measured flange (draws no force)
-    - ``s``: real output [m]
+    Attributes
+    ----------
+    flange : Flange
+        Measured flange (draws no force).
+    s : RealOutput
+        Absolute position [m].
     """
 
     flange = Flange("measured flange")

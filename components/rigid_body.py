@@ -35,24 +35,21 @@ class RigidBody(Component):
         Attachment points: port name -> offset r = P - COM [m]. One Node6 port each.
     dofs : tuple of str
         COM motions kept, subset of ``("u", "v", "w", "tx", "ty", "tz")``.
-    **params
-        ``m`` [kg], ``I`` [kg.m^2] (3x3, or a 3-vector = principal moments).
 
-    # Parameters
-    - ``m`` [kg]: mass (> 0; may be 0 only if no translation is kept)
-    - ``I`` [kg.m^2]: inertia tensor at the COM (3x3, symmetric); only its kept rows matter
-
-    # Connectors
-    - ``com``: Node6 at the centre of mass (optional)
-    - one Node6 per entry of ``points`` (optional)
-
-    # Observables
-    - ``kinetic_energy`` [J]
+    Attributes
+    ----------
+    com : Node6
+        Centre of mass (optional).
+    <point> : Node6
+        One port per entry of ``points`` (optional).
+    kinetic_energy : observable
+        Kinetic energy [J].
     """
 
     com = Node6("centre of mass")
-    m = Parameter(0.0, unit="kg", min=0.0, doc="mass")
-    I = Parameter(np.zeros((3, 3)), unit="kg.m2", doc="inertia tensor at the COM (Eq 3.2)")
+    m = Parameter(0.0, unit="kg", min=0.0, doc="mass (may be 0 only if no translation is kept)")
+    I = Parameter(np.zeros((3, 3)), unit="kg.m^2", doc="inertia tensor at the COM (Eq 3.2): 3x3 symmetric, or a "
+                  "3-vector of principal moments; only its kept rows matter")
 
     def __init__(self, points: dict | None = None, dofs=DOF_NAMES, **params):
         if "I" in params and np.ndim(params["I"]) == 1:

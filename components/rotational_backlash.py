@@ -22,25 +22,21 @@ from .backlash import contact_force, dead_zone
 class RotationalBacklash(PartialRotCompliant):
     """Rotational backlash: clearance ``b`` with a torsional spring-damper contact on either side.
 
-    # Parameters
-    - ``b`` [rad]: total clearance (dead-zone width ``L``; Table 5.2: 0.001885 rad)
-    - ``c`` [N.m/rad]: contact stiffness (> 0)
-    - ``d`` [N.m.s/rad]: contact damping, active only in contact (>= 0)
-    - ``phi_rel0`` [rad]: relative angle of the gap centre
-    - ``eps`` [rad]: width of the smoothed corners (0 = sharp dead zone)
-
-    # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialRotCompliant`)
-
-    # Observables
-    - ``tau`` [N.m], ``phi_rel`` [rad], ``w_rel`` [rad/s], ``penetration`` [rad]
+    Attributes
+    ----------
+    flange_a, flange_b : RotFlange
+        The two flanges (from :class:`~bscomp.kernel.partials.PartialRotCompliant`).
+    tau, phi_rel, w_rel : observable
+        Element torque [N.m], relative angle [rad] and relative angular speed [rad/s].
+    penetration : observable
+        Contact penetration [rad] (0 in the gap).
     """
 
-    b = Parameter(unit="rad", min=0.0, doc="total clearance (dead-zone width)")
+    b = Parameter(unit="rad", min=0.0, doc="total clearance, the dead-zone width L (Table 5.2: 0.001885 rad)")
     c = Parameter(unit="N.m/rad", positive=True, doc="contact stiffness")
-    d = Parameter(0.0, unit="N.m.s/rad", min=0.0, doc="contact damping (only in contact)")
+    d = Parameter(0.0, unit="N.m.s/rad", min=0.0, doc="contact damping, active only in contact")
     phi_rel0 = Parameter(0.0, unit="rad", doc="relative angle of the gap centre")
-    eps = Parameter(0.0, unit="rad", min=0.0, doc="width of the smoothed dead-zone corners (0: sharp)")
+    eps = Parameter(0.0, unit="rad", min=0.0, doc="width of the smoothed corners (0: sharp dead zone)")
 
     def linear_equivalent(self):
         """Small-signal equivalent for FRFs: the contact in engagement (torsional spring ``c``)."""

@@ -4,8 +4,8 @@ The mode-compensating controller of Sec 4.5 acts directly on the amplifier comma
 reference ``r`` and the measured table position ``y`` [m]; the closed loop is
 ``y = B T / (A R + B S) r`` (Eq 4.22) with ``A R + B S = A_c A_o`` (Eq 4.26) and ``T = t_0 A_o``
 (Eq 4.29). The polynomials come from :func:`bscomp.control.design.rst_design`. ``deg S <= deg R`` and
-``deg T <= deg R`` are required (causal; Eq 4.27 assumes ``deg S = deg R``). A sampled block (see
-``_sampled.py``): :meth:`step` takes ``(r_k, y_k)`` and returns ``u_k``.
+``deg T <= deg R`` are required (causal; Eq 4.27 assumes ``deg S = deg R``). A sampled block
+(:class:`bscomp.kernel.sampled.SampledBlock`): :meth:`step` takes ``(r_k, y_k)`` and returns ``u_k``.
 """
 
 import numpy as np

@@ -22,19 +22,18 @@ from ._limits import limit
 class Saturation(Component):
     """Limiter.
 
-    # Parameters
-    - ``y_max`` [signal unit]: upper limit
-    - ``y_min`` [signal unit]: lower limit (default ``-y_max``), must be below ``y_max``
-    - ``delta`` [signal unit]: half-width of the rounded corners (0 = hard clip)
-
-    # Connectors
-    - ``u``: real input; ``y``: real output
+    Attributes
+    ----------
+    u : RealInput
+        Input signal.
+    y : RealOutput
+        Limited output signal.
     """
 
     u = RealInput("input signal")
     y = RealOutput("limited output signal")
-    y_max = Parameter(1.0, unit="1", doc="upper limit")
-    y_min = Parameter(-1.0, unit="1", doc="lower limit")
+    y_max = Parameter(1.0, unit="1", doc="upper limit, in the unit of the signal")
+    y_min = Parameter(-1.0, unit="1", doc="lower limit, below y_max (constructor default: -y_max)")
     delta = Parameter(0.0, unit="1", min=0.0, doc="half-width of the rounded corners (0 = hard clip)")
 
     def __init__(self, y_max: float = 1.0, y_min: float | None = None, **params):

@@ -29,8 +29,17 @@ from bscomp.errors import ModelDefinitionError
 from bscomp.kernel.component import Component, LinearStructure, Parameter
 from bscomp.kernel.ports import Node6
 
-from . import _screw_nut_fe as snfe
 from ._node_dofs import DOF_NAMES
+from ._nut_geometry import (
+    PRELOADS,
+    azimuth_range,
+    gear_ratio,
+    k_ball_from_axial_stiffness,
+    k_ball_hertz,
+    n_ball_from_geometry,
+    pitch_angle,
+)
+from ._screw_nut_fe import ksn_rigid
 
 
 class ScrewNut(Component):
@@ -39,50 +48,36 @@ class ScrewNut(Component):
     Parameters
     ----------
     preload : {"oversize", "spacer", "offset"}
-        Preload type (Table 3.1: oversize balls).
+        Preload type (four-point contact with oversize balls, or two-point).
     hand : {1, -1}
         Thread hand (+1 right-hand).
 
-    # Parameters
-    - ``k_ball`` [N/m]: ball contact-normal stiffness (Table 3.1: 2.07e7)
-    - ``n_ball`` [1]: balls in contact (Eq B.3; Table 3.1: 100)
-    - ``alpha`` [rad]: pitch angle (Eq 3.6; 4.55 deg)
-    - ``beta`` [rad]: contact angle (50 deg)
-    - ``R`` [m]: radius of the ball centres (20 mm)
-    - ``phi_start``, ``phi_end`` [rad]: azimuth range of each ball (Eq B.2; -+1800 deg)
-    - ``r_g`` [m/rad]: lead per radian; 0 means ``R tan(alpha)`` (Eq 3.13)
-
-    # Connectors
-    - ``screw``: Node6, screw point P on the axis at the nut centre (required)
-    - ``nut``: Node6, nut node at the same place (required)
+    Attributes
+    ----------
+    screw : Node6
+        Screw point P on the axis at the nut centre (required).
+    nut : Node6
+        Nut node at the same place (required).
     """
 
     screw = Node6("screw point P (on the screw axis at the nut centre)", optional=False)
     nut = Node6("nut node (coincident with P)", optional=False)
-    k_ball = Parameter(unit="N/m", positive=True, doc="ball contact stiffness")
-    n_ball = Parameter(unit="1", positive=True, doc="number of balls in contact")
-    alpha = Parameter(unit="rad", min=-0.5 * np.pi, max=0.5 * np.pi, doc="pitch angle")
-    beta = Parameter(unit="rad", min=0.0, max=0.5 * np.pi, doc="contact angle")
-    R = Parameter(unit="m", positive=True, doc="radius of the ball centres")
-    phi_start = Parameter(-np.pi, unit="rad", doc="start azimuth of each ball")
-    phi_end = Parameter(np.pi, unit="rad", doc="end azimuth of each ball")
-    r_g = Parameter(0.0, unit="m/rad", min=0.0, doc="lead per radian (0: R tan(alpha))")
+    k_ball = Parameter(unit="N/m", positive=True, doc="ball contact-normal stiffness (Table 3.1: 2.07e7)")
+    n_ball = Parameter(unit="1", positive=True, doc="number of balls in contact (Eq B.3; Table 3.1: 100)")
+    alpha = Parameter(unit="rad", min=-0.5 * np.pi, max=0.5 * np.pi, doc="pitch angle (Eq 3.6; Table 3.1: 4.55 deg)")
+    beta = Parameter(unit="rad", min=0.0, max=0.5 * np.pi, doc="contact angle (Table 3.1: 50 deg)")
+    R = Parameter(unit="m", positive=True, doc="radius of the ball centres (Sec B.6: 20 mm)")
+    phi_start = Parameter(-np.pi, unit="rad", doc="start azimuth of each ball (Eq B.2; Table B.3: -1800 deg)")
+    phi_end = Parameter(np.pi, unit="rad", doc="end azimuth of each ball (Eq B.2; Table B.3: +1800 deg)")
+    r_g = Parameter(0.0, unit="m/rad", min=0.0, doc="lead per radian; 0 means R tan(alpha) (Eq 3.13)")
 
     def __init__(self, preload: str = "oversize", hand: int = 1, **params):
         super().__init__(**params)
-        if preload not in snfe.PRELOADS:
-            raise ModelDefinitionError(f"ScrewNut: preload must be one of {snfe.PRELOADS}, got {preload!r}")
+        if preload not in PRELOADS:
+            raise ModelDefinitionError(f"ScrewNut: preload must be one of {PRELOADS}, got {preload!r}")
         if hand not in (1, -1):
             raise ModelDefinitionError(f"ScrewNut: hand must be +1 or -1, got {hand!r}")
         self.preload, self.hand = preload, hand
-
-    @classmethod
-    def thesis(cls, **params) -> "ScrewNut":
-        """Test-bed interface: Table 3.1 / Table B.3 (oversize balls, 100 balls, +-1800 deg)."""
-        values = dict(k_ball=2.07e7, n_ball=100, alpha=np.deg2rad(4.55), beta=np.deg2rad(50.0), R=0.020,
-                      phi_start=-10 * np.pi, phi_end=10 * np.pi)
-        values.update(params)
-        return cls(preload="oversize", **values)
 
     @classmethod
     def from_nut_geometry(cls, L_nut: float, lead: float, R: float, R_ball: float, beta: float, *,
@@ -92,25 +87,26 @@ class ScrewNut(Component):
         """Interface from the nut geometry (App B.6).
 
         ``alpha = atan(lead / (2 pi R))`` (Eq 3.6), azimuth range from ``L_nut`` (Eq B.2), ``n_ball``
-        from the helix length (Eq B.3-B.4, ``rounding`` as :func:`n_ball_from_geometry`; the thesis
-        rounds 99.26 up to 100). Give exactly one of ``k_ball`` [N/m], ``k_axial`` [N/m] (catalogue
-        axial stiffness, Eq 3.40/3.41) or ``hertz`` (keyword arguments of
-        :func:`components._screw_nut_fe.k_ball_hertz` other than n_ball/alpha/beta/preload, Eq 3.42-3.43).
+        from the helix length (Eq B.3-B.4, ``rounding`` as
+        :func:`components._nut_geometry.n_ball_from_geometry`; the thesis rounds 99.26 up to 100). Give
+        exactly one of ``k_ball`` [N/m], ``k_axial`` [N/m] (catalogue axial stiffness, Eq 3.40/3.41) or
+        ``hertz`` (keyword arguments of
+        :func:`components._nut_geometry.k_ball_hertz` other than n_ball/alpha/beta/preload, Eq 3.42-3.43).
         """
-        alpha = snfe.pitch_angle(lead, 2.0 * R)
-        phi = snfe.azimuth_range(L_nut, lead, z_offset)
+        alpha = pitch_angle(lead, 2.0 * R)
+        phi = azimuth_range(L_nut, lead, z_offset)
         if n_ball is None:
-            n_ball = snfe.n_ball_from_geometry(R, lead, R_ball, phi, preload, rounding)
+            n_ball = n_ball_from_geometry(R, lead, R_ball, phi, preload, rounding)
         given = [k is not None for k in (k_ball, k_axial, hertz)]
         if sum(given) != 1:
             raise ModelDefinitionError("ScrewNut.from_nut_geometry: give exactly one of k_ball, k_axial, "
                                        "hertz")
         if k_axial is not None:
-            k_ball = snfe.k_ball_from_axial_stiffness(k_axial, n_ball, alpha, beta, preload)
+            k_ball = k_ball_from_axial_stiffness(k_axial, n_ball, alpha, beta, preload)
         elif hertz is not None:
-            k_ball = snfe.k_ball_hertz(n_ball, alpha, beta, preload=preload, **hertz)
+            k_ball = k_ball_hertz(n_ball, alpha, beta, preload=preload, **hertz)
         return cls(preload=preload, hand=hand, k_ball=k_ball, n_ball=n_ball, alpha=alpha, beta=beta, R=R,
-                   phi_start=phi[0], phi_end=phi[1], r_g=snfe.gear_ratio(lead))
+                   phi_start=phi[0], phi_end=phi[1], r_g=gear_ratio(lead))
 
     def stiffness_matrix(self) -> np.ndarray:
         """K_SN (12x12, screw point dofs first) at the current parameter values (Eq 3.35)."""
@@ -121,7 +117,7 @@ class ScrewNut(Component):
     def _ksn(self, k_ball, n_ball, alpha, beta, R, phi_start, phi_end, r_g):
         if phi_end <= phi_start:
             raise ModelDefinitionError(f"ScrewNut: phi_end ({phi_end}) must exceed phi_start ({phi_start})")
-        return snfe.ksn_rigid(k_ball, int(round(n_ball)), alpha, beta, R, (phi_start, phi_end), self.preload,
+        return ksn_rigid(k_ball, int(round(n_ball)), alpha, beta, R, (phi_start, phi_end), self.preload,
                               r_g=None if r_g == 0.0 else r_g, hand=self.hand)
 
     def structure(self):

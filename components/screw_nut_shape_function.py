@@ -23,8 +23,8 @@ import scipy.sparse as sp
 from bscomp.kernel.component import Component, LinearStructure
 from bscomp.kernel.ports import Node6
 
-from . import _screw_nut_fe as snfe
 from ._node_dofs import DOF_NAMES
+from ._screw_nut_fe import ksn_shape_function
 
 
 class ScrewNutShapeFunction(Component):
@@ -38,11 +38,14 @@ class ScrewNutShapeFunction(Component):
         Axial position of the nut reference point P on the screw axis [m].
     interface : ScrewNut
         Ball and thread data (k_ball, n_ball, alpha, beta, R, azimuth range, r_g, preload, hand), e.g.
-        ``ScrewNut.thesis()``.
+        the test bed's ``bscomp.systems.thesis_parts.thesis_screw_nut()``.
 
-    # Connectors
-    - ``n0 ... n<N>``: Node6, connect to the screw's nodes of the same name
-    - ``nut``: Node6, the nut reference node at P
+    Attributes
+    ----------
+    n0 ... n<N> : Node6
+        Connect to the screw's nodes of the same name.
+    nut : Node6
+        The nut reference node at P.
     """
 
     def __init__(self, screw, z_nut: float, interface):
@@ -55,7 +58,7 @@ class ScrewNutShapeFunction(Component):
         v = interface._values
         phi = (v["phi_start"], v["phi_end"])
         beam = screw.beam_model()
-        K = snfe.ksn_shape_function(
+        K = ksn_shape_function(
             v["k_ball"], int(round(v["n_ball"])), v["alpha"], v["beta"], v["R"],
             lambda z: beam.shape_matrix(z).toarray(),
             self.z_nut, phi_range=phi, preload=interface.preload, r_g=None if v["r_g"] == 0.0 else v["r_g"],

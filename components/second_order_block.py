@@ -33,10 +33,14 @@ class SecondOrderBlock(Component):
     expose : dict, optional
         ``{port_name: (coordinate_name, "Flange" | "RotFlange")}``: physical ports tied to coordinates.
 
-    # Connectors
-    - ``q0 ... q<n>``: Generalized coordinates (optional)
-    - one RealInput per model input (name with '.' replaced by '_', e.g. ``motor_tau``)
-    - the exposed flanges
+    Attributes
+    ----------
+    q0 ... q<n> : Generalized
+        The model's coordinates (optional).
+    <input> : RealInput
+        One per model input (name with '.' replaced by '_', e.g. ``motor_tau``).
+    <exposed> : Flange or RotFlange
+        The exposed flanges.
     """
 
     def __init__(self, model, expose: dict | None = None):

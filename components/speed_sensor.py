@@ -7,9 +7,12 @@ from bscomp.kernel.ports import RealOutput, RotFlange
 class SpeedSensor(Component):
     """Absolute angular speed sensor.
 
-    # Connectors
-    - ``flange``: measured flange (draws no torque)
-    - ``w``: real output [rad/s]
+    Attributes
+    ----------
+    flange : RotFlange
+        Measured flange (draws no torque).
+    w : RealOutput
+        Angular speed [rad/s].
     """
 
     flange = RotFlange("measured flange")

@@ -7,12 +7,10 @@ from bscomp.kernel.partials import PartialCompliant
 class Spring(PartialCompliant):
     """Linear translational spring.
 
-    # Parameters
-    - ``c`` [N/m]: spring constant (> 0)
-    - ``s_rel0`` [m]: unstretched length
-
-    # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialCompliant`)
+    Attributes
+    ----------
+    flange_a, flange_b : Flange
+        The two flanges (from :class:`~bscomp.kernel.partials.PartialCompliant`).
     """
 
     c = Parameter(unit="N/m", positive=True, doc="spring constant")

@@ -39,35 +39,36 @@ from bscomp.kernel.partials import PartialCompliant
 class StribeckFriction(PartialCompliant):
     """Regularised Stribeck friction, Eq (5.6), with asymmetric ``+/-`` constants.
 
-    # Parameters
-    - ``F_s_pos``, ``F_s_neg`` [N]: static (breakaway) force magnitude ``F_stat^{+/-}``
-    - ``F_c_pos``, ``F_c_neg`` [N]: Coulomb force magnitude ``F_coul^{+/-}`` (Table 5.2: 2066 N)
-    - ``v1_pos``, ``v1_neg`` [m/s]: Stribeck velocity ``V1`` (decay of the static term)
-    - ``v2_pos``, ``v2_neg`` [m/s]: velocity ``V2`` of the rise to the Coulomb level
-    - ``d_pos``, ``d_neg`` [N.s/m]: viscous coefficient ``B`` (Table 5.2: 12673)
-    - ``v_reg`` [m/s]: regularisation velocity of ``tanh(v/v_reg)``; keep ``v_reg << v1``
-
     No value of ``F_stat``, ``V1`` or ``V2`` is published for the test bed (the thesis uses Eq 5.7):
     the velocity defaults are placeholders of typical lubricated-guideway magnitude, not data.
 
-    # Connectors
-    - ``flange_a``, ``flange_b`` (from :class:`~bscomp.kernel.partials.PartialCompliant`)
+    Parameters
+    ----------
+    F_s, F_c, v1, v2, d : float, optional
+        Set both directions at once (symmetric friction): ``F_s`` sets ``F_s_pos`` and ``F_s_neg`` [N],
+        likewise ``F_c`` [N], ``v1``, ``v2`` [m/s] and ``d`` [N.s/m].
 
-    # Observables
-    - ``f`` [N], ``s_rel`` [m], ``v_rel`` [m/s], ``power`` [W] (dissipated, ``f v_rel >= 0``)
+    Attributes
+    ----------
+    flange_a, flange_b : Flange
+        The two flanges (from :class:`~bscomp.kernel.partials.PartialCompliant`).
+    f, s_rel, v_rel : observable
+        Friction force [N], relative position [m] and relative velocity [m/s].
+    power : observable
+        Dissipated power [W] (``f v_rel >= 0``).
     """
 
-    F_s_pos = Parameter(unit="N", min=0.0, doc="static (breakaway) force magnitude, positive sliding")
-    F_s_neg = Parameter(unit="N", min=0.0, doc="static (breakaway) force magnitude, negative sliding")
-    F_c_pos = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude, positive sliding")
-    F_c_neg = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude, negative sliding")
-    v1_pos = Parameter(1.0e-3, unit="m/s", positive=True, doc="Stribeck velocity V1, positive sliding")
-    v1_neg = Parameter(1.0e-3, unit="m/s", positive=True, doc="Stribeck velocity V1, negative sliding")
-    v2_pos = Parameter(1.0e-3, unit="m/s", positive=True, doc="Coulomb rise velocity V2, positive sliding")
-    v2_neg = Parameter(1.0e-3, unit="m/s", positive=True, doc="Coulomb rise velocity V2, negative sliding")
-    d_pos = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B, positive sliding")
-    d_neg = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B, negative sliding")
-    v_reg = Parameter(1.0e-5, unit="m/s", positive=True, doc="regularisation velocity of tanh(v/v_reg)")
+    F_s_pos = Parameter(unit="N", min=0.0, doc="static (breakaway) force magnitude F_stat^+, v_rel > 0")
+    F_s_neg = Parameter(unit="N", min=0.0, doc="static (breakaway) force magnitude F_stat^-, v_rel < 0")
+    F_c_pos = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude F_coul^+ (Table 5.2: 2066 N)")
+    F_c_neg = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude F_coul^- (Table 5.2: 2066 N)")
+    v1_pos = Parameter(1.0e-3, unit="m/s", positive=True, doc="Stribeck velocity V1 (decay of the static term), v > 0")
+    v1_neg = Parameter(1.0e-3, unit="m/s", positive=True, doc="Stribeck velocity V1 (decay of the static term), v < 0")
+    v2_pos = Parameter(1.0e-3, unit="m/s", positive=True, doc="velocity V2 of the rise to the Coulomb level, v_rel > 0")
+    v2_neg = Parameter(1.0e-3, unit="m/s", positive=True, doc="velocity V2 of the rise to the Coulomb level, v_rel < 0")
+    d_pos = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B, v_rel > 0 (Table 5.2: 12673 N.s/m)")
+    d_neg = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B, v_rel < 0 (Table 5.2: 12673 N.s/m)")
+    v_reg = Parameter(1.0e-5, unit="m/s", positive=True, doc="regularisation velocity of tanh(v/v_reg), << v1")
 
     def __init__(self, F_s=None, F_c=None, v1=None, v2=None, d=None, **params):
         """``F_s=``, ``F_c=``, ``v1=``, ``v2=``, ``d=`` set both directions at once (symmetric friction)."""

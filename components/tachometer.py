@@ -11,12 +11,12 @@ from bscomp.kernel.ports import RealOutput, RotFlange
 class Tachometer(Component):
     """Angular speed to voltage.
 
-    # Parameters
-    - ``H_g`` [V.s/rad]: tachometer gain (> 0)
-
-    # Connectors
-    - ``flange``: measured rotational flange (no torque drawn)
-    - ``v``: real output [V]
+    Attributes
+    ----------
+    flange : RotFlange
+        Measured rotational flange (no torque drawn).
+    v : RealOutput
+        Tachometer voltage [V].
     """
 
     flange = RotFlange("measured flange (motor shaft)")

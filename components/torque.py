@@ -11,9 +11,12 @@ from bscomp.kernel.ports import RealInput, RotFlange
 class Torque(Component):
     """Ideal torque source.
 
-    # Connectors
-    - ``flange``: rotational flange the torque acts on
-    - ``tau``: real input [N.m]
+    Attributes
+    ----------
+    flange : RotFlange
+        Rotational flange the torque acts on.
+    tau : RealInput
+        Torque [N.m]; unconnected, it becomes the system input ``<name>.tau``.
     """
 
     flange = RotFlange("flange the torque acts on")

@@ -7,8 +7,10 @@ from bscomp.kernel.partials import PartialRotCompliant
 class TorsionalDamper(PartialRotCompliant):
     """Linear torsional damper.
 
-    # Parameters
-    - ``d`` [N.m.s/rad]: damping constant (>= 0)
+    Attributes
+    ----------
+    flange_a, flange_b : RotFlange
+        The two flanges (from :class:`~bscomp.kernel.partials.PartialRotCompliant`).
     """
 
     d = Parameter(unit="N.m.s/rad", min=0.0, doc="torsional damping constant")

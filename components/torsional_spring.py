@@ -7,9 +7,10 @@ from bscomp.kernel.partials import PartialRotCompliant
 class TorsionalSpring(PartialRotCompliant):
     """Linear torsional spring.
 
-    # Parameters
-    - ``c`` [N.m/rad]: torsional stiffness (> 0)
-    - ``phi_rel0`` [rad]: unstretched angle
+    Attributes
+    ----------
+    flange_a, flange_b : RotFlange
+        The two flanges (from :class:`~bscomp.kernel.partials.PartialRotCompliant`).
     """
 
     c = Parameter(unit="N.m/rad", positive=True, doc="torsional stiffness")

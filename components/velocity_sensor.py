@@ -7,9 +7,12 @@ from bscomp.kernel.ports import Flange, RealOutput
 class VelocitySensor(Component):
     """Absolute velocity sensor.
 
-    # Connectors
-    - ``flange``: measured flange (draws no force)
-    - ``v``: real output [m/s]
+    Attributes
+    ----------
+    flange : Flange
+        Measured flange (draws no force).
+    v : RealOutput
+        Absolute velocity [m/s].
     """
 
     flange = Flange("measured flange")

@@ -29,7 +29,7 @@ from bscomp.control.loop_analysis import (
     plot_step_comparison,
 )
 from bscomp.systems import small_drive
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.systems.thesis_plants import thesis_modal_plant
 
 

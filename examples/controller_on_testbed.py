@@ -16,7 +16,7 @@ import numpy as np
 
 from bscomp.control.closed_loop import modal_plant, p_pi_loop
 from bscomp.control.design import pi_gains, zoh_polynomials
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.systems.testbed_analysis import drive_parameters
 from bscomp.systems.thesis_plants import thesis_modal_plant
 

@@ -25,15 +25,10 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from bscomp.components._beam_fe import (
-    BeamModel,
-    DofSelection,
-    assemble_shaft,
-    select_dofs,
-    thesis_table_b1_sections,
-)
+from bscomp.components._beam_fe import BeamModel, DofSelection, assemble_shaft, select_dofs
 from bscomp.linear.reduction import ReducedModel, cms_reduce
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
+from bscomp.systems.thesis_parts import thesis_sections
 
 PARAMS = load_parameters("fadal_vmc2216_x")
 
@@ -70,7 +65,7 @@ def build_submodel1(
     coupling_position = g("coupling.attach_position") if coupling_position is None else coupling_position
     d_root = g("screw.root_diameter") if d_root is None else d_root
     beam = assemble_shaft(
-        thesis_table_b1_sections(d_root=d_root, d_equiv=g("screw.equivalent_diameter")),
+        thesis_sections(d_root=d_root, d_equiv=g("screw.equivalent_diameter")),
         E=g("screw.material.youngs_modulus"), rho=g("screw.material.density"),
         nu=g("screw.material.poissons_ratio"), kappa=g("screw.material.shear_factor"),
     )

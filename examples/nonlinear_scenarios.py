@@ -24,7 +24,7 @@ from bscomp import System
 from bscomp.components import Backlash, CoulombFriction, Fixed, SecondOrderBlock
 from bscomp.linear.reduction import reduce_second_order
 from bscomp.simulation.dispatch import simulate
-from bscomp.systems._params import load_parameters
+from bscomp.systems.parameters import load_parameters
 from bscomp.systems.testbed import testbed_axial_torsional
 
 

@@ -54,7 +54,7 @@ from bscomp.components import (
 from bscomp.control.design import ppc_polynomials, rst_design, split_polynomial
 from bscomp.simulation.dispatch import simulate
 from bscomp.simulation.sampled import sampled_controller
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.systems.testbed import testbed_axial_torsional
 
 CONTROLLERS = ("P-PI", "P-PI + notch", "RST (Table 4.6)", "RST (redesigned)")

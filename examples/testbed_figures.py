@@ -18,7 +18,7 @@ import numpy as np
 
 from bscomp import second_order
 from bscomp.linear.modal import modes
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.systems.testbed import nut_positions, testbed
 from bscomp.systems.testbed_analysis import DRIVE_INPUTS, DRIVE_OUTPUTS, drive_parameters, free_free_modes
 

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.systems.testbed import nut_positions
 from bscomp.systems.testbed_analysis import drive_parameters, free_free_modes, submodel1_frequencies
 

@@ -7,6 +7,7 @@ parameter overrides, so ``(name, overrides)`` is all a worker process needs to r
 from __future__ import annotations
 
 import importlib.util
+import inspect
 from pathlib import Path
 
 from bscomp.errors import UnknownNameError
@@ -42,7 +43,13 @@ REGISTRY.update({
     "testbed_appendix_c": testbed_appendix_c,         # App C (Table C.1)
 })
 
-__all__ = ["small_drive", "validation_drive", "get", "REGISTRY"]  # test-bed builders: bscomp.systems.testbed
+__all__ = ["small_drive", "validation_drive", "get", "available", "REGISTRY"]  # test beds: bscomp.systems.testbed
+
+
+def available() -> dict[str, str]:
+    """The registered drives, ``{name: one-line description}`` (the first line of each build function's
+    docstring), in registration order: what :func:`get` builds by name."""
+    return {name: ((inspect.getdoc(build) or "").strip().splitlines() or [""])[0] for name, build in REGISTRY.items()}
 
 
 def get(name_or_path: str, overrides: dict | None = None):

@@ -1,7 +1,8 @@
 """The thesis test bed: x-axis ballscrew feed drive of the Fadal VMC 2216 (thesis Sec 3.5, Ch 4, Ch 5).
 
 Composed only from components; every number comes from ``systems/data/fadal_vmc2216_x.toml`` (loaded
-with :func:`bscomp.systems._params.load_parameters`), whose entries cite the thesis table or equation.
+with :func:`bscomp.systems.parameters.load_parameters`; the screw and the screw-nut interface through
+:mod:`bscomp.systems.thesis_parts`), whose entries cite the thesis table or equation.
 
 Layout (thesis Sec 3.5.1, Fig 3.3), axial coordinate ``x`` = screw axis ``z`` of the FE model, ``x = 0``
 at the free end of section A, increasing towards section F (toml ``[meta].coordinate``)::
@@ -77,7 +78,6 @@ import numpy as np
 
 from bscomp import System
 from bscomp.components import (
-    Ballscrew,
     Bearing,
     Bushing,
     Coupling,
@@ -94,16 +94,15 @@ from bscomp.components import (
     NodeToFlange,
     NodeToRotFlange,
     RigidBody,
-    ScrewNut,
     Torque,
     TorsionalDamper,
 )
-from bscomp.components._beam_fe import Section
 from bscomp.errors import ModelDefinitionError
 from bscomp.kernel.damping import matrix_from_ratios
 from bscomp.kernel.interface import InsertionPoint, UncertainParameter, ValidationInterface
 
-from ._params import get_value, load_parameters
+from .parameters import get_value
+from .thesis_parts import thesis_ballscrew, thesis_parameters, thesis_screw_nut, thesis_sections
 
 __all__ = [
     "testbed", "testbed_free_screw", "testbed_screw_nut", "testbed_no_table", "testbed_full",
@@ -114,16 +113,6 @@ __all__ = [
 #: Verification steps of thesis Sec 3.5.2 and the models of Ch 4/5 and App C.
 VARIANTS = ("free_screw", "screw_nut", "no_table", "full", "axial_torsional", "submodel1", "appendix_c")
 
-_PARAMS_CACHE: dict = {}
-
-
-def thesis_parameters(name: str = "fadal_vmc2216_x") -> dict:
-    """The parsed parameter file (cached; treat as read-only)."""
-    if name not in _PARAMS_CACHE:
-        _PARAMS_CACHE[name] = load_parameters(name)
-    return _PARAMS_CACHE[name]
-
-
 def nut_positions(params: str = "fadal_vmc2216_x") -> dict:
     """Named nut-centre positions x [m]: ``L``, ``C``, ``R`` (Tables 4.1/4.2) and ``1``, ``2``, ``3``
     (free-free tests, Tables 3.2/3.3). All CHOICE entries of the toml ``[table]`` group."""
@@ -131,21 +120,6 @@ def nut_positions(params: str = "fadal_vmc2216_x") -> dict:
     ff = get_value(p, "table.free_free_positions")
     return {"L": get_value(p, "table.nut_position_L"), "C": get_value(p, "table.nut_position_C"),
             "R": get_value(p, "table.nut_position_R"), "1": ff[0], "2": ff[1], "3": ff[2]}
-
-
-def _sections(p, root_diameter):
-    """Table B.1 sections A..F from the toml (section C: stiffness from the root, mass from d_e, Eq 3.1)."""
-    out = []
-    for name in "ABCDEF":
-        g = f"screw.sections.{name}"
-        d_out = get_value(p, f"{g}.outer_diameter")
-        d_mass = None
-        if name == "C":
-            d_out = get_value(p, "screw.root_diameter") if root_diameter is None else float(root_diameter)
-            d_mass = get_value(p, "screw.equivalent_diameter")
-        out.append(Section(get_value(p, f"{g}.length"), d_out, get_value(p, f"{g}.inner_diameter"),
-                           int(get_value(p, f"{g}.n_elements")), d_mass, name))
-    return out
 
 
 def _position(value, named: dict) -> float:
@@ -281,6 +255,71 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
         exists, ``sources`` citing the thesis, ``build_args`` (the resolved choices) and, for the drive
         variants, ``validation`` (:class:`~bscomp.kernel.interface.ValidationInterface`, see the module docstring).
     """
+    _check_choices(variant, coupling, ksn, nut_joint, jaw1, viscous, drive_input)
+    p = thesis_parameters(params)
+    v = lambda key: get_value(p, key)  # noqa: E731
+    motor_end = v("screw.motor_end") if motor_end is None else motor_end
+    if motor_end not in ("F", "A"):
+        raise ModelDefinitionError(f"testbed: motor_end must be 'F' or 'A', got {motor_end!r}")
+    if dofs is None:
+        dofs = ("w", "tz") if variant in ("axial_torsional", "submodel1") else ("u", "v", "w", "tx", "ty", "tz")
+    dofs = tuple(dofs)
+    sections = thesis_sections(d_root=root_diameter, params=params)
+    x_b1, x_b2, x_cp = _support_positions(v, motor_end, sum(s.length for s in sections), b1_position,
+                                          b2_position, coupling_position)
+    has_nut = variant not in ("free_screw", "submodel1")
+    has_drive = variant in ("full", "axial_torsional", "submodel1", "appendix_c")
+    has_bearings = variant not in ("free_screw", "screw_nut")
+    x_nut = _position(nut_position, nut_positions(params)) if has_nut else None
+
+    s = System(_NAMES[variant] + ("_bellows" if coupling == "bellows" else ""))
+    s.description = _DESCRIPTIONS[variant] + (f", {coupling} coupling" if has_drive else "")
+    src = {}
+    points = {"nut": x_nut} if has_nut and nut_joint == "point" else {}
+    if has_bearings:
+        points["b1"], points["b2"] = x_b1, x_b2
+    if has_drive:
+        points["coupling"] = x_cp
+    # ---- screw (Table B.1, Sec B.1, Eq 3.1, Eq A.6)
+    s.add("screw", thesis_ballscrew(dofs=dofs, points=points, d_root=root_diameter, params=params))
+    src.update({"screw": "Table B.1; Sec B.1 (E, rho, nu); Eq 3.1 (d_e); Eq A.6 (k^s)",
+                "screw.nut": f"nut centre x = {x_nut} m (toml table.nut_position_*, CHOICE)" if has_nut else ""})
+    if has_bearings:
+        _add_bearings(s, v, x_b1, x_b2, src)
+    if has_nut:
+        _add_nut(s, v, params, variant, x_nut, ksn, nut_joint, pitch, viscous, src)
+    if has_drive:
+        _add_drive(s, v, variant, coupling, jaw1, viscous, drive_input, damping, x_cp, src)
+
+    s.sources = {k: t for k, t in src.items() if t}
+    if has_drive:
+        s.validation = _validation_interface(s, variant, drive_input)
+    if has_nut:
+        s.position_parameter = "nut_position" if nut_joint == "point" else "sn.z0"
+    s.build_args = dict(variant=variant, nut_position=x_nut, dofs=dofs, coupling=coupling, motor_end=motor_end,
+                        b1_position=x_b1 if has_bearings else None, b2_position=x_b2 if has_bearings else None,
+                        coupling_position=x_cp if has_drive else None, root_diameter=sections[2].d_out,
+                        jaw1=jaw1, ksn=ksn, pitch=pitch, viscous=viscous, nut_joint=nut_joint,
+                        drive_input=drive_input if has_drive else None, params=params)
+    return s
+
+
+_NAMES = {"full": "testbed", "free_screw": "testbed_free_screw", "screw_nut": "testbed_screw_nut",
+          "no_table": "testbed_no_table", "axial_torsional": "testbed_axial_torsional",
+          "submodel1": "testbed_submodel1", "appendix_c": "testbed_appendix_c"}
+_DESCRIPTIONS = {
+    "free_screw": "free-free ballscrew (thesis Sec 3.5.2.1)",
+    "screw_nut": "free-free ballscrew with the nut (Sec 3.5.2.2, Tables 3.2/3.3)",
+    "no_table": "screw, bearings and nut on the frame; no table, coupling, rotor (Sec 3.5.2.3)",
+    "full": "Fadal VMC 2216 x-axis test bed, full 6-DOF FE model (Sec 3.5.2.4, Ch 4)",
+    "axial_torsional": "test bed, axial + torsional DOF only (Ch 5, sub-models 1 + 2 of Table 5.1)",
+    "submodel1": "sub-model 1 of Table 5.1: screw, bearings, coupling, rotor (axial + torsional)",
+    "appendix_c": "App C: table+nut rigid body on four roller slides (Table C.1)",
+}
+
+
+def _check_choices(variant, coupling, ksn, nut_joint, jaw1, viscous, drive_input) -> None:
+    """Reject an unknown variant or option of :func:`testbed`, naming the allowed values."""
     if variant not in VARIANTS:
         raise ModelDefinitionError(f"testbed: unknown variant {variant!r}; use one of {VARIANTS}")
     if coupling not in ("jaw", "bellows"):
@@ -299,18 +338,11 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
     if drive_input not in ("voltage", "torque"):
         raise ModelDefinitionError(f"testbed: drive_input must be 'voltage' (amplifier command amp.u [V]) or "
                                    f"'torque' (motor.tau [N m]), got {drive_input!r}")
-    p = thesis_parameters(params)
-    v = lambda key: get_value(p, key)  # noqa: E731
-    motor_end = v("screw.motor_end") if motor_end is None else motor_end
-    if motor_end not in ("F", "A"):
-        raise ModelDefinitionError(f"testbed: motor_end must be 'F' or 'A', got {motor_end!r}")
-    if dofs is None:
-        dofs = ("w", "tz") if variant in ("axial_torsional", "submodel1") else ("u", "v", "w", "tx", "ty", "tz")
-    dofs = tuple(dofs)
 
-    sections = _sections(p, root_diameter)
-    length = sum(s.length for s in sections)                  # 0.9205 m (Table B.1)
-    # supports, in the toml's x (defaults are for the motor at F; "A" mirrors them)
+
+def _support_positions(v, motor_end, length, b1_position, b2_position, coupling_position) -> tuple:
+    """x [m] of the thrust pair b1, the deep-groove bearing b2 and the screw-side jaw: the toml CHOICEs
+    (for the motor at F) unless given; ``motor_end="A"`` mirrors the defaults about the screw's middle."""
     x_b1 = v("bearings.b1_position") if b1_position is None else float(b1_position)
     x_b2 = v("bearings.b2_position") if b2_position is None else float(b2_position)
     x_cp = v("coupling.attach_position") if coupling_position is None else float(coupling_position)
@@ -318,156 +350,112 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
         x_b1 = length - x_b1 if b1_position is None else x_b1
         x_b2 = length - x_b2 if b2_position is None else x_b2
         x_cp = length - x_cp if coupling_position is None else x_cp
-    has_nut = variant not in ("free_screw", "submodel1")
-    has_drive = variant in ("full", "axial_torsional", "submodel1", "appendix_c")
-    has_bearings = variant not in ("free_screw", "screw_nut")
-    x_nut = _position(nut_position, nut_positions(params)) if has_nut else None
+    return x_b1, x_b2, x_cp
 
-    points = {}
-    if has_nut and nut_joint == "point":
-        points["nut"] = x_nut
-    if has_bearings:
-        points["b1"], points["b2"] = x_b1, x_b2
-    if has_drive:
-        points["coupling"] = x_cp
 
-    names = {"full": "testbed", "free_screw": "testbed_free_screw", "screw_nut": "testbed_screw_nut",
-             "no_table": "testbed_no_table", "axial_torsional": "testbed_axial_torsional",
-             "submodel1": "testbed_submodel1", "appendix_c": "testbed_appendix_c"}
-    s = System(names[variant] + ("_bellows" if coupling == "bellows" else ""))
-    s.description = {
-        "free_screw": "free-free ballscrew (thesis Sec 3.5.2.1)",
-        "screw_nut": "free-free ballscrew with the nut (Sec 3.5.2.2, Tables 3.2/3.3)",
-        "no_table": "screw, bearings and nut on the frame; no table, coupling, rotor (Sec 3.5.2.3)",
-        "full": "Fadal VMC 2216 x-axis test bed, full 6-DOF FE model (Sec 3.5.2.4, Ch 4)",
-        "axial_torsional": "test bed, axial + torsional DOF only (Ch 5, sub-models 1 + 2 of Table 5.1)",
-        "submodel1": "sub-model 1 of Table 5.1: screw, bearings, coupling, rotor (axial + torsional)",
-        "appendix_c": "App C: table+nut rigid body on four roller slides (Table C.1)",
-    }[variant] + (f", {coupling} coupling" if has_drive else "")
-    src = {}
+def _add_bearings(s: System, v, x_b1: float, x_b2: float, src: dict) -> None:
+    """Bearings (Table 3.1, Sec B.5) on rigid housings (Sec 3.5.2.3) at the screw points b1, b2."""
+    s.add("b1", Bearing(k_axial=v("bearings.b1_k_axial"), k_radial=v("bearings.b1_k_radial"), grounded=True))
+    s.add("b2", Bearing(k_axial=v("bearings.b2_k_axial"), k_radial=v("bearings.b2_k_radial"), grounded=True))
+    s.connect("screw.b1", "b1.node_a")
+    s.connect("screw.b2", "b2.node_a")
+    src.update({"b1": f"Table 3.1, Sec B.5; acts at x = {x_b1} m (CHOICE)",
+                "b2": f"Table 3.1, Sec B.5; acts at x = {x_b2} m (CHOICE)"})
 
-    # ---- screw (Table B.1, Sec B.1, Eq 3.1, Eq A.6)
-    s.add("screw", Ballscrew(sections, dofs=dofs, points=points, E=v("screw.material.youngs_modulus"),
-                             rho=v("screw.material.density"), nu=v("screw.material.poissons_ratio"),
-                             kappa=v("screw.material.shear_factor")))
-    src.update({"screw": "Table B.1; Sec B.1 (E, rho, nu); Eq 3.1 (d_e); Eq A.6 (k^s)",
-                "screw.nut": f"nut centre x = {x_nut} m (toml table.nut_position_*, CHOICE)" if has_nut else ""})
 
-    # ---- bearings (Table 3.1, Sec B.5): rigid housings (Sec 3.5.2.3)
-    if has_bearings:
-        s.add("b1", Bearing(k_axial=v("bearings.b1_k_axial"), k_radial=v("bearings.b1_k_radial"),
-                            grounded=True))
-        s.add("b2", Bearing(k_axial=v("bearings.b2_k_axial"), k_radial=v("bearings.b2_k_radial"),
-                            grounded=True))
-        s.connect("screw.b1", "b1.node_a")
-        s.connect("screw.b2", "b2.node_a")
-        src.update({"b1": f"Table 3.1, Sec B.5; acts at x = {x_b1} m (CHOICE)",
-                    "b2": f"Table 3.1, Sec B.5; acts at x = {x_b2} m (CHOICE)"})
+def _add_nut(s: System, v, params, variant, x_nut, ksn, nut_joint, pitch, viscous, src: dict) -> None:
+    """Screw-nut interface (Eq 3.35, Table 3.1, Table B.3, Sec B.6), the nut (Table 3.1, Sec B.2) and, in
+    the drive variants, the table it is bolted to (Table 3.1, Sec B.3; App C: :func:`_appendix_c_table`)."""
+    lead = v("screw.lead") if pitch is None else float(pitch)
+    phi_half = v("nut.length") / (2.0 * lead) * 2.0 * math.pi          # Eq B.2
+    sn = thesis_screw_nut(params) if pitch is None else thesis_screw_nut(
+        params, alpha=math.atan(lead / (math.pi * v("screw.pitch_diameter"))), phi_start=-phi_half, phi_end=phi_half)
+    if nut_joint == "moving":
+        screw = s.component("screw")
+        s.add("sn", MovingScrewNut.from_screw_nut(screw, sn, z0=x_nut))
+        for i in range(screw.n_nodes):
+            s.connect(f"screw.n{i}", f"sn.n{i}")
+        nut_port = "sn.nut"
+    elif ksn == "full":
+        s.add("sn", sn)
+        s.connect("screw.nut", "sn.screw")
+        nut_port = "sn.nut"
+    else:                                   # Eq 3.46: direct terms + axial-torsional coupling only
+        A = sn.stiffness_matrix()[:6, :6]
+        keep = np.diag(np.diag(A))
+        keep[2, 5] = keep[5, 2] = A[2, 5]
+        s.add("sn", Bushing(K=keep))
+        s.connect("screw.nut", "sn.node_a")
+        nut_port = "sn.node_b"
+    src["sn"] = "Eq 3.35 (rigid-ballscrew); Table 3.1; Table B.3; Eq B.2" + (
+        "" if ksn == "full" else "; Eq 3.46 terms only (App C Case A)")
+    m_nut, I_nut = v("nut.mass"), [v("nut.Ixx"), v("nut.Iyy"), v("nut.Izz")]
+    if variant in ("screw_nut", "no_table"):
+        s.add("nut", RigidBody(m=m_nut, I=I_nut))                          # free 6-DOF nut
+        s.connect(nut_port, "nut.com")
+        src["nut"] = "Table 3.1, Sec B.2 (6x6 inertia at the interface node, Sec B.6)"
+        return
+    if variant == "appendix_c":
+        _appendix_c_table(s, v, nut_port)
+        src["table"] = "Table C.1 (table+nut one rigid body, four roller slides)"
+        return
+    s.add("nut", RigidBody(m=m_nut, I=I_nut, dofs=("w",)))             # bolted to the table
+    s.connect(nut_port, "nut.com")
+    # the table axis is the screw's -z for a right-hand thread (module docstring, "Sign convention")
+    s.add("table_joint", NodeToFlange(direction=-float(sn.hand)))
+    s.add("table", Mass(m=v("table.mass")))
+    s.add("Fd", Force())
+    s.connect("nut.com", "table_joint.node")
+    s.connect("table_joint.flange", "table.flange_a")
+    s.connect("Fd.flange", "table.flange_a")
+    src.update({"nut": "Table 3.1 (mass); moves with the table along z only (Sec 3.5.1)",
+                "table_joint": "table axis = -z: positive in the direction a positive command moves "
+                               "the table (Eq 4.2, G_x = r_g/s; right-hand thread, Eq 3.12)",
+                "table": "Table 3.1, Sec B.3", "Fd": "disturbance force F_d on the table (Fig 4.1)"})
+    if viscous == "guide":
+        s.add("guide", Damper(d=v("guideways.viscous_coefficient")))
+        s.add("frame", Fixed())
+        s.connect("table.flange_b", "guide.flange_a")
+        s.connect("guide.flange_b", "frame.flange")
+        src["guide"] = "Table 5.2 (B = 12673 N s/m = 0.0321 kg m^2/s of Sec 4.2.1 seen from the table)"
 
-    # ---- screw-nut interface (Eq 3.35, Table 3.1, Table B.3, Sec B.6) and nut (Table 3.1, Sec B.2)
-    if has_nut:
-        lead = v("screw.lead") if pitch is None else float(pitch)
-        alpha = v("screw_nut.alpha") if pitch is None else math.atan(lead / (math.pi * v("screw.pitch_diameter")))
-        phi_half = v("nut.length") / (2.0 * lead) * 2.0 * math.pi          # Eq B.2
-        sn = ScrewNut.thesis(k_ball=v("screw_nut.k_ball"), n_ball=v("screw_nut.N_ball"), alpha=alpha,
-                             beta=v("screw_nut.beta"), R=v("screw_nut.R"),
-                             phi_start=v("screw_nut.phi_start") if pitch is None else -phi_half,
-                             phi_end=v("screw_nut.phi_end") if pitch is None else phi_half)
-        if nut_joint == "moving":
-            screw = s.component("screw")
-            s.add("sn", MovingScrewNut.from_screw_nut(screw, sn, z0=x_nut))
-            for i in range(screw.n_nodes):
-                s.connect(f"screw.n{i}", f"sn.n{i}")
-            nut_port = "sn.nut"
-        elif ksn == "full":
-            s.add("sn", sn)
-            s.connect("screw.nut", "sn.screw")
-            nut_port = "sn.nut"
-        else:                                   # Eq 3.46: direct terms + axial-torsional coupling only
-            A = sn.stiffness_matrix()[:6, :6]
-            keep = np.diag(np.diag(A))
-            keep[2, 5] = keep[5, 2] = A[2, 5]
-            s.add("sn", Bushing(K=keep))
-            s.connect("screw.nut", "sn.node_a")
-            nut_port = "sn.node_b"
-        src["sn"] = "Eq 3.35 (rigid-ballscrew); Table 3.1; Table B.3; Eq B.2" + (
-            "" if ksn == "full" else "; Eq 3.46 terms only (App C Case A)")
-        m_nut, I_nut = v("nut.mass"), [v("nut.Ixx"), v("nut.Iyy"), v("nut.Izz")]
-        if variant in ("screw_nut", "no_table"):
-            s.add("nut", RigidBody(m=m_nut, I=I_nut))                          # free 6-DOF nut
-            s.connect(nut_port, "nut.com")
-            src["nut"] = "Table 3.1, Sec B.2 (6x6 inertia at the interface node, Sec B.6)"
-        elif variant == "appendix_c":
-            _appendix_c_table(s, v, nut_port)
-            src["table"] = "Table C.1 (table+nut one rigid body, four roller slides)"
-        else:
-            s.add("nut", RigidBody(m=m_nut, I=I_nut, dofs=("w",)))             # bolted to the table
-            s.connect(nut_port, "nut.com")
-            # the table axis is the screw's -z for a right-hand thread (module docstring, "Sign convention")
-            s.add("table_joint", NodeToFlange(direction=-float(sn.hand)))
-            s.add("table", Mass(m=v("table.mass")))
-            s.add("Fd", Force())
-            s.connect("nut.com", "table_joint.node")
-            s.connect("table_joint.flange", "table.flange_a")
-            s.connect("Fd.flange", "table.flange_a")
-            src.update({"nut": "Table 3.1 (mass); moves with the table along z only (Sec 3.5.1)",
-                        "table_joint": "table axis = -z: positive in the direction a positive command moves "
-                                       "the table (Eq 4.2, G_x = r_g/s; right-hand thread, Eq 3.12)",
-                        "table": "Table 3.1, Sec B.3", "Fd": "disturbance force F_d on the table (Fig 4.1)"})
-            if viscous == "guide":
-                s.add("guide", Damper(d=v("guideways.viscous_coefficient")))
-                s.add("frame", Fixed())
-                s.connect("table.flange_b", "guide.flange_a")
-                s.connect("guide.flange_b", "frame.flange")
-                src["guide"] = "Table 5.2 (B = 12673 N s/m = 0.0321 kg m^2/s of Sec 4.2.1 seen from the table)"
 
-    # ---- coupling (Sec B.4 / Sec 4.4.1), rotor (Table 3.1, Sec B.3); amplifier + torque constant (Eq 4.1)
-    if has_drive:
-        k_T = v("coupling.kT") if coupling == "jaw" else v("coupling.bellows_kT")
-        J1, J2 = v("coupling.J1"), v("coupling.J2")
-        s.add("motor", Torque())
-        if drive_input == "voltage":             # current mode: G_e = K_a K_t (Eq 4.1), input amp.u [V]
-            s.add("amp", CurrentAmplifier(K_a=v("electrical.K_a")))
-            s.add("kt", Gain(k=v("electrical.K_t")))
-            s.connect("amp.i", "kt.u")
-            s.connect("kt.y", "motor.tau")
-            src.update({"amp": "Eq 4.1 (Sec 4.2): current amplifier K_a = 6.4898 A/V, input amp.u [V]",
-                        "kt": "Eq 4.1 (Sec 4.2): motor torque constant K_t = 0.4769 N m/A"})
-        if jaw1 == "screw":                     # sensitivity only: both jaws on the screw side
-            J1, J2 = 0.0, J1 + J2
-        s.add("rotor", Inertia(J=v("rotor.Izz")))
-        s.add("coupling", Coupling(k_T=k_T, J1=J1, J2=J2))
-        s.add("screw_end", NodeToRotFlange())
-        s.connect("motor.flange", "rotor.flange_a")
-        s.connect("rotor.flange_b", "coupling.flange_a")
-        s.connect("coupling.flange_b", "screw_end.flange")
-        s.connect("screw_end.node", "screw.coupling")
-        if viscous == "motor" and variant != "submodel1":
-            s.add("B", TorsionalDamper(d=v("control.B")))
-            s.add("frame_rot", FixedRotational())
-            s.connect("rotor.flange_a", "B.flange_a")
-            s.connect("B.flange_b", "frame_rot.flange")
-            src["B"] = "Sec 4.2.1 (Eq 4.2): B = 0.0321 kg m^2/s at the motor shaft (= Table 5.2 x r_g^2)"
-        src.update({"coupling": ("Sec B.4 (k_T = 3938, Eq B.1)" if coupling == "jaw" else "Sec 4.4.1 (bellows "
-                                 "k_T = 45940)") + f"; J1, J2 Table 3.1; J2 at x = {x_cp} m (CHOICE)",
-                    "rotor": "Table 3.1, Sec B.3",
-                    "motor": "motor torque tau = K_a K_t u (Eq 4.1)" if drive_input == "voltage" else
-                             "torque input motor.tau (Eq 4.1: tau = K_a K_t u, amplifier left out)"})
-        if damping and variant != "appendix_c":
-            s.damping = DriveModalDamping(v("damping.zeta_mode1"), v("damping.zeta_mode2"), v("damping.zeta_other"))
-            src["damping"] = "Tables 4.1/4.2 (6 %, 10 %); others 6 % (CHOICE); rigid mode undamped (Sec 5.2.2.1)"
-
-    s.sources = {k: t for k, t in src.items() if t}
-    if has_drive:
-        s.validation = _validation_interface(s, variant, drive_input)
-    if has_nut:
-        s.position_parameter = "nut_position" if nut_joint == "point" else "sn.z0"
-    s.build_args = dict(variant=variant, nut_position=x_nut, dofs=dofs, coupling=coupling, motor_end=motor_end,
-                        b1_position=x_b1 if has_bearings else None, b2_position=x_b2 if has_bearings else None,
-                        coupling_position=x_cp if has_drive else None, root_diameter=sections[2].d_out,
-                        jaw1=jaw1, ksn=ksn, pitch=pitch, viscous=viscous, nut_joint=nut_joint,
-                        drive_input=drive_input if has_drive else None, params=params)
-    return s
+def _add_drive(s: System, v, variant, coupling, jaw1, viscous, drive_input, damping, x_cp, src: dict) -> None:
+    """Coupling (Sec B.4 / Sec 4.4.1), rotor (Table 3.1, Sec B.3), the amplifier and torque constant (Eq 4.1),
+    the motor-side viscous damping B (Sec 4.2.1) and the modal damping (Tables 4.1/4.2)."""
+    k_T = v("coupling.kT") if coupling == "jaw" else v("coupling.bellows_kT")
+    J1, J2 = v("coupling.J1"), v("coupling.J2")
+    s.add("motor", Torque())
+    if drive_input == "voltage":             # current mode: G_e = K_a K_t (Eq 4.1), input amp.u [V]
+        s.add("amp", CurrentAmplifier(K_a=v("electrical.K_a")))
+        s.add("kt", Gain(k=v("electrical.K_t")))
+        s.connect("amp.i", "kt.u")
+        s.connect("kt.y", "motor.tau")
+        src.update({"amp": "Eq 4.1 (Sec 4.2): current amplifier K_a = 6.4898 A/V, input amp.u [V]",
+                    "kt": "Eq 4.1 (Sec 4.2): motor torque constant K_t = 0.4769 N m/A"})
+    if jaw1 == "screw":                     # sensitivity only: both jaws on the screw side
+        J1, J2 = 0.0, J1 + J2
+    s.add("rotor", Inertia(J=v("rotor.Izz")))
+    s.add("coupling", Coupling(k_T=k_T, J1=J1, J2=J2))
+    s.add("screw_end", NodeToRotFlange())
+    s.connect("motor.flange", "rotor.flange_a")
+    s.connect("rotor.flange_b", "coupling.flange_a")
+    s.connect("coupling.flange_b", "screw_end.flange")
+    s.connect("screw_end.node", "screw.coupling")
+    if viscous == "motor" and variant != "submodel1":
+        s.add("B", TorsionalDamper(d=v("control.B")))
+        s.add("frame_rot", FixedRotational())
+        s.connect("rotor.flange_a", "B.flange_a")
+        s.connect("B.flange_b", "frame_rot.flange")
+        src["B"] = "Sec 4.2.1 (Eq 4.2): B = 0.0321 kg m^2/s at the motor shaft (= Table 5.2 x r_g^2)"
+    src.update({"coupling": ("Sec B.4 (k_T = 3938, Eq B.1)" if coupling == "jaw" else "Sec 4.4.1 (bellows "
+                             "k_T = 45940)") + f"; J1, J2 Table 3.1; J2 at x = {x_cp} m (CHOICE)",
+                "rotor": "Table 3.1, Sec B.3",
+                "motor": "motor torque tau = K_a K_t u (Eq 4.1)" if drive_input == "voltage" else
+                         "torque input motor.tau (Eq 4.1: tau = K_a K_t u, amplifier left out)"})
+    if damping and variant != "appendix_c":
+        s.damping = DriveModalDamping(v("damping.zeta_mode1"), v("damping.zeta_mode2"), v("damping.zeta_other"))
+        src["damping"] = "Tables 4.1/4.2 (6 %, 10 %); others 6 % (CHOICE); rigid mode undamped (Sec 5.2.2.1)"
 
 
 #: The sign convention of the test bed's measured channels, in words (module docstring).

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from bscomp.control.closed_loop import DrivePlant, modal_plant
 from bscomp.errors import UnknownNameError
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
 
 __all__ = ["POSITIONS", "thesis_modes", "thesis_modal_plant"]
 
@@ -35,7 +35,7 @@ def thesis_modes(table: str = "4.1", position: str = "C", n_modes: int = 2, para
     n_modes : int
         How many of the two tabulated modes to return (0, 1 or 2).
     params : dict, optional
-        A parameter set from :func:`bscomp.systems._params.load_parameters`; default the bundled test bed.
+        A parameter set from :func:`bscomp.systems.parameters.load_parameters`; default the bundled test bed.
 
     Returns
     -------

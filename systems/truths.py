@@ -57,7 +57,7 @@ from bscomp.components import Damper, Fixed, Mass, Spring
 from bscomp.kernel.component import Parameter
 from bscomp.kernel.partials import PartialCompliant
 
-from ._params import DATA_DIR, get_value
+from .parameters import DATA_DIR, get_value
 from .testbed import drive_fraction, testbed, thesis_parameters
 
 __all__ = ["CASES", "MODELS", "AtanFriction", "SoftBacklash", "RigidJointDamping", "draw", "truth_system",

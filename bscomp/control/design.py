@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp.components import NotchFilter, RSTController
+from bscomp.components.notch_filter import notch_coefficients
 from bscomp.errors import ParameterError, SingularSystemError
 
 __all__ = [
@@ -182,9 +183,7 @@ def notch(zeta_N: float, omega_N: float, zeta_D: float, Ts: float, omega_D: floa
     NotchCoefficients
         ``n1, n2, d1, d2`` and ``K_N = (1 + d1 + d2)/(1 + n1 + n2)`` (unit DC gain, Eq 4.19).
     """
-    n1, n2 = second_order_z(zeta_N, omega_N, Ts)
-    d1, d2 = second_order_z(zeta_D, omega_N if omega_D is None else omega_D, Ts)
-    return NotchCoefficients(n1, n2, d1, d2, (1 + d1 + d2) / (1 + n1 + n2), float(Ts))
+    return NotchCoefficients(*notch_coefficients(zeta_N, omega_N, zeta_D, Ts, omega_D=omega_D), float(Ts))
 
 
 # ---------------------------------------------------------------------------------------------------

@@ -11,6 +11,11 @@ symbols bound to every declared name, so equations read like the maths::
         def equations(self):
             return [self.f - self.c * (self.s_rel - self.s_rel0)]
 
+Parameters are declared once: the unit string is parsed when the class is created (a typo is a
+:class:`~bscomp.errors.ModelDefinitionError`), the class docstring's numpydoc ``Parameters`` section is
+generated from the declarations (name, unit, bounds, default, ``doc``), and values may be given as
+``"<number> <unit>"`` strings converted to the declared unit (:meth:`Parameter.from_text`).
+
 What a component may contribute
 --------------------------------
 ``equations()``
@@ -35,6 +40,7 @@ What a component may contribute
 from __future__ import annotations
 
 import copy
+import inspect
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,19 +48,27 @@ import numpy as np
 
 from bscomp.errors import ModelDefinitionError, ParameterError, UnknownNameError
 from bscomp.kernel.ports import PortSpec
+from bscomp.kernel.units import Unit, UnitSyntaxError, parse_quantity, parse_unit, same_dimension
 
-__all__ = ["Parameter", "Variable", "Component", "LinearStructure", "Constraint", "PortRef"]
+__all__ = ["Parameter", "Variable", "Component", "LinearStructure", "Constraint", "PortRef", "parameters_docstring"]
 
 
 class Parameter:
     """A named, unit-carrying parameter of a component (a descriptor).
+
+    The unit is parsed by :func:`bscomp.kernel.units.parse_unit` when the component class is created (a
+    typo raises :class:`~bscomp.errors.ModelDefinitionError`), and the class docstring gets a numpydoc
+    ``Parameters`` entry made of the name, unit, bounds, default and ``doc``. A value may be given as a
+    ``"<number> <unit>"`` string (``"250 kg"``, ``"20.7 N/um"``): it is converted to the declared unit
+    after a dimension check.
 
     Parameters
     ----------
     default : float, array or None
         Default value; ``None`` means the user must give one.
     unit : str
-        SI unit, e.g. ``"kg"``, ``"N/m"``, ``"N.m/rad"``.
+        SI unit, e.g. ``"kg"``, ``"N/m"``, ``"N.m/rad"``; ``"1"`` for a dimensionless number. A matrix whose
+        entries have different units lists them separated by ``|`` (``"N/m|N|N.m/rad"``).
     doc : str
         One-line description.
     min, max : float, optional
@@ -72,6 +86,14 @@ class Parameter:
         self.max = max
         self.positive = positive
         self.name = ""
+        self._units: tuple | None = None
+
+    @property
+    def units(self) -> tuple[Unit, ...]:
+        """The declared unit, parsed (one :class:`~bscomp.kernel.units.Unit` per ``|``-separated entry)."""
+        if self._units is None:
+            self._units = tuple(parse_unit(u) for u in str(self.unit).split("|"))
+        return self._units
 
     def __set_name__(self, owner, name):
         self.name = name
@@ -89,11 +111,17 @@ class Parameter:
         obj._values[self.name] = self.validate(value, obj)
 
     def validate(self, value, owner=None):
-        """Check a value against the bounds; return it as float or float array."""
+        """Check a value against the bounds; return it as float or float array.
+
+        A string is read as ``"<number> <unit>"`` and converted to the declared unit (a bare number is in
+        the declared unit already).
+        """
         where = f"{owner._display_name()}.{self.name}" if owner is not None else self.name
         if value is None:
             raise ParameterError(f"parameter {where} [{self.unit}] has no value: give one, e.g. "
                                  f"{type(owner).__name__}({self.name}=...) or system.set('{where}', ...)")
+        if isinstance(value, str):
+            value = self.from_text(value, where)
         try:
             arr = np.asarray(value, dtype=float)
         except (TypeError, ValueError) as exc:
@@ -110,6 +138,89 @@ class Parameter:
             raise ParameterError(f"parameter {where} = {value!r} {self.unit} is above its physical bound "
                                  f"{self.max} {self.unit}")
         return float(arr) if arr.ndim == 0 else arr
+
+    def from_text(self, text: str, where: str | None = None) -> float:
+        """The value of ``"<number> <unit>"`` in the declared unit: ``"250 kg"`` -> 250.0 for ``unit="kg"``,
+        ``"20.7 N/um"`` -> 2.07e7 for ``unit="N/m"``, ``"4.55 deg"`` -> 0.0794 for ``unit="rad"``.
+
+        Raises :class:`~bscomp.errors.ParameterError` naming the parameter, the given and the expected
+        unit when the text does not parse or its unit has another dimension (angles count: ``"100 Hz"``
+        is not ``rad/s``).
+        """
+        where = where or self.name
+        try:
+            number, given = parse_quantity(text)
+        except UnitSyntaxError as exc:
+            raise ParameterError(f"parameter {where} [{self.unit}]: cannot read {text!r} as '<number> <unit>' "
+                                 f"({exc}); e.g. '1 {self.units[0].text}'") from None
+        if given is None:
+            return number
+        if len(self.units) != 1:
+            raise ParameterError(f"parameter {where} has one unit per entry [{self.unit}]: give numbers in "
+                                 f"those units, not the string {text!r}")
+        declared = self.units[0]
+        if not same_dimension(given, declared, angle=True):
+            si = f" (SI {given.si})" if given.si != given.text else ""
+            raise ParameterError(f"parameter {where}: {text!r} is given in '{given.text}'{si}, which is not a unit "
+                                 f"of the dimension of its declared unit '{self.unit}'; give it in '{self.unit}' or a "
+                                 "unit convertible to it")
+        return number * given.scale / declared.scale
+
+    def doc_entry(self) -> list[str]:
+        """The numpydoc ``Parameters`` entry of this parameter (two lines: name and type, description)."""
+        quals = [f"[{self.unit}]"]
+        if self.positive:
+            quals.append("> 0")
+        if self.min is not None and self.max is not None:
+            quals.append(f"in [{self.min:.6g}, {self.max:.6g}]")
+        elif self.min is not None:
+            quals.append(f">= {self.min:.6g}")
+        elif self.max is not None:
+            quals.append(f"<= {self.max:.6g}")
+        if self.default is not None:
+            quals.append(f"default {_format_default(self.default)}")
+        return [f"{self.name} : {', '.join(quals)}", f"    {self.doc or '(no description)'}"]
+
+
+def _format_default(value) -> str:
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 0:
+        return f"{float(arr):.6g}"
+    if arr.size > 9:
+        return f"array of shape {arr.shape}"
+    return np.array2string(arr, separator=", ", formatter={"float_kind": lambda x: f"{x:.6g}"})
+
+
+def _is_header(lines: list, i: int) -> bool:
+    under = lines[i + 1].strip() if i + 1 < len(lines) else ""
+    return bool(lines[i].strip()) and len(under) >= 3 and set(under) == {"-"}
+
+
+def parameters_docstring(doc: str | None, params: dict) -> str | None:
+    """``doc`` with the numpydoc ``Parameters`` entries of ``params`` (declared :class:`Parameter` s).
+
+    They are appended to the docstring's ``Parameters`` section when it has one (constructor arguments
+    such as ``ends`` come first), else a ``Parameters`` section is put before the first other section.
+    """
+    if not params:
+        return doc
+    lines = inspect.cleandoc(doc).splitlines() if doc else []
+    entries = [line for p in params.values() for line in p.doc_entry()]
+    headers = [i for i in range(len(lines)) if _is_header(lines, i)]
+    own = [i for i in headers if lines[i].strip() == "Parameters"]
+    if own:
+        nxt = [i for i in headers if i > own[0]]
+        end = nxt[0] if nxt else len(lines)
+        while end > own[0] + 2 and not lines[end - 1].strip():
+            end -= 1
+        lines[end:end] = entries
+    else:
+        at = headers[0] if headers else len(lines)
+        block = ["Parameters", "----------"] + entries
+        if at > 0 and lines[at - 1].strip():
+            block = [""] + block
+        lines[at:at] = block + ([""] if headers else [])
+    return "\n".join(lines) + "\n"
 
 
 class Variable:
@@ -220,6 +331,18 @@ class _Context:
 
 class Component:
     """Base class of every physical part. See the module docstring for what a subclass defines."""
+
+    def __init_subclass__(cls, **kwargs):
+        """Parse the units of the parameters the class declares and document every parameter (numpydoc)."""
+        super().__init_subclass__(**kwargs)
+        for name, p in vars(cls).items():
+            if isinstance(p, Parameter):
+                try:
+                    _ = p.units
+                except UnitSyntaxError as exc:
+                    raise ModelDefinitionError(f"{cls.__name__}.{name}: unit {p.unit!r} is not a unit the library "
+                                               f"reads ({exc})") from None
+        cls.__doc__ = parameters_docstring(cls.__doc__, cls.parameters())
 
     def __init__(self, **params):
         self._values = {}

@@ -30,6 +30,9 @@ Kinds of insertion point
 ``joint``
     ``ports = (a, b)`` between which the screw--nut axial clearance acts, ``parameters`` naming the
     axial stiffness of the joint (a dead zone in contact with that stiffness).
+``all``
+    the whole structure (extra damping of every mode); ``frequency`` [Hz] names the reference mode
+    ``f_1`` a stiffness-proportional effect is stated at (the first elastic mode of the nominal drive).
 """
 
 from __future__ import annotations
@@ -68,6 +71,7 @@ class InsertionPoint:
     parameters: tuple = ()
     ground: str | None = None
     doc: str = ""
+    frequency: float | None = None
 
     def __post_init__(self):
         if self.role not in ROLES:

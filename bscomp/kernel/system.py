@@ -5,7 +5,7 @@
 >>> s = System("oscillator")
 >>> s.add("wall", Fixed()); s.add("k", Spring(c=1e4)); s.add("m", Mass(m=1.0))
 >>> s.connect("wall.flange", "k.flange_a"); s.connect("k.flange_b", "m.flange_a")
->>> s.set("m.m", 2.0)
+>>> s.set("m.m", 2.0); s.set("k.c", "10 N/mm")
 """
 
 from __future__ import annotations
@@ -214,7 +214,13 @@ class System:
 
     # ---- parameters ---------------------------------------------------------------------------
     def set(self, dotted: str, value) -> "System":
-        """Override a parameter by dotted name, e.g. ``system.set("coupling.k_T", 45940)``."""
+        """Override a parameter by dotted name, e.g. ``system.set("coupling.k_T", 45940)``.
+
+        ``value`` is a number in the parameter's declared unit, or a ``"<number> <unit>"`` string converted
+        to it (``system.set("table.m", "250 kg")``, ``system.set("sn.k_ball", "20.7 N/um")``); a unit of
+        another dimension raises :class:`~bscomp.errors.ParameterError` naming the parameter, the given
+        and the expected unit. The CLI's ``--set NAME=VALUE`` passes such strings through here.
+        """
         comp_path, _, pname = dotted.rpartition(".")
         if not comp_path:
             raise UnknownNameError(f"'{dotted}' is not a parameter name: write 'component.parameter'")

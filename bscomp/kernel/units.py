@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Unit", "parse_unit", "same_dimension", "UnitSyntaxError", "convention_units"]
+__all__ = ["Unit", "parse_unit", "parse_quantity", "same_dimension", "UnitSyntaxError", "convention_units"]
 
 # dimension order: m, kg, s, A, rad
 _BASE = {
@@ -158,9 +158,33 @@ def parse_unit(text: str) -> Unit:
     return Unit(text=text, scale=float(sc), dims=tuple(float(x) for x in d), si=si)
 
 
-def same_dimension(a: Unit, b: Unit) -> bool:
-    """Equal dimensions, ignoring the angle (SI treats rad as 1)."""
-    return np.allclose(a.dims[:4], b.dims[:4])
+_NUMBER = re.compile(r"\s*([+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?)(.*)$", re.S)
+
+
+def parse_quantity(text: str) -> tuple[float, Unit | None]:
+    """Split ``"<number> <unit>"`` into the number and its parsed unit: ``"250 kg"`` -> (250.0, kg),
+    ``"20.7 N/um"`` -> (20.7, N/um). A bare number gives ``(value, None)``.
+
+    Raises :class:`UnitSyntaxError` when the text does not start with a number or its unit does not
+    parse (``pos`` counts from the start of ``text``).
+    """
+    text = str(text)
+    m = _NUMBER.match(text)
+    if not m:
+        raise UnitSyntaxError(f"'{text}' is not '<number> <unit>' (e.g. '250 kg', '20.7 N/um')", 0)
+    rest = m.group(2)
+    if not rest.strip():
+        return float(m.group(1)), None
+    try:
+        return float(m.group(1)), parse_unit(rest)
+    except UnitSyntaxError as exc:
+        raise UnitSyntaxError(str(exc), exc.pos + m.start(2) + len(rest) - len(rest.lstrip())) from None
+
+
+def same_dimension(a: Unit, b: Unit, angle: bool = False) -> bool:
+    """Equal dimensions, ignoring the angle (SI treats rad as 1) unless ``angle`` is True."""
+    n = 5 if angle else 4
+    return np.allclose(a.dims[:n], b.dims[:n])
 
 
 #: units a channel named ``<component>.<suffix>`` must have, by Modelica naming convention

@@ -27,7 +27,7 @@ from bscomp.control.design import (
 )
 from bscomp.control.loop_analysis import freqresp, plot_bode_comparison, plot_disturbance_comparison
 from bscomp.plotting.control import sensitivity_comparison_plot, step_comparison_plot
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.systems.thesis_plants import thesis_modal_plant, thesis_modes
 
 P = load_parameters()

@@ -30,11 +30,11 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.components._beam_fe import BeamModel, DofSelection, assemble_shaft, select_dofs
-from bscomp.components._beam_fe import thesis_table_b1_sections as table_b1
 from bscomp.errors import SingularSystemError
 from bscomp.kernel.damping import modal_damping_matrix
 from bscomp.linear.reduction import ReducedModel, cms_reduce
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
+from bscomp.systems.thesis_parts import thesis_sections as table_b1
 
 P = load_parameters()
 THESIS_FULL = np.array(get_value(P, "reference_results.table53_full"))  # 260.86, 793.46, 1276.40 Hz

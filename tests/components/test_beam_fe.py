@@ -7,20 +7,18 @@ import pytest
 import scipy.linalg as sla
 from scipy.optimize import brentq
 
-from bscomp.components._beam_fe import (
+from bscomp.components._beam_element import (
     STEEL_E,
     STEEL_NU,
     STEEL_RHO,
-    Section,
-    assemble_shaft,
     circular_section,
     element_shape_matrix,
     equivalent_diameter,
-    select_dofs,
-    thesis_table_b1_sections,
     timoshenko_element,
     timoshenko_element_quadrature,
 )
+from bscomp.components._beam_fe import Section, assemble_shaft, select_dofs
+from bscomp.systems.thesis_parts import thesis_sections as thesis_table_b1_sections
 
 E, RHO, NU = STEEL_E, STEEL_RHO, STEEL_NU
 G = E / (2 * (1 + NU))

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from bscomp import System, second_order
-from bscomp.components import Ballscrew, FixedNode, MovingNutJoint, RigidBody, ScrewNut
-from bscomp.components._beam_fe import Section
+from bscomp.components import Ballscrew, FixedNode, MovingNutJoint, RigidBody, Section
 from bscomp.linear.modal import modes
+from bscomp.systems.thesis_parts import thesis_screw_nut
 
 SECTIONS = [Section(length=0.8, d_out=0.04, n_elements=16)]
 
@@ -14,7 +14,7 @@ SECTIONS = [Section(length=0.8, d_out=0.04, n_elements=16)]
 def frozen(z):
     s = System("frozen")
     s.add("screw", Ballscrew(SECTIONS, dofs=("w", "tz"), points={"p": z}))
-    s.add("sn", ScrewNut.thesis())
+    s.add("sn", thesis_screw_nut())
     s.add("nut", RigidBody(points={"c": (0, 0, 0)}, dofs=("w", "tz"), m=1.49 + 250.0, I=[2.56e-3, 2.56e-3, 1.31e-3]))
     s.add("bearing", FixedNode(dofs=("w",)))
     s.connect("screw.p", "sn.screw")
@@ -27,7 +27,7 @@ def moving(z0):
     screw = Ballscrew(SECTIONS, dofs=("w", "tz"))
     s = System("moving")
     s.add("screw", screw)
-    s.add("joint", MovingNutJoint.from_screw_nut(ScrewNut.thesis(), screw.z_nodes, z0=z0))
+    s.add("joint", MovingNutJoint.from_screw_nut(thesis_screw_nut(), screw.z_nodes, z0=z0))
     s.add("nut", RigidBody(points={"c": (0, 0, 0)}, dofs=("w", "tz"), m=1.49 + 250.0, I=[2.56e-3, 2.56e-3, 1.31e-3]))
     s.add("bearing", FixedNode(dofs=("w",)))
     for i in range(screw.n_nodes):
@@ -92,7 +92,7 @@ def _frozen_stretch(z, F):
     """Static axial displacement of the screw at the nut, nut frozen at z, load F, rotation held."""
     s = System("frozen_static")
     s.add("screw", Ballscrew(CREEP_SECTIONS, dofs=("w", "tz"), points={"p": z}))
-    s.add("sn", ScrewNut.thesis())
+    s.add("sn", thesis_screw_nut())
     s.connect("screw.p", "sn.screw")
     _loaded_nut(s, None)
     s.connect("sn.nut", "nut.c")
@@ -121,12 +121,12 @@ def test_slow_creep_matches_frozen_quasi_static_stretch():
     from bscomp.simulation.dispatch import simulate
 
     F, v, z0 = 2000.0, 0.4, 0.25
-    K = ScrewNut.thesis().stiffness_matrix()
+    K = thesis_screw_nut().stiffness_matrix()
     r_g = -K[2, 5] / K[2, 2]  # helical null motion: nut travel = -r_g * screw rotation
     screw = Ballscrew(CREEP_SECTIONS, dofs=("w", "tz"))
     s = System("creep")
     s.add("screw", screw)
-    s.add("joint", MovingNutJoint.from_screw_nut(ScrewNut.thesis(), screw.z_nodes, z0=z0))
+    s.add("joint", MovingNutJoint.from_screw_nut(thesis_screw_nut(), screw.z_nodes, z0=z0))
     for i in range(screw.n_nodes):
         s.connect(f"screw.n{i}", f"joint.n{i}")
     _loaded_nut(s, brake=F * r_g**2 / v)

@@ -13,14 +13,14 @@ from bscomp.components import (
     MovingScrewNut,
     NodeToRotFlange,
     RigidBody,
-    ScrewNut,
+    Section,
     Torque,
     TorsionalDamper,
 )
-from bscomp.components._beam_fe import Section
 from bscomp.errors import BscompError
 from bscomp.linear.frf_engine import modal_frf
 from bscomp.linear.sweeps import position_sweep
+from bscomp.systems.thesis_parts import thesis_screw_nut
 
 SECTIONS = [Section(length=0.8, d_out=0.04, n_elements=8)]
 NUT = dict(m=1.49 + 250.0, I=[2.56e-3, 2.56e-3, 1.31e-3])
@@ -36,7 +36,7 @@ def _supports(s):
 def frozen(z):
     s = System("frozen")
     s.add("screw", Ballscrew(SECTIONS, points={"p": z}))
-    s.add("sn", ScrewNut.thesis())
+    s.add("sn", thesis_screw_nut())
     s.add("nut", RigidBody(points={"c": (0, 0, 0)}, **NUT))
     s.connect("screw.p", "sn.screw")
     s.connect("sn.nut", "nut.c")
@@ -48,7 +48,7 @@ def moving(z0=0.3):
     screw = Ballscrew(SECTIONS)
     s = System("moving")
     s.add("screw", screw)
-    s.add("sn", MovingScrewNut.from_screw_nut(screw, ScrewNut.thesis(), z0=z0))
+    s.add("sn", MovingScrewNut.from_screw_nut(screw, thesis_screw_nut(), z0=z0))
     s.add("nut", RigidBody(points={"c": (0, 0, 0)}, **NUT))
     for i in range(screw.n_nodes):
         s.connect(f"screw.n{i}", f"sn.n{i}")
@@ -164,7 +164,7 @@ def test_wrong_tangent_is_caught():
         screw = Ballscrew(SECTIONS)
         s = System("broken")
         s.add("screw", screw)
-        s.add("sn", Broken.from_screw_nut(screw, ScrewNut.thesis(), z0=0.3))
+        s.add("sn", Broken.from_screw_nut(screw, thesis_screw_nut(), z0=0.3))
         s.add("nut", RigidBody(points={"c": (0, 0, 0)}, **NUT))
         for i in range(screw.n_nodes):
             s.connect(f"screw.n{i}", f"sn.n{i}")

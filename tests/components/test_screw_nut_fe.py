@@ -5,20 +5,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bscomp.components._screw_nut_fe import (
+from bscomp.components._nut_geometry import (
     axial_stiffness_from_k_ball,
     azimuth_range,
-    ball_stiffness_rigid,
-    contact_normal,
     gear_ratio,
     hertz_elastic_coefficient,
     k_axial_hertz,
     k_ball_from_axial_stiffness,
     k_ball_hertz,
-    ksn_rigid,
-    ksn_shape_function,
     n_ball_from_geometry,
     pitch_angle,
+)
+from bscomp.components._screw_nut_fe import (
+    ball_stiffness_rigid,
+    contact_normal,
+    ksn_rigid,
+    ksn_shape_function,
     rigid_point_map,
     rigid_screw_shape_matrix,
 )

@@ -3,8 +3,7 @@
 import numpy as np
 
 from bscomp import System
-from bscomp.components import Ballscrew, FixedNode, RigidBody, ScrewNut, ScrewNutShapeFunction
-from bscomp.components._beam_fe import Section
+from bscomp.components import Ballscrew, FixedNode, RigidBody, ScrewNut, ScrewNutShapeFunction, Section
 from bscomp.linear.modal import modes
 
 

@@ -23,10 +23,11 @@ from bscomp.components import (
     NodeToRotFlange,
     RigidBody,
     ScrewNut,
+    Section,
 )
-from bscomp.components._beam_fe import Section
 from bscomp.components._node_dofs import t_point_com
 from bscomp.kernel.damping import modal_damping_matrix
+from bscomp.systems.thesis_parts import thesis_ballscrew, thesis_screw_nut
 
 E, RHO, NU = 210e9, 7800.0, 0.27
 G = E / (2 * (1 + NU))
@@ -72,7 +73,7 @@ def test_axial_torsional_screw_two_rigid_modes():
 
 
 def test_thesis_screw_axial_torsional_dof_count():
-    screw = Ballscrew.thesis_table_b1(dofs=("w", "tz"))
+    screw = thesis_ballscrew(dofs=("w", "tz"))
     assert screw.n_nodes == 48 and screw.length == pytest.approx(0.9205)
     so = second_order(one("screw", screw))
     assert so.M.shape == (96, 96)
@@ -320,16 +321,16 @@ def test_fixed_node_twice_is_redundant():
 # ---- screw-nut --------------------------------------------------------------------------------
 def _screw_nut(nut_dofs, screw_dofs=("u", "v", "w", "tx", "ty", "tz")):
     s = System("sn")
-    s.add("screw", Ballscrew.thesis_table_b1(dofs=screw_dofs, points={"P": 0.4325}))
+    s.add("screw", thesis_ballscrew(dofs=screw_dofs, points={"P": 0.4325}))
     s.add("nut", RigidBody(dofs=nut_dofs, **NUT))
-    s.add("sn", ScrewNut.thesis())
+    s.add("sn", thesis_screw_nut())
     s.connect("screw.P", "sn.screw")
     s.connect("sn.nut", "nut.com")
     return s
 
 
 def test_screw_nut_matches_eq_3_45():
-    K = ScrewNut.thesis().stiffness_matrix() / 2.07e7
+    K = thesis_screw_nut().stiffness_matrix() / 2.07e7
     np.testing.assert_allclose(np.diag(K)[:3], [58.9, 58.9, 82.1], rtol=2e-3)
     np.testing.assert_allclose(K[2, 5], -0.130, rtol=1e-2)
     np.testing.assert_allclose(K[:6, 6:], -K[:6, :6], atol=1e-9)

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
 
 _SPEC = importlib.util.spec_from_file_location(
     "slotting_example", Path(__file__).resolve().parents[2] / "examples" / "slotting.py")

@@ -1,10 +1,10 @@
-"""Tests for the test-bed parameter file and its loader (bscomp.systems._params)."""
+"""Tests for the test-bed parameter file and its loader (bscomp.systems.parameters)."""
 
 import math
 
 import pytest
 
-from bscomp.systems._params import DATA_DIR, flatten, get_value, load_parameters
+from bscomp.systems.parameters import DATA_DIR, flatten, get_value, load_parameters
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ import pytest
 from bscomp import ModelDefinitionError, UnknownNameError, flatten, second_order
 from bscomp.linear.modal import modes
 from bscomp.systems import REGISTRY, get
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.systems.testbed import VARIANTS, DriveModalDamping, nut_positions
 from bscomp.systems.testbed import testbed as build
 from bscomp.systems.testbed_analysis import drive_parameters, free_free_modes, submodel1_frequencies

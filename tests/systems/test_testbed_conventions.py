@@ -14,7 +14,7 @@ import pytest
 
 from bscomp import ModelDefinitionError
 from bscomp.linear.response import frf
-from bscomp.systems._params import get_value, load_parameters
+from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.systems.testbed import testbed as build
 
 P = load_parameters("fadal_vmc2216_x")

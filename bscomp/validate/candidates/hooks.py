@@ -134,10 +134,11 @@ class ExtraDamping(Candidate):
     mode's ratio (:class:`AddedModalDamping`); an evaluation engine gets it as the hook
     ``{"extra_modal_damping": zeta}``. Otherwise (lumped drive) stiffness-proportional: a damper
     ``d = beta c`` beside every spring, so mode *i* gains ``zeta_i = zeta (f_i / f_1)`` with ``f_1`` the
-    first elastic mode of the nominal model.
+    first elastic mode of the nominal model: ``f1`` [Hz] if given, else the ``frequency`` the drive
+    declares on its ``structure`` insertion point (not applicable when neither names it).
     """
 
-    def __init__(self, f1: float = 117.7):
+    def __init__(self, f1: float | None = None):
         super().__init__(
             name="extra_damping", title="extra modal damping", role="structure",
             parameters=[CandidateParameter("zeta", "1", 1e-3, 0.3, 0.02, 1.0, "added damping ratio (at f_1)")],
@@ -168,12 +169,20 @@ class ExtraDamping(Candidate):
             e.connect(f"{name}.flange_a", f"{path}.flange_a")
             e.connect(f"{name}.flange_b", f"{path}.flange_b")
             dampers[name] = float(comp.get("c"))
-        return {"mode": "springs", "dampers": dampers}
+        return {"mode": "springs", "dampers": dampers, "f1": self._reference_frequency(e.s, point)}
+
+    def _reference_frequency(self, system, point) -> float:
+        f1 = self.f1 if self.f1 is not None else point.frequency
+        if f1 is None:
+            raise NotApplicable(f"{self.name}: stiffness-proportional damping is stated at the first elastic mode "
+                                f"f_1, which '{system.name}' does not declare (InsertionPoint('structure', 'all', "
+                                "frequency=...)); give ExtraDamping(f1=...) [Hz]")
+        return float(f1)
 
     def _overrides(self, values, state):
         if state["mode"] == "modal":
             return {}
-        beta = 2 * values["zeta"] / (2 * math.pi * self.f1)
+        beta = 2 * values["zeta"] / (2 * math.pi * state["f1"])
         return {f"{name}.d": beta * c for name, c in state["dampers"].items()}
 
     def _assign_extra(self, system, values, state):

@@ -16,7 +16,7 @@ from bscomp.kernel.interface import InsertionPoint as Point
 from bscomp.kernel.interface import NotApplicable, ValidationInterface
 from bscomp.linear.modal import modes
 from bscomp.systems import get
-from bscomp.systems.validation_drive import UNCERTAIN, validation_drive
+from bscomp.systems.validation_drive import F1, UNCERTAIN, validation_drive
 from bscomp.validate.candidates import (
     AddedModalDamping,
     AmplifierDelay,
@@ -58,7 +58,7 @@ def lumped_interface():
         Point("screw_support", "connection", ("lead.flange_b", "axial.flange_a")),
         Point("screw_nut", "joint", ("axial", "axial_loss")), Point("amplifier", "connection", ("amp.i", "kt.u")),
         Point("rotor", "rotational", ("rotor.flange_a",)), Point("table", "attach", ("table.flange_a",)),
-        Point("coupling", "parameter", parameters=("coupling.c",)), Point("structure", "all")])
+        Point("coupling", "parameter", parameters=("coupling.c",)), Point("structure", "all", frequency=F1)])
 
 
 def with_amplifier(s):

@@ -1,4 +1,5 @@
-"""Loader for the test-bed parameter files in ``bscomp/systems/data``.
+"""Parameter tables of the drives (public as ``bscomp.systems.parameters``): the loader for the parameter
+files in ``bscomp/systems/data`` (the thesis test bed: ``fadal_vmc2216_x``).
 
 A parameter file is TOML. Every *entry* is a table holding at least ``value``, ``unit`` and
 ``source`` (and optionally ``note``); every other table is a *group* of entries or sub-groups.
