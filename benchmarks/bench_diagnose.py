@@ -32,7 +32,7 @@ import numpy as np  # noqa: E402
 
 from bscomp.components import Fixed  # noqa: E402
 from bscomp.components.coulomb_friction import CoulombFriction  # noqa: E402
-from bscomp.kernel.flatten import flatten  # noqa: E402
+from bscomp.kernel.flattening import flatten  # noqa: E402
 from bscomp.simulation.compiled import CompiledModel  # noqa: E402
 from bscomp.systems import get  # noqa: E402
 from bscomp.validate.diagnostics import diagnose  # noqa: E402

@@ -27,7 +27,7 @@ import numpy as np
 
 from bscomp.errors import UnknownNameError
 from bscomp.kernel.dae import Dae
-from bscomp.kernel.flatten import flatten
+from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
 
 __all__ = ["ModelSpec", "as_system", "as_dae", "resolve_model", "spec_of", "split_overrides", "model_name"]

@@ -34,7 +34,7 @@ import numpy as np
 
 from bscomp.control.loop_analysis import LoopAnalysis, freqresp, loop_metrics, margins
 from bscomp.errors import ParameterError, UnknownNameError
-from bscomp.linear.linearize import control_labels, linearize
+from bscomp.linear.linearization import control_labels, linearize
 
 __all__ = [
     "DrivePlant", "rigid_plant", "modal_plant", "plant_from_system", "velocity_loop", "p_pi_loop", "rst_loop",

@@ -1,6 +1,6 @@
 """The modelling kernel: ports, components and their partial bases, System, flattening and the Dae.
 
-Flattening (:func:`flatten`, orchestrated in :mod:`bscomp.kernel.flatten`) runs in steps, one module
+Flattening (:func:`flatten`, orchestrated in :mod:`bscomp.kernel.flattening`) runs in steps, one module
 each: :mod:`~bscomp.kernel.aliases` (connection sets), :mod:`~bscomp.kernel.templates` and
 :mod:`~bscomp.kernel.instances` (component equations), :mod:`~bscomp.kernel.signals`,
 :mod:`~bscomp.kernel.constraints` (constraint elimination), :mod:`~bscomp.kernel.states` (state
@@ -12,7 +12,7 @@ Imports nothing above it (only :mod:`bscomp.errors`); every analysis and every c
 
 from bscomp.kernel.component import Component, Constraint, LinearStructure, Parameter, PortRef, Variable
 from bscomp.kernel.dae import Dae, MechanicalInfo
-from bscomp.kernel.flatten import flatten
+from bscomp.kernel.flattening import flatten
 from bscomp.kernel.interface import InsertionPoint, NotApplicable, UncertainParameter, ValidationInterface
 from bscomp.kernel.partials import PartialCompliant, PartialRotCompliant
 from bscomp.kernel.ports import Flange, Generalized, Node6, RealInput, RealOutput, RotFlange

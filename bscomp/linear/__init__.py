@@ -9,7 +9,7 @@ from bscomp.kernel.damping import (  # damping models live in the kernel (flatte
     rayleigh_damping_matrix,
 )
 from bscomp.kernel.system_damping import system_damping_matrix
-from bscomp.linear.linearize import (
+from bscomp.linear.linearization import (
     OperatingPoint,
     SecondOrderModel,
     control_labels,

@@ -36,7 +36,7 @@ DENSE_LIMIT = 400
 # ---- model resolution and static condensation ----------------------------------------------------
 def _second_order(model, inputs=None, outputs=None, at=None, params=None):
     """A :class:`~bscomp.linear.SecondOrderModel` from a SecondOrderModel, System, Dae or system name."""
-    from bscomp.linear.linearize import SecondOrderModel, second_order
+    from bscomp.linear.linearization import SecondOrderModel, second_order
 
     if isinstance(model, SecondOrderModel):
         if at or params:

@@ -427,70 +427,10 @@ def cms_reduce(
     n = Md.shape[0]
     Kd = _dense_sym(K, "K", n)
     Cd = None if C is None else _dense_sym(C, "C", n)
-    if dof_names is not None and len(dof_names) != n:
-        raise ValueError(f"dof_names must have {n} entries, got {len(dof_names)}")
-    e = _index_list(boundary_dofs, n, dof_names, "boundary_dofs")
-    if e.size == 0:
-        raise ValueError("boundary_dofs: at least one exterior DOF is needed")
-    i = np.setdiff1d(np.arange(n), e)
-    if (n_modes is None) == (f_cut is None):
-        raise ValueError("give exactly one of n_modes and f_cut")
-    if n_modes is not None and (isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer))
-                                or n_modes < 0):
-        raise ValueError(f"n_modes must be a non-negative integer, got {n_modes!r}")
-    if f_cut is not None and not (np.isfinite(f_cut) and f_cut >= 0):
-        raise ValueError(f"f_cut must be a finite non-negative frequency [Hz], got {f_cut!r}")
-    if interface not in ("free", "fixed"):
-        raise ValueError(f"interface must be 'free' or 'fixed', got {interface!r}")
-
-    try:
-        sla.cholesky(Md, lower=True)
-    except np.linalg.LinAlgError as exc:
-        raise SingularSystemError("M must be positive definite for a CMS reduction") from exc
-
-    # normal modes of the whole structure (Eq 5.10): free-interface χ and the rigid-body check
-    lam, V = sla.eigh(Kd, Md)
-    scale = max(float(np.max(np.abs(lam))), np.finfo(float).tiny)
-    n_r = int(np.count_nonzero(lam <= rigid_tol * scale))
-    if n_r:
-        s = sla.svdvals(V[np.ix_(e, np.arange(n_r))]) if e.size >= n_r else np.zeros(1)
-        if s.size < n_r or s.min() <= 1e-6 * np.max(np.abs(V[:, :n_r])):
-            raise SingularSystemError(
-                f"K_ii is singular: the structure has {n_r} rigid-body mode(s) and the exterior DOF do "
-                "not restrain all of them (Eq 5.13 needs K_ii invertible); add a DOF of each free "
-                "motion (e.g. the motor rotation) to boundary_dofs"
-            )
-
-    Kii, Kie = Kd[np.ix_(i, i)], Kd[np.ix_(i, e)]
-    Mii, Mie = Md[np.ix_(i, i)], Md[np.ix_(i, e)]
-    try:
-        Kii_f = sla.cho_factor(Kii, lower=True)
-    except np.linalg.LinAlgError:
-        raise SingularSystemError(
-            "K_ii is singular: the exterior DOF leave a rigid-body motion of the interior free "
-            "(Eq 5.13 needs K_ii invertible); add a DOF of each free motion (e.g. the motor rotation) "
-            "to boundary_dofs"
-        ) from None
-    G_ii = sla.cho_solve(Kii_f, np.eye(i.size))
-    G_ii = 0.5 * (G_ii + G_ii.T)
-    phi = -G_ii @ Kie  # Eq 5.13
-
-    # normal modes χ (Eq 5.12)
-    if interface == "free":
-        lam_el, V_el = lam[n_r:], V[:, n_r:]
-        V_rb = V[:, :n_r] if rigid_body_modes else V[:, :0]
-    else:
-        lam_el, V_el = sla.eigh(Kii, Mii)
-        V_rb = np.zeros((i.size, 0))
-    f_el = np.sqrt(np.clip(lam_el, 0.0, None)) / (2.0 * np.pi)
-    P = int(np.count_nonzero(f_el <= f_cut)) if f_cut is not None else int(n_modes)
-    n_rb = V_rb.shape[1]
-    if P + n_rb > i.size:
-        raise ValueError(f"{P + n_rb} modes requested but only {i.size} interior DOF exist")
-    chi = np.hstack([V_rb, V_el[:, :P]])
-    if interface == "free":
-        chi = chi[i]
-
+    e, i = _check_cms_arguments(n, boundary_dofs, dof_names, n_modes, f_cut, interface)
+    lam, V, n_r = _free_modes(Md, Kd, e, rigid_tol)
+    G_ii, phi = _constraint_modes(Md, Kd, e, i)
+    chi, f_el, P, n_rb = _normal_modes(Md, Kd, lam, V, n_r, i, interface, rigid_body_modes, n_modes, f_cut)
     m = e.size + chi.shape[1]
     Psi = np.zeros((n, m))
     Psi[e, np.arange(e.size)] = 1.0
@@ -510,8 +450,93 @@ def cms_reduce(
             "reduced mass matrix is not positive definite: the CMS basis Ψ is rank deficient "
             "(a kept mode lies in the span of the constraint modes); keep fewer modes"
         ) from None
+    T1, T2, T1v = _recovery_matrices(Md, Cd, Psi, G_ii, phi, chi, e, i)
+    ext_names = [dof_names[k] for k in e] if dof_names is not None else [f"d{k}" for k in e]
+    names = tuple(ext_names + [f"q_rb{k + 1}" for k in range(n_rb)] + [f"q{k + 1}" for k in range(P)])
+    return ReducedModel(
+        Psi=Psi, M=Mr, K=Kr, C=Cr, exterior=e, interior=i, names=names,
+        mode_frequencies=np.concatenate([np.zeros(n_rb), f_el[:P]]), interface=interface, n_rigid=n_rb,
+        T1=T1, T2=T2, T1v=T1v, G_ii=G_ii,
+    )
 
-    # MA recovery matrices, Eq 5.18
+
+def _check_cms_arguments(n, boundary_dofs, dof_names, n_modes, f_cut, interface):
+    """Exterior ``e`` and interior ``i`` DOF indices, after checking every argument of :func:`cms_reduce`."""
+    if dof_names is not None and len(dof_names) != n:
+        raise ValueError(f"dof_names must have {n} entries, got {len(dof_names)}")
+    e = _index_list(boundary_dofs, n, dof_names, "boundary_dofs")
+    if e.size == 0:
+        raise ValueError("boundary_dofs: at least one exterior DOF is needed")
+    if (n_modes is None) == (f_cut is None):
+        raise ValueError("give exactly one of n_modes and f_cut")
+    if n_modes is not None and (isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer))
+                                or n_modes < 0):
+        raise ValueError(f"n_modes must be a non-negative integer, got {n_modes!r}")
+    if f_cut is not None and not (np.isfinite(f_cut) and f_cut >= 0):
+        raise ValueError(f"f_cut must be a finite non-negative frequency [Hz], got {f_cut!r}")
+    if interface not in ("free", "fixed"):
+        raise ValueError(f"interface must be 'free' or 'fixed', got {interface!r}")
+    return e, np.setdiff1d(np.arange(n), e)
+
+
+def _free_modes(Md, Kd, e, rigid_tol):
+    """Normal modes of the whole structure (Eq 5.10) and the number of rigid-body modes, which the
+    exterior DOF must restrain (else ``K_ii`` is singular, Eq 5.13)."""
+    try:
+        sla.cholesky(Md, lower=True)
+    except np.linalg.LinAlgError as exc:
+        raise SingularSystemError("M must be positive definite for a CMS reduction") from exc
+    lam, V = sla.eigh(Kd, Md)
+    scale = max(float(np.max(np.abs(lam))), np.finfo(float).tiny)
+    n_r = int(np.count_nonzero(lam <= rigid_tol * scale))
+    if n_r:
+        s = sla.svdvals(V[np.ix_(e, np.arange(n_r))]) if e.size >= n_r else np.zeros(1)
+        if s.size < n_r or s.min() <= 1e-6 * np.max(np.abs(V[:, :n_r])):
+            raise SingularSystemError(
+                f"K_ii is singular: the structure has {n_r} rigid-body mode(s) and the exterior DOF do "
+                "not restrain all of them (Eq 5.13 needs K_ii invertible); add a DOF of each free "
+                "motion (e.g. the motor rotation) to boundary_dofs"
+            )
+    return lam, V, n_r
+
+
+def _constraint_modes(Md, Kd, e, i):
+    """``G_ii = K_ii^-1`` and the constraint modes ``phi_ie = -K_ii^-1 K_ie`` (Eq 5.13)."""
+    Kii, Kie = Kd[np.ix_(i, i)], Kd[np.ix_(i, e)]
+    try:
+        Kii_f = sla.cho_factor(Kii, lower=True)
+    except np.linalg.LinAlgError:
+        raise SingularSystemError(
+            "K_ii is singular: the exterior DOF leave a rigid-body motion of the interior free "
+            "(Eq 5.13 needs K_ii invertible); add a DOF of each free motion (e.g. the motor rotation) "
+            "to boundary_dofs"
+        ) from None
+    G_ii = sla.cho_solve(Kii_f, np.eye(i.size))
+    G_ii = 0.5 * (G_ii + G_ii.T)
+    return G_ii, -G_ii @ Kie
+
+
+def _normal_modes(Md, Kd, lam, V, n_r, i, interface, rigid_body_modes, n_modes, f_cut):
+    """The kept normal modes ``chi`` (interior rows, Eq 5.12), their frequencies, count P and rigid count."""
+    if interface == "free":
+        lam_el, V_el = lam[n_r:], V[:, n_r:]
+        V_rb = V[:, :n_r] if rigid_body_modes else V[:, :0]
+    else:
+        lam_el, V_el = sla.eigh(Kd[np.ix_(i, i)], Md[np.ix_(i, i)])
+        V_rb = np.zeros((i.size, 0))
+    f_el = np.sqrt(np.clip(lam_el, 0.0, None)) / (2.0 * np.pi)
+    P = int(np.count_nonzero(f_el <= f_cut)) if f_cut is not None else int(n_modes)
+    n_rb = V_rb.shape[1]
+    if P + n_rb > i.size:
+        raise ValueError(f"{P + n_rb} modes requested but only {i.size} interior DOF exist")
+    chi = np.hstack([V_rb, V_el[:, :P]])
+    return (chi[i] if interface == "free" else chi), f_el, P, n_rb
+
+
+def _recovery_matrices(Md, Cd, Psi, G_ii, phi, chi, e, i):
+    """MA recovery matrices ``T1``, ``T2`` (and ``T1v`` with damping), Eq 5.18."""
+    n, m = Psi.shape
+    Mii, Mie = Md[np.ix_(i, i)], Md[np.ix_(i, e)]
     T1 = np.zeros((n, m))
     T1[np.ix_(i, np.arange(e.size))] = -G_ii @ (Mie + Mii @ phi)
     T1[np.ix_(i, np.arange(e.size, m))] = -G_ii @ (Mii @ chi)
@@ -523,14 +548,7 @@ def cms_reduce(
         T1v = np.zeros((n, m))
         T1v[np.ix_(i, np.arange(e.size))] = -G_ii @ (Cie + Cii @ phi)
         T1v[np.ix_(i, np.arange(e.size, m))] = -G_ii @ (Cii @ chi)
-
-    ext_names = [dof_names[k] for k in e] if dof_names is not None else [f"d{k}" for k in e]
-    names = tuple(ext_names + [f"q_rb{k + 1}" for k in range(n_rb)] + [f"q{k + 1}" for k in range(P)])
-    return ReducedModel(
-        Psi=Psi, M=Mr, K=Kr, C=Cr, exterior=e, interior=i, names=names,
-        mode_frequencies=np.concatenate([np.zeros(n_rb), f_el[:P]]), interface=interface, n_rigid=n_rb,
-        T1=T1, T2=T2, T1v=T1v, G_ii=G_ii,
-    )
+    return T1, T2, T1v
 
 
 def reduce_second_order(model, boundary, n_modes: int | None = None, *, f_cut: float | None = None,
@@ -548,7 +566,7 @@ def reduce_second_order(model, boundary, n_modes: int | None = None, *, f_cut: f
     boundary : sequence of str
         Coordinate names kept exactly (actuated DOF, joint DOF, anchors; Sec 5.3.2).
     """
-    from bscomp.linear.linearize import SecondOrderModel
+    from bscomp.linear.linearization import SecondOrderModel
 
     red = cms_reduce(model.M, model.K, list(boundary), n_modes, f_cut=f_cut, C=model.C, interface=interface,
                      rigid_body_modes=rigid_body_modes, dof_names=list(model.coordinates))

@@ -182,7 +182,7 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
     (:meth:`~bscomp.linear.SecondOrderModel.frf`); a model with internal (controller) states is
     evaluated from its linearized state space instead.
     """
-    from bscomp.linear.linearize import SecondOrderModel, linearize
+    from bscomp.linear.linearization import SecondOrderModel, linearize
     from bscomp.linear.modal import _second_order
 
     f = _freq_grid(freqs, fmin, fmax, n)
@@ -290,7 +290,7 @@ def transfer_function(model, input: str, output: str, modes=None, include_rigid:
     """
     import control
 
-    from bscomp.linear.linearize import control_labels
+    from bscomp.linear.linearization import control_labels
     from bscomp.linear.modal import _condense, _group_poles, _second_order, _undamped
 
     if not isinstance(input, str) or not isinstance(output, str):

@@ -57,7 +57,7 @@ def position_parameter(system) -> str:
 
 def _analyse(build, overrides, inputs, outputs, freqs, n_modes, at):
     """One position, in this process or a worker: frequencies, damping and optionally the FRF."""
-    from bscomp.linear.linearize import second_order
+    from bscomp.linear.linearization import second_order
     from bscomp.linear.modal import modes
     from bscomp.linear.response import frf
 
@@ -100,8 +100,8 @@ class _TangentUpdate:
     def __init__(self, system, parameter, path, pname, comp, inputs, outputs):
         import scipy.sparse as sp
 
-        from bscomp.kernel.flatten import flatten
-        from bscomp.linear.linearize import second_order
+        from bscomp.kernel.flattening import flatten
+        from bscomp.linear.linearization import second_order
 
         self.system, self.parameter, self.path, self.pname, self.comp = system, parameter, path, pname, comp
         t0 = time.perf_counter()
@@ -208,7 +208,7 @@ class _TangentUpdate:
 
     def second_order(self, x):
         """Full linearization at x through the Dae (reference for the update)."""
-        from bscomp.linear.linearize import second_order
+        from bscomp.linear.linearization import second_order
 
         return second_order(self.dae, inputs=self.inputs, outputs=self.outputs, params={self.parameter: float(x)})
 

@@ -1,7 +1,7 @@
 """Real modal coordinates of a linear(ized) model and the residual-vibration bound built on them.
 
 One real block-diagonalisation of the state matrix of ``x' = xd0 + A (x - x0) + B u``
-(:func:`affine_model`, the index-1 explicit form of :func:`bscomp.linear.linearize.explicit_form`):
+(:func:`affine_model`, the index-1 explicit form of :func:`bscomp.linear.linearization.explicit_form`):
 
 * :func:`modal_basis`: ``A P = P Λ`` with ``Λ`` block diagonal -- a 2 x 2 block ``[[σ, ω], [-ω, σ]]`` per
   oscillating mode (eigenvalues ``σ ± jω``; ``σ = -ζω_n`` for a viscously damped mode), 1 x 1 blocks for
@@ -23,7 +23,7 @@ import scipy.linalg as sla
 
 from bscomp.errors import BscompError
 from bscomp.kernel.dae import _sp
-from bscomp.linear.linearize import explicit_form
+from bscomp.linear.linearization import explicit_form
 
 __all__ = ["ModalError", "ModalDae", "modal_basis", "affine_model", "output_rows", "check_linear", "residual_rows"]
 
@@ -123,7 +123,7 @@ def affine_model(dae, p, x0, u0=None) -> dict:
 
     ``x' = xd0 + A (x - x0) + B (u - u0)``, ``z = z0 + Zx (x - x0) + Zu (u - u0)``, with ``(xd0, z0)``
     consistent at the point and ``[A B; Zx Zu] = -[dF/dx', dF/dz]⁻¹ [dF/dx, dF/du]``
-    (:func:`bscomp.linear.linearize.explicit_form`).
+    (:func:`bscomp.linear.linearization.explicit_form`).
 
     Returns
     -------

@@ -41,10 +41,10 @@ import scipy.sparse as sp
 from bscomp.components.force_between import ForceBetween
 from bscomp.errors import UnknownNameError
 from bscomp.kernel.component import _Context
-from bscomp.kernel.flatten import flatten
+from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import modal_frf
-from bscomp.linear.linearize import second_order
+from bscomp.linear.linearization import second_order
 from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin, _dense
 
 __all__ = ["CompiledModel", "ModalModel", "nonlinear_elements"]

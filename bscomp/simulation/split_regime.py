@@ -12,7 +12,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.kernel.dae import _sp
-from bscomp.linear.linearize import explicit_form
+from bscomp.linear.linearization import explicit_form
 from bscomp.simulation.split_kernels import REGIME_RTOL, Kernels, Numeric
 
 __all__ = ["SplitModel", "Regime", "split_model", "nonlinear_structure", "step_key", "FINE"]

@@ -26,7 +26,7 @@ import scipy.linalg as sla
 from scipy.signal import lfilter
 
 from bscomp.kernel.dae import _sp
-from bscomp.linear.linearize import explicit_form
+from bscomp.linear.linearization import explicit_form
 from bscomp.simulation.common import SampledLoop, finish
 
 __all__ = ["simulate_zoh", "zoh_schur"]

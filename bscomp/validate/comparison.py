@@ -577,7 +577,7 @@ def _pair_modes(measured, model_modes, tol):
 
 
 def _compare_frf(system, data: FrfData, bands, tol) -> FrfComparison:
-    from bscomp.kernel.flatten import flatten
+    from bscomp.kernel.flattening import flatten
     from bscomp.validate.residuals import _check_names
 
     dae = flatten(system.linear_equivalent())     # once, for the FRF, the modes and the amplitudes

@@ -183,7 +183,7 @@ def _node_keywords(node, resolve, depth: int = 0) -> set | None:
 
 
 def _dae(system):
-    from bscomp.kernel.flatten import flatten
+    from bscomp.kernel.flattening import flatten
 
     return flatten(system)
 

@@ -12,7 +12,7 @@ from bscomp import System, second_order
 from bscomp.components import Fixed, Force, Mass, Spring
 from bscomp.errors import UnknownNameError
 from bscomp.kernel.damping import modal_damping_matrix
-from bscomp.linear.linearize import SecondOrderModel
+from bscomp.linear.linearization import SecondOrderModel
 from bscomp.linear.modal import Modes, modes
 from bscomp.systems import small_drive
 

@@ -163,7 +163,7 @@ def test_conditions_of_a_registered_system_behave_like_a_callables(tmp_path):
 
 
 def _testbed_input(system):
-    from bscomp.kernel.flatten import flatten
+    from bscomp.kernel.flattening import flatten
 
     return next(n for n in flatten(system).u_names if n != "Fd.f")
 
