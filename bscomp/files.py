@@ -1,4 +1,4 @@
-"""Writing files so that nothing is ever half-written (a leaf module: imports nothing from bscomp).
+"""Writing files so that nothing is ever half-written (a leaf module: imports only bscomp.errors).
 
 Every file bscomp writes (CSV, JSON, PNG, HTML) goes to a temporary name in the same folder and is
 renamed into place only when complete, so an interrupted or failing write (full disk, ``ulimit -f``, an
@@ -14,6 +14,8 @@ import os
 import tempfile
 from pathlib import Path
 
+from bscomp.errors import OutputFileError
+
 __all__ = ["atomic_write", "atomic_path", "atomic_dir", "staged", "writable_path"]
 
 
@@ -22,7 +24,6 @@ def writable_path(path, what: str = "output file", suffixes=None) -> Path:
 
     Raises :class:`bscomp.errors.OutputFileError` naming the path and how to fix it.
     """
-    from bscomp.errors import OutputFileError
 
     p = Path(path)
     if p.is_dir():

@@ -25,7 +25,9 @@ import scipy.sparse.linalg as spla
 
 from bscomp.errors import SingularSystemError, UnknownNameError
 from bscomp.kernel import Dae, System
+from bscomp.linear.linearization import SecondOrderModel, second_order
 from bscomp.model import as_system
+from bscomp.plotting.base import mode_shape_plot
 
 __all__ = ["modes", "Modes", "modal_poles"]
 
@@ -36,7 +38,6 @@ DENSE_LIMIT = 400
 # ---- model resolution and static condensation ----------------------------------------------------
 def _second_order(model, inputs=None, outputs=None, at=None, params=None):
     """A :class:`~bscomp.linear.SecondOrderModel` from a SecondOrderModel, System, Dae or system name."""
-    from bscomp.linear.linearization import SecondOrderModel, second_order
 
     if isinstance(model, SecondOrderModel):
         if at or params:
@@ -382,7 +383,6 @@ class Modes:
 
     def plot(self, path=None, modes=None, title=None):
         """Mode-shape plot (:func:`bscomp.plotting.mode_shape_plot`); returns the figure."""
-        from bscomp.plotting.base import mode_shape_plot
 
         return mode_shape_plot(self, path=path, modes=modes, title=title)
 

@@ -67,6 +67,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.errors import SingularSystemError
+from bscomp.linear.linearization import SecondOrderModel
 
 __all__ = ["ReducedModel", "ReducedPort", "cms_reduce", "reduce_second_order"]
 
@@ -566,7 +567,6 @@ def reduce_second_order(model, boundary, n_modes: int | None = None, *, f_cut: f
     boundary : sequence of str
         Coordinate names kept exactly (actuated DOF, joint DOF, anchors; Sec 5.3.2).
     """
-    from bscomp.linear.linearization import SecondOrderModel
 
     red = cms_reduce(model.M, model.K, list(boundary), n_modes, f_cut=f_cut, C=model.C, interface=interface,
                      rigid_body_modes=rigid_body_modes, dof_names=list(model.coordinates))

@@ -28,7 +28,10 @@ import scipy.sparse.linalg as spla
 
 from bscomp.errors import NotLinearError, UnknownNameError
 from bscomp.kernel import Dae, System
+from bscomp.linear.linearization import SecondOrderModel, control_labels, linearize
+from bscomp.linear.modal import _condense, _group_poles, _second_order, _undamped
 from bscomp.model import as_system
+from bscomp.plotting.base import bode_plot
 
 __all__ = ["frf", "Frf", "transfer_function", "ModalSection"]
 
@@ -122,7 +125,6 @@ class Frf:
 
     def plot(self, path=None, title=None):
         """Bode plot of every pair (:func:`bscomp.plotting.bode_plot`); returns the figure."""
-        from bscomp.plotting.base import bode_plot
 
         pairs = self._pairs()
         H = np.stack([self.H[:, j, i] for j, i in pairs], axis=1)
@@ -182,8 +184,6 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
     (:meth:`~bscomp.linear.SecondOrderModel.frf`); a model with internal (controller) states is
     evaluated from its linearized state space instead.
     """
-    from bscomp.linear.linearization import SecondOrderModel, linearize
-    from bscomp.linear.modal import _second_order
 
     f = _freq_grid(freqs, fmin, fmax, n)
     ins, outs = _names(input), _names(output)
@@ -290,8 +290,6 @@ def transfer_function(model, input: str, output: str, modes=None, include_rigid:
     """
     import control
 
-    from bscomp.linear.linearization import control_labels
-    from bscomp.linear.modal import _condense, _group_poles, _second_order, _undamped
 
     if not isinstance(input, str) or not isinstance(output, str):
         raise TypeError("transfer_function is SISO: give one input name and one output name")

@@ -15,8 +15,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bscomp.errors import UnknownNameError
+from bscomp import plotting
+from bscomp.errors import BscompError, UnknownNameError
+from bscomp.kernel.flattening import flatten
+from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import modal_frf
+from bscomp.linear.linearization import second_order
+from bscomp.linear.modal import modes
+from bscomp.linear.response import frf
 from bscomp.model import ModelSpec, as_system
 
 __all__ = ["position_sweep", "PositionSweep", "build_system"]
@@ -57,9 +63,6 @@ def position_parameter(system) -> str:
 
 def _analyse(build, overrides, inputs, outputs, freqs, n_modes, at):
     """One position, in this process or a worker: frequencies, damping and optionally the FRF."""
-    from bscomp.linear.linearization import second_order
-    from bscomp.linear.modal import modes
-    from bscomp.linear.response import frf
 
     system = build_system(build, overrides)
     so = second_order(system, inputs=inputs, outputs=outputs, at=at)
@@ -100,8 +103,6 @@ class _TangentUpdate:
     def __init__(self, system, parameter, path, pname, comp, inputs, outputs):
         import scipy.sparse as sp
 
-        from bscomp.kernel.flattening import flatten
-        from bscomp.linear.linearization import second_order
 
         self.system, self.parameter, self.path, self.pname, self.comp = system, parameter, path, pname, comp
         t0 = time.perf_counter()
@@ -173,7 +174,6 @@ class _TangentUpdate:
         import scipy.linalg as sla
         import scipy.sparse as sp
 
-        from bscomp.kernel.system_damping import system_damping_matrix
 
         L, W, A0 = self._factor()
         t = self._tangent_at(x)
@@ -208,7 +208,6 @@ class _TangentUpdate:
 
     def second_order(self, x):
         """Full linearization at x through the Dae (reference for the update)."""
-        from bscomp.linear.linearization import second_order
 
         return second_order(self.dae, inputs=self.inputs, outputs=self.outputs, params={self.parameter: float(x)})
 
@@ -302,7 +301,6 @@ class PositionSweep:
         """``kind="frequencies"``: natural frequency against position
         (:func:`bscomp.plotting.frequency_position_plot`); ``kind="frf"``: the magnitude of one FRF pair at
         every position (:func:`bscomp.plotting.frf_overlay_plot`)."""
-        from bscomp import plotting
 
         if kind == "frequencies":
             return plotting.frequency_position_plot(
@@ -423,7 +421,6 @@ def _tangent_sweep(system, parameter, owner, positions, freqs, inputs, outputs, 
 
     import scipy.sparse as sp
 
-    from bscomp.errors import BscompError
 
     t_start = time.perf_counter()
     path, pname, comp = owner

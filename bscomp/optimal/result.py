@@ -15,6 +15,7 @@ import numpy as np
 
 from bscomp.errors import BscompError, UnknownNameError
 from bscomp.model import as_dae
+from bscomp.plotting.base import time_plot  # plotting (matplotlib) only when a figure is asked for
 from bscomp.simulation.dispatch import simulate
 
 __all__ = ["OcpResult", "OcpError", "active_fraction", "convergence_error"]
@@ -180,7 +181,6 @@ class OcpResult:
 
     def plot(self, names=None, path=None, title="optimal control"):
         """Time plot of the named signals (default: outputs and inputs); inputs drawn as staircases."""
-        from bscomp.plotting.base import time_plot  # plotting (matplotlib) only when a figure is asked for
 
         names = list(names or (list(self.outputs) + self.u_names))
         sig = []

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp.errors import BscompError, UnknownNameError
+from bscomp.plotting.base import time_plot  # matplotlib only when plotting
 
 __all__ = ["SimulationResult", "SimulationError"]
 
@@ -64,7 +65,6 @@ class SimulationResult:
 
     def plot(self, names=None, path=None, title=""):
         """Plot the named signals against time (one axis each)."""
-        from bscomp.plotting.base import time_plot  # matplotlib only when plotting
 
         names = list(names or (list(self.outputs) or self.x_names[:4]))
         return time_plot(self.t, [self[n] for n in names], names, title=title, path=path)
