@@ -14,6 +14,17 @@ defaults to 2 (A-stable), which matters for lightly damped structures.
 Uniform stretches of the grid with equal held inputs are integrated in chunks of up to 500 output
 intervals by one integrator (cached on the Dae per step, chunk length and options); where the inputs jump,
 ``(x', z)`` are made consistent by the Dae's own Newton on the index-1 Jacobian before IDAS restarts.
+
+Absolute tolerances are per component. The states ``x`` get the user's ``atol``. The algebraic unknowns
+``(w, z)`` are outside the error test (``suppress_algebraic``) but inside IDAS's Newton convergence tests
+(corrector and ``IDACalcIC``), which measure corrections in the same weighted norm. Their computed values
+carry a round-off floor that does not shrink with the step: ``w`` solves ``F = 0`` whose terms can be
+large and cancel (the stiffness forces of a rigid-body motion of many radians through ``K ~ 1e8``). When
+``rtol |w_i| + atol`` is below that floor, a restart (which begins with tiny steps, whose true corrections
+are below the noise) fails the convergence-rate test at every step size (``IDA_CONV_FAIL``, or
+``IDA_LINESEARCH_FAIL`` in ``IDACalcIC``), decided by the last bits of the arithmetic. So the algebraic
+tolerances are raised to :data:`KAPPA` times the floor estimated from the Jacobian
+(:func:`algebraic_atol`); the accuracy asked of the states is unchanged.
 """
 
 from __future__ import annotations
@@ -22,7 +33,10 @@ import time
 
 import casadi as ca
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
+from bscomp.kernel.dae import _sp
 from bscomp.simulation.common import Progress, SampledLoop, finish
 from bscomp.simulation.native import quiet_native_stderr
 from bscomp.simulation.result import SimulationError
@@ -30,6 +44,7 @@ from bscomp.simulation.result import SimulationError
 __all__ = ["simulate_idas"]
 
 CHUNK = 500  # most output intervals per integrator call
+KAPPA = 1e3  # algebraic absolute tolerances >= KAPPA x their round-off floor (IDACalcIC's test needs < 1 / 300)
 
 
 def integrator(dae, h, n_sub, opts, cache):
@@ -55,12 +70,14 @@ def simulate_idas(problem, options):
     ----------
     problem : SimulationProblem
     options : SimulationOptions
-        ``rtol``, ``atol``, ``max_order`` (BDF), ``max_num_steps``.
+        ``rtol``, ``atol`` (of the states; the algebraic unknowns' are kept above their round-off floor,
+        see the module notes), ``max_order`` (BDF), ``max_num_steps``.
 
     Returns
     -------
     SimulationResult
-        ``stats``: ``integrator_calls``, ``calc_ic_retries``.
+        ``stats``: ``integrator_calls``, ``calc_ic_retries``, ``algebraic_atol_max`` (the largest absolute
+        tolerance the algebraic unknowns were given).
     """
     dae, t, U, p = problem.dae, problem.t, problem.U, problem.p
     opts = {"reltol": options.rtol, "abstol": options.atol, "max_order": float(options.max_order),
@@ -78,6 +95,7 @@ def simulate_idas(problem, options):
     n_calls = n_retries = k = 0
     u_prev = U[:, 0]
     h_all = np.diff(t)
+    atol_alg = np.full(dae.nx + dae.nz, float(options.atol))
     while k < nt - 1:
         u_k = U[:, k].copy()
         loop.sample(t[k], u_k, lambda uk, w=w_cur, x=x_cur, z=z_cur: loop.measure(w, x, z, uk, p))
@@ -91,8 +109,10 @@ def simulate_idas(problem, options):
         if not np.array_equal(u_k, u_prev):
             w_cur, z_cur = dae.initialize(x_cur, u_k, p, z_guess=z_cur, xd_guess=w_cur, store=False)
         u_prev = u_k
-        xf, zf, retried = _integrate(dae, integrator(dae, h, n, opts, cache), opts, h, n, x_cur, w_cur, z_cur, u_k,
-                                     p, (t[k], t[k + n]))
+        atol_alg = _raise_to_floor(atol_alg, algebraic_atol(dae, x_cur, w_cur, z_cur, u_k, p, n * h))
+        opts_k = dict(opts, abstolv=[float(options.atol)] * dae.nx + [float(v) for v in atol_alg])
+        xf, zf, retried = _integrate(dae, integrator(dae, h, n, opts_k, cache), opts_k, h, n, x_cur, w_cur, z_cur,
+                                     u_k, p, (t[k], t[k + n]))
         n_calls += 1
         n_retries += retried
         X[k + 1:k + 1 + n] = xf.T
@@ -103,7 +123,58 @@ def simulate_idas(problem, options):
         k += n
         progress.update(n_calls, k)
     return finish(problem, X, XD, Z, Uh, {"method": "idas", "integrator_calls": n_calls,
-                                          "calc_ic_retries": n_retries}, t_wall)
+                                          "calc_ic_retries": n_retries,
+                                          "algebraic_atol_max": float(np.max(atol_alg, initial=0.0))}, t_wall)
+
+
+def algebraic_atol(dae, x, w, z, u, p, span):
+    """:data:`KAPPA` times the round-off floor of the algebraic unknowns ``(w, z)`` near a point: ``(nx + nz,)``.
+
+    Parameters
+    ----------
+    dae : Dae
+    x, w, z, u, p : ndarray
+        A consistent point (``w = x'``).
+    span : float
+        Length [s] of the window about to be integrated: the states are taken as large as
+        ``|x| + span |w|``, what they can reach in it.
+
+    Returns
+    -------
+    ndarray
+        The absolute tolerances the Newton tests on ``(w, z)`` can meet.
+
+    Notes
+    -----
+    Each residual row sums terms of magnitude :math:`T_j = \\sum_k |\\partial F_j / \\partial y_k|\\,|y_k|`
+    and is computed to about :math:`\\varepsilon T_j`; through the index-1 Jacobian
+    :math:`W = [\\partial F / \\partial w, \\partial F / \\partial z]` that is an error of about
+    :math:`\\varepsilon\\, |W^{-1}|\\, T` in the unknowns, estimated here by three sparse solves with
+    right-hand sides :math:`\\varepsilon T` of random sign (fixed seed: the result is reproducible).
+    """
+    if dae.nx + dae.nz == 0:
+        return np.zeros(0)
+    _, Jxd, Jx, Jz, Ju = (_sp(m) for m in dae.jacobians(w, x, z, u, p))
+    T = abs(Jxd) @ np.abs(w) + abs(Jx) @ (np.abs(x) + span * np.abs(w))
+    if dae.nz:
+        T = T + abs(Jz) @ np.abs(z)
+    if dae.nu:
+        T = T + abs(Ju) @ np.abs(u)
+    lu = spla.splu(sp.hstack([Jxd, Jz]).tocsc())
+    signs = np.random.default_rng(0).choice([-1.0, 1.0], size=(3, T.size))
+    floor = np.max(np.abs([lu.solve(np.finfo(float).eps * T * s) for s in signs]), axis=0)
+    return KAPPA * floor
+
+
+def _raise_to_floor(current, need):
+    """``current`` tolerances, each raised where below ``need`` to the decade above ``need`` (so few distinct
+    values, hence few integrators, occur in a run)."""
+    low = need > current
+    if not np.any(low):
+        return current
+    out = current.copy()
+    out[low] = 10.0 ** np.ceil(np.log10(need[low]))
+    return out
 
 
 def _integrate(dae, I, opts, h, n, x, w, z, u, p, window):
