@@ -40,9 +40,9 @@ import numpy as np
 
 from bscomp.kernel.interface import NotApplicable
 from bscomp.validate.candidates import default_candidates
+from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
 from bscomp.validate.evaluation import Evaluator, Problem, block_stats, noise_levels, residual_blocks
-from bscomp.validate.measurements import FrfData, TimeData
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
 

@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-from bscomp.validate.measurements import FrfData, TimeData
+from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.residuals import frf_errors
 
 __all__ = ["Evaluator", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]

@@ -19,7 +19,7 @@ import inspect
 
 import numpy as np
 
-from bscomp.validate.measurements import FrfData, MeasurementFileError, TimeData
+from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData
 
 __all__ = ["model_frf", "model_time", "frf_residuals", "time_residuals", "cost", "fit_percent",
            "build_for", "frf_errors", "frf_at", "simulate_for", "simulate_at", "ConditionIgnoredWarning"]

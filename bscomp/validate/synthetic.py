@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from bscomp.validate.candidates import default_candidates
-from bscomp.validate.measurements import FrfData, TimeData, write_frf_csv, write_time_csv
+from bscomp.validate.datasets import FrfData, TimeData
+from bscomp.validate.writers import write_frf_csv, write_time_csv
 
 __all__ = ["generate", "SyntheticData", "truth_system", "write_demo_data", "TRUTH_VALUES", "MISSET"]
 
