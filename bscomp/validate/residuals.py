@@ -22,7 +22,8 @@ import numpy as np
 from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData
 
 __all__ = ["model_frf", "model_time", "frf_residuals", "time_residuals", "cost", "fit_percent",
-           "build_for", "frf_errors", "frf_at", "simulate_for", "simulate_at", "ConditionIgnoredWarning"]
+           "build_for", "frf_errors", "frf_at", "simulate_for", "simulate_at", "check_channels",
+           "ConditionIgnoredWarning"]
 
 
 # ---- the model at the measurement's conditions ---------------------------------------------------------
@@ -188,7 +189,7 @@ def _dae(system):
     return flatten(system)
 
 
-def _check_names(dae, data, inputs, outputs):
+def check_channels(dae, data, inputs, outputs):
     """Every measured channel must exist in the model; the error points at the file's column."""
     for name in inputs:
         if name not in dae.u_names:
@@ -232,7 +233,7 @@ def frf_at(system, data: FrfData) -> dict:
 
     dae = system if isinstance(system, Dae) else _dae(system.linear_equivalent())
     ins, outs = data.inputs, data.outputs
-    _check_names(dae, data, ins, outs)
+    check_channels(dae, data, ins, outs)
     res = frf(dae, input=ins, output=outs, freqs=data.freqs)
     return {(i, o): res.H[:, res.outputs.index(o), res.inputs.index(i)] for i, o in data.H}
 
@@ -252,7 +253,7 @@ def simulate_at(system, data: TimeData, extra=(), rtol=1e-7, atol=1e-10):
     from bscomp.simulation.dispatch import simulate
 
     dae = _dae(system)
-    _check_names(dae, data, list(data.inputs), list(data.outputs))
+    check_channels(dae, data, list(data.inputs), list(data.outputs))
     obs = set(dae.output_names())
     names = list(data.outputs) + [n for n in dict.fromkeys(extra) if n in obs and n not in data.outputs]
     # a linear model driven by held inputs is stepped exactly (zero-order hold, as the data were sampled);
