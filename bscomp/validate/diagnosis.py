@@ -6,6 +6,8 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 __all__ = ["EffectFit", "Diagnosis", "Skipped"]
 
 
@@ -229,8 +231,6 @@ class Diagnosis:
 
 
 def _json_default(o):
-    import numpy as np
-
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
     if isinstance(o, np.ndarray):

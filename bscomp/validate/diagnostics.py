@@ -37,12 +37,17 @@ import sys
 import time
 
 import numpy as np
+from scipy.optimize import minimize_scalar
+from threadpoolctl import threadpool_limits
 
-from bscomp.kernel.interface import NotApplicable
+from bscomp.kernel.interface import NotApplicable, interface_of
+from bscomp.kernel.system import System
 from bscomp.validate.candidates import default_candidates
+from bscomp.validate.comparison import user_errors
 from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
 from bscomp.validate.evaluation import Evaluator, Problem, block_stats, noise_levels, residual_blocks
+from bscomp.validate.residuals import build_for
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
 
@@ -55,9 +60,6 @@ def _condition_key(data, overrides):
 
 def _systems(system_or_build, datasets, overrides):
     """``({key: System}, keys)``: the nominal model built at each dataset's conditions."""
-    from bscomp.kernel.system import System
-    from bscomp.validate.residuals import build_for
-
     keys = [_condition_key(d, overrides) for d in datasets]
     systems = {}
     for key in dict.fromkeys(keys):
@@ -72,8 +74,6 @@ def _systems(system_or_build, datasets, overrides):
 
 def _uncertain(system, uncertain, default_spread):
     """``{name: spread}`` from the argument, or the drive's declared interface."""
-    from bscomp.kernel.interface import interface_of
-
     if uncertain is None:
         iface = interface_of(system)
         if iface is not None:
@@ -134,8 +134,6 @@ def _summary(problem, theta, k):
 
 def _user(outs, datasets) -> dict:
     """The errors as the user reads them (:func:`~bscomp.validate.comparison.user_errors`), per dataset."""
-    from bscomp.validate.comparison import user_errors
-
     per = user_errors(list(outs), datasets)
     return {"per_dataset": [per[i] for i in range(len(datasets))]}
 
@@ -257,8 +255,6 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
     eigen-decompositions, which a multi-threaded BLAS slows down by up to 100x on a loaded 2-core machine
     (98x98 ``eigh``: 1.7 ms on one thread, 0.24 s on two under load).
     """
-    from threadpoolctl import threadpool_limits
-
     with threadpool_limits(limits=1, user_api="blas"):
         return _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_refine, bic_threshold,
                          min_drop, min_heldout_drop, noise_tolerance, overrides, verbose, progress, default_spread,
@@ -557,8 +553,6 @@ def _refine(cand, effects, ev, st, sigmas, scores, pr, frf_only, rnd):
 
 def _line_search(pr, th0, scores):
     """Bounded Brent search on the first free parameter between the scan neighbours of ``th0``."""
-    from scipy.optimize import minimize_scalar
-
     xs = sorted(sc[1][0] for sc in scores if np.all(sc[1][1:] == th0[1:]))
     i = int(np.argmin([abs(x - th0[0]) for x in xs]))
     lo, hi = xs[max(i - 1, 0)], xs[min(i + 1, len(xs) - 1)]

@@ -26,7 +26,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.optimize import least_squares
 
+from bscomp.simulation.compiled import CompiledModel
 from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.residuals import frf_errors
 
@@ -119,8 +121,6 @@ class Evaluator:
     """
 
     def __init__(self, systems: dict, datasets, keys, free=(), f_keep: float = 6000.0, n_sub: int = 2):
-        from bscomp.simulation.compiled import CompiledModel
-
         self.datasets, self.keys, self.n_sub = list(datasets), list(keys), int(n_sub)
         self.models = {}
         for key, system in systems.items():
@@ -245,8 +245,6 @@ class Problem:
         return np.clip(np.log([f.start for f in self.free]), lo + 1e-9, hi - 1e-9)
 
     def fit(self, theta0=None, max_nfev=None):
-        from scipy.optimize import least_squares
-
         theta0 = self.theta0() if theta0 is None else np.asarray(theta0, float)
         if not self.free:
             return theta0, None
