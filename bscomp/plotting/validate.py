@@ -213,3 +213,37 @@ def plot_diagnosis(diag, directory):
     fig.savefig(p2, dpi=110)
     plt.close(fig)
     return [p1, p2]
+
+
+def calibration_plot(changes, spreads, channels, before, after, path=None, title=None):
+    """A re-calibration: each fitted parameter's change from nominal [%] with its +- 1 std bar, and each
+    residual channel's normalised error before and after (log scale; 1 = noise floor).
+
+    ``changes``, ``spreads``: ``{parameter: percent}``; ``channels``: labels; ``before``, ``after``: the
+    channels' chi^2 values.
+    """
+    plt = _plt()
+    n_ch = max(len(channels), 1)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 1.5 + 0.35 * max(n_ch, len(changes))), squeeze=True)
+    names = list(changes)
+    y = np.arange(len(names))
+    a1.barh(y, [changes[k] for k in names], xerr=[abs(spreads.get(k, np.nan)) for k in names], color="C0",
+            capsize=3)
+    a1.set_yticks(y)
+    a1.set_yticklabels(names)
+    a1.axvline(0, color="k", lw=0.5)
+    a1.set_xlabel("fitted - nominal [%] (+- 1 std)")
+    a1.grid(True, axis="x", alpha=0.3)
+    y = np.arange(len(channels))
+    a2.barh(y + 0.2, before, height=0.4, color="0.6", label="nominal")
+    a2.barh(y - 0.2, after, height=0.4, color="C2", label="re-calibrated")
+    a2.axvline(1.0, color="0.3", ls="--", lw=1, label="noise floor")
+    a2.set_yticks(y)
+    a2.set_yticklabels(channels, fontsize=8)
+    a2.invert_yaxis()
+    a2.set_xscale("log")
+    a2.set_xlabel("error (chi^2, 1 = noise floor)")
+    a2.grid(True, axis="x", which="both", alpha=0.3)
+    a2.legend(fontsize=8, loc="lower right")
+    fig.suptitle(title or "re-calibration of the uncertain parameters")
+    return _finish(fig, plt, path)

@@ -19,7 +19,10 @@ Results draw themselves through :mod:`bscomp.plotting.validate`, imported (with 
 figure is asked for.
 """
 
+from bscomp.validate.calibration import Calibration, calibrate
 from bscomp.validate.comparison import Comparison, compare, user_errors
+from bscomp.validate.diagnosis import Diagnosis
+from bscomp.validate.diagnostics import diagnose
 from bscomp.validate.frf_comparison import FrfComparison, ModePair
 from bscomp.validate.measurements import (
     FrfData,
@@ -41,4 +44,4 @@ from bscomp.validate.time_comparison import TimeComparison
 __all__ = ["FrfData", "TimeData", "MeasurementFileError", "load", "load_all", "read_frf_csv", "read_time_csv",
            "write_frf_csv", "write_time_csv", "model_frf", "model_time", "frf_residuals", "time_residuals", "cost",
            "fit_percent", "compare", "Comparison", "FrfComparison", "TimeComparison", "ModePair", "user_errors",
-           "peak_pick", "resid", "ResidTest", "write_report"]
+           "peak_pick", "resid", "ResidTest", "calibrate", "Calibration", "diagnose", "Diagnosis", "write_report"]

@@ -116,6 +116,9 @@ class Diagnosis:
         Nominal, re-calibrated, then after each accepted effect (normalised error, 1 = noise floor).
     user_errors : list of (label, dict)
         The errors as the user reads them at each step of the staircase.
+    calibration : Calibration
+        The re-calibration step (:func:`~bscomp.validate.calibration.calibrate`'s result: values, spreads,
+        errors per channel before and after).
     message : str
     """
 
@@ -132,6 +135,7 @@ class Diagnosis:
     noise: list = field(default_factory=list)
     final_values: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
+    calibration: object = None
 
     @property
     def found(self) -> bool:
