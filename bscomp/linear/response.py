@@ -19,6 +19,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import csv
 import json
 from dataclasses import dataclass, field
 
@@ -28,6 +30,7 @@ import scipy.sparse.linalg as spla
 
 from bscomp.errors import NotLinearError, UnknownNameError
 from bscomp.kernel import Dae, System
+from bscomp.kernel.units import convention_units, parse_unit
 from bscomp.linear.linearization import SecondOrderModel, control_labels, linearize
 from bscomp.linear.modal import _condense, _group_poles, _second_order, _undamped
 from bscomp.model import as_system
@@ -86,16 +89,38 @@ class Frf:
     def _pairs(self):
         return [(j, i) for j in range(len(self.outputs)) for i in range(len(self.inputs))]
 
-    def to_csv(self, path) -> None:
-        """Columns ``freq_hz`` then, per output/input pair, ``re``, ``im``, ``mag_db``, ``phase_deg``.
+    def to_csv(self, path, units: dict | None = None, conditions: dict | None = None) -> None:
+        """Columns ``freq_hz`` then, per output/input pair, ``re``, ``im``, ``mag_db``, ``phase_deg`` (named
+        ``<input>-><output> re`` and so on): a file :func:`bscomp.validate.load` reads back.
 
-        ``path`` is a file name or an open text file (e.g. ``sys.stdout``).
+        What the reader needs besides the numbers -- ``kind: frf``, the source (:attr:`name`), the SI unit
+        of each response and the conditions -- goes to a JSON sidecar ``<path>.json`` next to a file (the
+        CSV itself stays a plain table), or into ``#`` lines above the header when ``path`` is an open
+        text file (e.g. ``sys.stdout``).
+
+        Parameters
+        ----------
+        path : str, Path or text file
+        units : dict, optional
+            SI units of inputs and outputs by name (``{"amp.u": "V"}``); a channel not named takes its unit
+            from the Modelica naming convention (``*.s`` m, ``*.v`` m/s, ``*.a`` m/s^2, ``*.f`` N,
+            ``*.phi`` rad, ``*.w`` rad/s, ``*.tau`` N m), else ``1`` (the value as it is). Each response
+            is in ``output unit/(input unit)``.
+        conditions : dict, optional
+            Operating conditions of the model (``{"nut_position": 0.43}``), written with the data.
         """
-        import contextlib
-        import csv
-
         mag, ph = self.magnitude_db, self.phase_deg
-        with (contextlib.nullcontext(path) if hasattr(path, "write") else open(path, "w", newline="")) as fh:
+        meta = {"kind": "frf", "source": self.name or "bscomp.frf",
+                "units": {f"{self.outputs[j]}/{self.inputs[i]}": self._pair_unit(j, i, units or {})
+                          for j, i in self._pairs()}}
+        if conditions:
+            meta["conditions"] = dict(conditions)
+        stream = hasattr(path, "write")
+        with (contextlib.nullcontext(path) if stream else open(path, "w", newline="")) as fh:
+            if stream:
+                fh.write(f"# kind: frf\n# source: {meta['source']}\n")
+                fh.writelines(f"# condition {k}: {v}\n" for k, v in meta.get("conditions", {}).items())
+                fh.writelines(f"# unit {p}: {u}\n" for p, u in meta["units"].items())
             w = csv.writer(fh, lineterminator="\n")
             head = ["freq_hz"]
             for j, i in self._pairs():
@@ -109,6 +134,21 @@ class Frf:
                     row += [repr(float(h.real)), repr(float(h.imag)), repr(float(mag[k, j, i])),
                             repr(float(ph[k, j, i]))]
                 w.writerow(row)
+        if not stream:
+            with open(f"{path}.json", "w") as fh:
+                json.dump(meta, fh, indent=2, default=lambda o: o.item() if hasattr(o, "item") else str(o))
+
+    def _pair_unit(self, j, i, units) -> str:
+        """SI unit of output ``j`` over input ``i`` (see :meth:`to_csv`)."""
+        def unit(name):
+            text = units.get(name) or convention_units.get(name.rsplit(".", 1)[-1], ("1",))[0]
+            if parse_unit(text).scale != 1.0:
+                raise ValueError(f"unit {text!r} of {name!r} is not SI: the FRF holds SI values (give e.g. 'm', "
+                                 "not 'mm')")
+            return text
+
+        out, inp = unit(self.outputs[j]), unit(self.inputs[i])
+        return out if inp == "1" else f"{out}/({inp})"
 
     def to_dict(self) -> dict:
         return {"name": self.name, "freqs_hz": self.freqs.tolist(), "inputs": list(self.inputs),
