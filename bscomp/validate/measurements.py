@@ -13,6 +13,11 @@ lines above the header or in a JSON/TOML sidecar (``data.csv.json``, ``data.csv.
     f,re(rotor.w/motor.tau),im(rotor.w/motor.tau),coh(rotor.w/motor.tau)
     10.0,-0.05,-2.6,0.99
 
+The FRF columns are ``re(<out>/<in>)``/``im(...)`` or a magnitude (``mag``, ``mag_db``) and a phase
+(``phase_deg``, ``phase_rad``), optional ``coh(...)``; :meth:`bscomp.linear.response.Frf.to_csv` writes
+``<in>-><out> re`` (``im``, ``mag_db``, ``phase_deg``) columns with a ``.csv.json`` sidecar, read the same way
+(magnitude and phase given with re/im must agree with them).
+
 Values are converted to SI on reading (a channel in ``um`` is multiplied by 1e-6; ``deg`` becomes
 ``rad``), so :attr:`FrfData.units` and :attr:`TimeData.units` hold SI spellings. Data files are parsed,
 never executed. Every problem raises :class:`MeasurementFileError` naming the file, the line and the
