@@ -91,36 +91,32 @@ class Frf:
 
     def to_csv(self, path, units: dict | None = None, conditions: dict | None = None) -> None:
         """Columns ``freq_hz`` then, per output/input pair, ``re``, ``im``, ``mag_db``, ``phase_deg`` (named
-        ``<input>-><output> re`` and so on): a file :func:`bscomp.validate.load` reads back.
+        ``<input>-><output> re`` and so on): a plain table that :func:`bscomp.validate.load` reads back.
 
-        What the reader needs besides the numbers -- ``kind: frf``, the source (:attr:`name`), the SI unit
-        of each response and the conditions -- goes to a JSON sidecar ``<path>.json`` next to a file (the
-        CSV itself stays a plain table), or into ``#`` lines above the header when ``path`` is an open
-        text file (e.g. ``sys.stdout``).
+        The values are SI. Read back, each response's unit is :meth:`pair_unit` of its names (the Modelica
+        naming convention); given ``units`` or ``conditions``, ``#`` metadata lines above the header
+        (``kind``, ``source``, ``condition``, ``unit`` per pair) record them with the data.
 
         Parameters
         ----------
         path : str, Path or text file
+            A file name, or an open text file (e.g. ``sys.stdout``).
         units : dict, optional
-            SI units of inputs and outputs by name (``{"amp.u": "V"}``); a channel not named takes its unit
-            from the Modelica naming convention (``*.s`` m, ``*.v`` m/s, ``*.a`` m/s^2, ``*.f`` N,
-            ``*.phi`` rad, ``*.w`` rad/s, ``*.tau`` N m), else ``1`` (the value as it is). Each response
-            is in ``output unit/(input unit)``.
+            SI units of inputs and outputs by name (``{"amp.u": "V"}``), for channels the naming convention
+            does not cover.
         conditions : dict, optional
             Operating conditions of the model (``{"nut_position": 0.43}``), written with the data.
         """
+        lines = []
+        if units or conditions:
+            lines = ["# kind: frf", f"# source: {self.name or 'bscomp.frf'}"]
+            lines += [f"# condition {k}: {v}" for k, v in (conditions or {}).items()]
+            for j, i in self._pairs():
+                out, inp = self.outputs[j], self.inputs[i]
+                lines.append(f"# unit {out}/{inp}: {self.pair_unit(out, inp, units)}")
         mag, ph = self.magnitude_db, self.phase_deg
-        meta = {"kind": "frf", "source": self.name or "bscomp.frf",
-                "units": {f"{self.outputs[j]}/{self.inputs[i]}": self._pair_unit(j, i, units or {})
-                          for j, i in self._pairs()}}
-        if conditions:
-            meta["conditions"] = dict(conditions)
-        stream = hasattr(path, "write")
-        with (contextlib.nullcontext(path) if stream else open(path, "w", newline="")) as fh:
-            if stream:
-                fh.write(f"# kind: frf\n# source: {meta['source']}\n")
-                fh.writelines(f"# condition {k}: {v}\n" for k, v in meta.get("conditions", {}).items())
-                fh.writelines(f"# unit {p}: {u}\n" for p, u in meta["units"].items())
+        with (contextlib.nullcontext(path) if hasattr(path, "write") else open(path, "w", newline="")) as fh:
+            fh.writelines(line + "\n" for line in lines)
             w = csv.writer(fh, lineterminator="\n")
             head = ["freq_hz"]
             for j, i in self._pairs():
@@ -134,20 +130,23 @@ class Frf:
                     row += [repr(float(h.real)), repr(float(h.imag)), repr(float(mag[k, j, i])),
                             repr(float(ph[k, j, i]))]
                 w.writerow(row)
-        if not stream:
-            with open(f"{path}.json", "w") as fh:
-                json.dump(meta, fh, indent=2, default=lambda o: o.item() if hasattr(o, "item") else str(o))
 
-    def _pair_unit(self, j, i, units) -> str:
-        """SI unit of output ``j`` over input ``i`` (see :meth:`to_csv`)."""
+    @staticmethod
+    def pair_unit(output: str, input: str, units: dict | None = None) -> str:
+        """SI unit of the response of ``output`` to ``input``: ``output unit/(input unit)``.
+
+        A channel's unit is ``units[name]`` if given, else the Modelica naming convention's for its last
+        name part (``s`` m, ``v`` m/s, ``a`` m/s^2, ``f`` N, ``phi`` rad, ``w`` rad/s, ``tau`` N m), else
+        ``1`` (a signal). Raises ValueError for a unit that is not SI (the FRF holds SI values).
+        """
         def unit(name):
-            text = units.get(name) or convention_units.get(name.rsplit(".", 1)[-1], ("1",))[0]
+            text = (units or {}).get(name) or convention_units.get(name.rsplit(".", 1)[-1], ("1",))[0]
             if parse_unit(text).scale != 1.0:
                 raise ValueError(f"unit {text!r} of {name!r} is not SI: the FRF holds SI values (give e.g. 'm', "
                                  "not 'mm')")
             return text
 
-        out, inp = unit(self.outputs[j]), unit(self.inputs[i])
+        out, inp = unit(output), unit(input)
         return out if inp == "1" else f"{out}/({inp})"
 
     def to_dict(self) -> dict:

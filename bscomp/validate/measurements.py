@@ -15,8 +15,9 @@ lines above the header or in a JSON/TOML sidecar (``data.csv.json``, ``data.csv.
 
 The FRF columns are ``re(<out>/<in>)``/``im(...)`` or a magnitude (``mag``, ``mag_db``) and a phase
 (``phase_deg``, ``phase_rad``), optional ``coh(...)``; :meth:`bscomp.linear.response.Frf.to_csv` writes
-``<in>-><out> re`` (``im``, ``mag_db``, ``phase_deg``) columns with a ``.csv.json`` sidecar, read the same way
-(magnitude and phase given with re/im must agree with them).
+``<in>-><out> re`` (``im``, ``mag_db``, ``phase_deg``) columns of SI values, read the same way (a pair's unit,
+unless declared, from the channel names by the Modelica naming convention; magnitude and phase given with
+re/im must agree with them).
 
 Values are converted to SI on reading (a channel in ``um`` is multiplied by 1e-6; ``deg`` becomes
 ``rad``), so :attr:`FrfData.units` and :attr:`TimeData.units` hold SI spellings. Data files are parsed,

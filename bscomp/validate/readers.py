@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from bscomp.kernel.units import UnitSyntaxError, convention_units, expected_dimension_ok, parse_unit
+from bscomp.linear.response import Frf
 from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData
 
 __all__ = ["read_frf_csv", "read_time_csv", "load", "load_all"]
@@ -284,9 +285,12 @@ def _frf_from(path, meta, header, hl, rows):
         raise MeasurementFileError(path, rows[k][0], 1, "negative frequency", header[0])
     _increasing(path, f, rows, 1, header[0], "frequency")
     cols: dict = {}
+    written = set()                      # pairs in the columns of Frf.to_csv (SI, units implied by the names)
     for c, name in enumerate(header[1:], start=2):
-        inp, out, quantity = _frf_column(path, hl, c, name)
+        inp, out, quantity, arrow = _frf_column(path, hl, c, name)
         cols.setdefault((inp, out), {})[quantity] = (c, A[:, c - 1])
+        if arrow:
+            written.add((inp, out))
     if not cols:
         raise MeasurementFileError(path, hl, 2, "no response columns after the frequency")
     H, units, coh, loc = {}, {}, {}, {}
@@ -303,6 +307,8 @@ def _frf_from(path, meta, header, hl, rows):
                 k = int(bad[0])
                 raise MeasurementFileError(path, rows[k][0], c, f"coherence {g[k]:.6g} outside [0, 1]", header[c - 1])
             coh[(inp, out)] = g
+        if pname not in meta.units and (inp, out) in written:
+            meta.units[pname] = (Frf.pair_unit(out, inp), (path, hl, first))
         u = _unit(path, meta, pname, (path, hl, first))
         w = meta.units[pname][1]
         loc[("unit", (inp, out))] = (w[1], w[2])
@@ -331,21 +337,26 @@ def _frequency_scale(path, meta, header, hl) -> float:
 
 
 def _frf_column(path, hl, c, name):
-    """``(input, output, quantity)`` of an FRF column: ``re(<out>/<in>)`` or, as
-    :meth:`bscomp.linear.response.Frf.to_csv` writes it, ``<in>-><out> re``."""
+    """``(input, output, quantity, written)`` of an FRF column: ``re(<out>/<in>)`` or, as
+    :meth:`bscomp.linear.response.Frf.to_csv` writes it, ``<in>-><out> re`` (``written`` True).
+
+    The second form holds SI values; without a declared unit, a pair's unit is
+    :meth:`~bscomp.linear.response.Frf.pair_unit` of its names (the Modelica naming convention).
+    """
     m = _FRF_COL.match(name)
     if m and "/" in m.group(2):
         out, inp = (x.strip() for x in m.group(2).rsplit("/", 1))
-        quantity = m.group(1)
+        quantity, written = m.group(1), False
     elif _FRF_ARROW.match(name):
         inp, out, quantity = (x.strip() for x in _FRF_ARROW.match(name).groups())
+        written = True
     else:
         raise MeasurementFileError(path, hl, c, f"unknown column {name!r}: FRF columns are re(<out>/<in>), "
                                    "im(...), mag(...), mag_db(...), phase_deg(...), phase_rad(...), coh(...) (or "
                                    "'<in>-><out> re', ... as Frf.to_csv writes them)", name)
     if not out or not inp:
         raise MeasurementFileError(path, hl, c, f"column {name!r} must name <output>/<input>", name)
-    return inp, out, quantity
+    return inp, out, quantity, written
 
 
 def _pair_response(path, header, hl, rows, pname, d, first):
