@@ -19,9 +19,9 @@ ROOT = resources.files("bscomp.systems") / "data" / "truths" / "axial_torsional"
 
 
 @pytest.fixture(scope="module")
-def control():
+def control(truth_data):
     truth = json.loads((ROOT / "truth.json").read_text())
-    return truth, calibrate("testbed_axial_torsional", [str(ROOT / "frf.csv"), str(ROOT / "time.csv")])
+    return truth, calibrate("testbed_axial_torsional", truth_data("axial_torsional", "control"))
 
 
 def test_calibration_lowers_the_error_and_finds_the_misset_parameters(control):
@@ -72,7 +72,7 @@ def test_diagnose_recalibrates_through_calibrate():
     np.testing.assert_allclose(dict(diag.staircase)["nominal"], cal.error_before)
 
 
-def test_calibrate_with_a_given_parameter_list_and_files(tmp_path):
+def test_calibrate_with_a_given_parameter_list_and_a_file():
     cal = calibrate("testbed_axial_torsional", str(ROOT / "frf.csv"), uncertain={"table.m": 0.3})
     assert list(cal.values) == ["table.m"] and cal.bounds["table.m"][1] == pytest.approx(1.3 * 250.0)
     assert cal.heldout_before is None and cal.error_after < cal.error_before
