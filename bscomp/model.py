@@ -85,9 +85,9 @@ class ModelSpec:
 
     def system(self) -> System:
         """Build the System (registered name or ``.py`` file) and apply the overrides."""
-        from bscomp import systems  # lazily: the engine itself never needs the drives
+        from bscomp.systems import get  # lazily: the engine itself never needs the drives
 
-        return systems.get(self.source, self.overrides)
+        return get(self.source, self.overrides)
 
     def dae(self) -> Dae:
         """Build and flatten."""
@@ -214,11 +214,11 @@ def build_keywords(model) -> set | None:
     if isinstance(model, Path):
         model = str(model)
     if isinstance(model, str):
-        from bscomp import systems  # lazily: a registered name
+        from bscomp.systems import REGISTRY  # lazily: a registered name
 
-        if model not in systems.REGISTRY:
+        if model not in REGISTRY:
             return _file_build_keywords(model)
-        model = systems.REGISTRY[model]
+        model = REGISTRY[model]
     node = _function_node(model)
     if node is None:                     # no Python source (a builtin, a C function): the signature only
         try:

@@ -34,6 +34,7 @@ from threadpoolctl import threadpool_limits
 
 from bscomp.kernel.interface import interface_of
 from bscomp.kernel.system import System
+from bscomp.plotting.validate import calibration_plot
 from bscomp.validate.comparison import user_errors
 from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.evaluation import Problem, Structures, noise_levels, residual_blocks
@@ -259,8 +260,6 @@ class Calibration:
     def plot(self, path=None):
         """Fitted parameters (change from nominal with +- std) and the error per channel before/after
         (:func:`bscomp.plotting.validate.calibration_plot`); returns the figure."""
-        from bscomp.plotting.validate import calibration_plot
-
         changes = {k: 100 * (v / self.nominal[k] - 1) for k, v in self.values.items()}
         spread = {k: 100 * self.std.get(k, float("nan")) / self.nominal[k] for k in self.values}
         labels = [f"{r['dataset'] + 1}. {r['channel']}" for r in self.channels]

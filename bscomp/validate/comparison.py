@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from bscomp.model import model_name
+from bscomp.plotting.validate import comparison_plots
 from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.frf_comparison import compare_frf, frf_user_rows
 from bscomp.validate.readers import load_all
@@ -151,8 +152,6 @@ class Comparison:
     def plot(self, out_dir) -> list:
         """Write PNGs (overlays, residuals, error per band, resid tests, signatures) to ``out_dir``;
         returns their paths."""
-        from bscomp.plotting.validate import comparison_plots
-
         return comparison_plots(self, out_dir, signature_names=tuple(SIGNATURES))
 
 

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from bscomp.plotting.validate import plot_diagnosis
+
 __all__ = ["EffectFit", "Diagnosis", "Skipped"]
 
 
@@ -229,8 +231,6 @@ class Diagnosis:
 
     def plot(self, directory):
         """Write ``error_staircase.png`` and ``candidates.png`` to ``directory``; returns the paths."""
-        from bscomp.plotting.validate import plot_diagnosis
-
         return plot_diagnosis(self, directory)
 
 
