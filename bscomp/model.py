@@ -9,6 +9,10 @@ same things for its model argument:
 * a :class:`~bscomp.System`, or a flattened :class:`~bscomp.Dae`,
 * a :class:`ModelSpec`.
 
+:func:`build_keywords` says which build keywords a model takes (read from the build function's source,
+or from a ``.py`` file's syntax tree without running it), so every analysis drops or honours an
+operating condition the same way.
+
 :class:`ModelSpec` is the picklable pair ``(name or path, overrides)``: what travels to a worker process
 (or a Dask worker) so that it rebuilds the drive itself instead of receiving compiled CasADi objects.
 Override keys without a dot (``nut_position``) are keyword arguments of the build function (structural
@@ -20,6 +24,9 @@ This module is the only place in the engine that reaches ``bscomp.systems`` (laz
 
 from __future__ import annotations
 
+import ast
+import inspect
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,7 +37,8 @@ from bscomp.kernel.dae import Dae
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
 
-__all__ = ["ModelSpec", "as_system", "as_dae", "resolve_model", "spec_of", "split_overrides", "model_name"]
+__all__ = ["ModelSpec", "as_system", "as_dae", "resolve_model", "spec_of", "split_overrides", "model_name",
+           "build_keywords"]
 
 
 def split_overrides(overrides: dict | None) -> tuple[dict, dict]:
@@ -77,9 +85,9 @@ class ModelSpec:
 
     def system(self) -> System:
         """Build the System (registered name or ``.py`` file) and apply the overrides."""
-        from bscomp import systems  # lazily: the engine itself never needs the drives
+        from bscomp.systems import get  # lazily: the engine itself never needs the drives
 
-        return systems.get(self.source, self.overrides)
+        return get(self.source, self.overrides)
 
     def dae(self) -> Dae:
         """Build and flatten."""
@@ -176,3 +184,110 @@ def resolve_model(model, params: dict | None = None, *, damping_refreshed: bool 
             return flatten(model.system.with_parameters(params))
         return model
     return as_dae(model, params)
+
+
+# ---- which build keywords a model takes -------------------------------------------------------------------
+def build_keywords(model) -> set | None:
+    """Keyword arguments the build function of ``model`` accepts; None when it may accept any.
+
+    Parameters
+    ----------
+    model : str, callable, ModelSpec, System or Dae
+        A registered system name or ``.py`` path (the file's ``build`` is read from its syntax tree, not
+        run), a build function, or a spec (its source). A built System or Dae takes none (empty set).
+
+    Notes
+    -----
+    A build function taking ``**kwargs`` that forwards them to exactly one other function it can name
+    (the test bed's ``testbed_axial_torsional(**kw)`` calls ``testbed("axial_torsional", **kw)``) takes
+    that function's keyword arguments, minus those the call fills itself (followed up to four levels).
+
+    Examples
+    --------
+    >>> sorted(build_keywords("validation_drive"))
+    ['k_axial']
+    """
+    if isinstance(model, (System, Dae)):
+        return set()
+    if isinstance(model, ModelSpec):
+        model = model.source
+    if isinstance(model, Path):
+        model = str(model)
+    if isinstance(model, str):
+        from bscomp.systems import REGISTRY  # lazily: a registered name
+
+        if model not in REGISTRY:
+            return _file_build_keywords(model)
+        model = REGISTRY[model]
+    node = _function_node(model)
+    if node is None:                     # no Python source (a builtin, a C function): the signature only
+        try:
+            params = inspect.signature(model).parameters.values()
+        except (TypeError, ValueError):
+            return None
+        if any(p.kind is p.VAR_KEYWORD for p in params):
+            return None
+        return {p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    return _node_keywords(node, _resolver(model))
+
+
+def _function_node(fn):
+    """The ``def`` of a Python function, from its source; None when unavailable."""
+    fn = inspect.unwrap(fn) if callable(fn) else fn
+    if not inspect.isfunction(fn):
+        return None
+    try:
+        tree = ast.parse(textwrap.dedent(inspect.getsource(fn)))
+    except (OSError, TypeError, SyntaxError):
+        return None
+    node = tree.body[0] if tree.body else None
+    return node if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) else None
+
+
+def _resolver(fn):
+    """Name -> (def node, resolver) for the module-level functions ``fn`` can call."""
+    scope = getattr(inspect.unwrap(fn), "__globals__", {})
+
+    def resolve(name):
+        target = scope.get(name)
+        node = _function_node(target) if target is not None else None
+        return (node, _resolver(target)) if node is not None else None
+
+    return resolve
+
+
+def _file_build_keywords(path: str) -> set | None:
+    """Keywords of ``build`` in a system file, read from its syntax tree (the file is not run)."""
+    try:
+        tree = ast.parse(Path(path).read_text())
+    except (OSError, SyntaxError, UnicodeDecodeError):
+        return None                      # building it reports the problem
+    defs = {n.name: n for n in tree.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))}
+
+    def resolve(name):
+        return (defs[name], resolve) if name in defs else None
+
+    return _node_keywords(defs["build"], resolve) if "build" in defs else None
+
+
+def _node_keywords(node, resolve, depth: int = 0) -> set | None:
+    """Keywords a ``def`` accepts; ``**kwargs`` forwarded to exactly one resolvable function add that
+    function's keywords (minus those the call fills itself); None when any name may be accepted."""
+    a = node.args
+    names = {x.arg for x in a.args + a.kwonlyargs}
+    if a.kwarg is None:
+        return names
+    calls = [c for c in ast.walk(node) if isinstance(c, ast.Call) and any(
+        k.arg is None and isinstance(k.value, ast.Name) and k.value.id == a.kwarg.arg for k in c.keywords)]
+    if depth >= 4 or len(calls) != 1 or not isinstance(calls[0].func, ast.Name) \
+            or any(isinstance(x, ast.Starred) for x in calls[0].args):
+        return None
+    target = resolve(calls[0].func.id)
+    if target is None:
+        return None
+    inner = _node_keywords(target[0], target[1], depth + 1)
+    if inner is None:
+        return None
+    positional = [x.arg for x in target[0].args.posonlyargs + target[0].args.args]
+    filled = set(positional[:len(calls[0].args)]) | {k.arg for k in calls[0].keywords if k.arg}
+    return names | (inner - filled)

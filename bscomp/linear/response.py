@@ -19,6 +19,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import csv
 import json
 from dataclasses import dataclass, field
 
@@ -28,6 +30,7 @@ import scipy.sparse.linalg as spla
 
 from bscomp.errors import NotLinearError, UnknownNameError
 from bscomp.kernel import Dae, System
+from bscomp.kernel.units import convention_units, parse_unit
 from bscomp.linear.linearization import SecondOrderModel, control_labels, linearize
 from bscomp.linear.modal import _condense, _group_poles, _second_order, _undamped
 from bscomp.model import as_system
@@ -86,16 +89,34 @@ class Frf:
     def _pairs(self):
         return [(j, i) for j in range(len(self.outputs)) for i in range(len(self.inputs))]
 
-    def to_csv(self, path) -> None:
-        """Columns ``freq_hz`` then, per output/input pair, ``re``, ``im``, ``mag_db``, ``phase_deg``.
+    def to_csv(self, path, units: dict | None = None, conditions: dict | None = None) -> None:
+        """Columns ``freq_hz`` then, per output/input pair, ``re``, ``im``, ``mag_db``, ``phase_deg`` (named
+        ``<input>-><output> re`` and so on): a plain table that :func:`bscomp.validate.load` reads back.
 
-        ``path`` is a file name or an open text file (e.g. ``sys.stdout``).
+        The values are SI. Read back, each response's unit is :meth:`pair_unit` of its names (the Modelica
+        naming convention); given ``units`` or ``conditions``, ``#`` metadata lines above the header
+        (``kind``, ``source``, ``condition``, ``unit`` per pair) record them with the data.
+
+        Parameters
+        ----------
+        path : str, Path or text file
+            A file name, or an open text file (e.g. ``sys.stdout``).
+        units : dict, optional
+            SI units of inputs and outputs by name (``{"amp.u": "V"}``), for channels the naming convention
+            does not cover.
+        conditions : dict, optional
+            Operating conditions of the model (``{"nut_position": 0.43}``), written with the data.
         """
-        import contextlib
-        import csv
-
+        lines = []
+        if units or conditions:
+            lines = ["# kind: frf", f"# source: {self.name or 'bscomp.frf'}"]
+            lines += [f"# condition {k}: {v}" for k, v in (conditions or {}).items()]
+            for j, i in self._pairs():
+                out, inp = self.outputs[j], self.inputs[i]
+                lines.append(f"# unit {out}/{inp}: {self.pair_unit(out, inp, units)}")
         mag, ph = self.magnitude_db, self.phase_deg
         with (contextlib.nullcontext(path) if hasattr(path, "write") else open(path, "w", newline="")) as fh:
+            fh.writelines(line + "\n" for line in lines)
             w = csv.writer(fh, lineterminator="\n")
             head = ["freq_hz"]
             for j, i in self._pairs():
@@ -109,6 +130,24 @@ class Frf:
                     row += [repr(float(h.real)), repr(float(h.imag)), repr(float(mag[k, j, i])),
                             repr(float(ph[k, j, i]))]
                 w.writerow(row)
+
+    @staticmethod
+    def pair_unit(output: str, input: str, units: dict | None = None) -> str:
+        """SI unit of the response of ``output`` to ``input``: ``output unit/(input unit)``.
+
+        A channel's unit is ``units[name]`` if given, else the Modelica naming convention's for its last
+        name part (``s`` m, ``v`` m/s, ``a`` m/s^2, ``f`` N, ``phi`` rad, ``w`` rad/s, ``tau`` N m), else
+        ``1`` (a signal). Raises ValueError for a unit that is not SI (the FRF holds SI values).
+        """
+        def unit(name):
+            text = (units or {}).get(name) or convention_units.get(name.rsplit(".", 1)[-1], ("1",))[0]
+            if parse_unit(text).scale != 1.0:
+                raise ValueError(f"unit {text!r} of {name!r} is not SI: the FRF holds SI values (give e.g. 'm', "
+                                 "not 'mm')")
+            return text
+
+        out, inp = unit(output), unit(input)
+        return out if inp == "1" else f"{out}/({inp})"
 
     def to_dict(self) -> dict:
         return {"name": self.name, "freqs_hz": self.freqs.tolist(), "inputs": list(self.inputs),

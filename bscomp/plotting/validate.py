@@ -1,6 +1,11 @@
-"""Figures of a :class:`bscomp.validate.Comparison` (matplotlib imported lazily, as in
-:mod:`bscomp.plotting`): FRF overlays with resonance markers, error per band, time overlays with
-residuals, MATLAB-``resid`` correlation plots and the residual signatures.
+"""Figures of validation results (matplotlib imported lazily, as in :mod:`bscomp.plotting`): FRF overlays
+with resonance markers, error per band, time overlays with residuals, MATLAB-``resid`` correlation plots,
+the residual signatures, a diagnosis's error staircase and candidate ranking, a calibration's parameters
+and errors.
+
+The figures receive the numbers (result objects of :mod:`bscomp.validate` are read, never asked to
+compute) and import nothing from :mod:`bscomp.validate`: what a figure needs from there (the names of the
+residual signatures) is passed in by the caller.
 """
 
 from __future__ import annotations
@@ -13,7 +18,7 @@ import numpy as np
 from bscomp.plotting.base import _finish, _plt
 
 __all__ = ["comparison_plots", "frf_comparison_plot", "band_error_plot", "time_comparison_plot", "resid_plot",
-           "signature_plot", "plot_diagnosis"]
+           "signature_plot", "plot_diagnosis", "calibration_plot"]
 
 
 def _slug(text):
@@ -124,12 +129,14 @@ def resid_plot(tc, path=None, title=None):
     return _finish(fig, plt, path)
 
 
-def signature_plot(signatures, path=None, title=None):
-    """Correlation of the residual with physical signals (horizontal bars)."""
-    from bscomp.validate.comparison import SIGNATURES
+def signature_plot(signatures, path=None, title=None, names=None):
+    """Correlation of the residual with physical signals (horizontal bars).
 
+    ``signatures``: ``{signal: correlation}``; ``names``: the signals to show, in the order of
+    ``signatures`` (default: all of them).
+    """
     plt = _plt()
-    items = [(k, v) for k, v in signatures.items() if k in SIGNATURES and np.isfinite(v)]
+    items = [(k, v) for k, v in signatures.items() if (names is None or k in names) and np.isfinite(v)]
     fig, ax = plt.subplots(figsize=(7, 0.8 + 0.4 * max(len(items), 1)))
     if items:
         names, vals = zip(*items)
@@ -144,8 +151,12 @@ def signature_plot(signatures, path=None, title=None):
     return _finish(fig, plt, path)
 
 
-def comparison_plots(comparison, out_dir) -> list:
-    """All figures of a Comparison as PNGs in ``out_dir``; returns their paths."""
+def comparison_plots(comparison, out_dir, signature_names=None) -> list:
+    """All figures of a Comparison as PNGs in ``out_dir``; returns their paths.
+
+    ``signature_names``: the residual signatures to draw (:data:`bscomp.validate.signatures.SIGNATURES`,
+    passed by :meth:`~bscomp.validate.comparison.Comparison.plot`; default all).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -163,18 +174,14 @@ def comparison_plots(comparison, out_dir) -> list:
             paths.append(p)
     if comparison.time:
         p = out / "signatures.png"
-        signature_plot(comparison.signatures, p)
+        signature_plot(comparison.signatures, p, names=signature_names)
         paths.append(p)
     return paths
 
 
 def plot_diagnosis(diag, directory):
     """The error staircase and the round-1 candidate ranking of a Diagnosis, as two PNGs in ``directory``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = _plt()
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -206,3 +213,37 @@ def plot_diagnosis(diag, directory):
     fig.savefig(p2, dpi=110)
     plt.close(fig)
     return [p1, p2]
+
+
+def calibration_plot(changes, spreads, channels, before, after, path=None, title=None):
+    """A re-calibration: each fitted parameter's change from nominal [%] with its +- 1 std bar, and each
+    residual channel's normalised error before and after (log scale; 1 = noise floor).
+
+    ``changes``, ``spreads``: ``{parameter: percent}``; ``channels``: labels; ``before``, ``after``: the
+    channels' chi^2 values.
+    """
+    plt = _plt()
+    n_ch = max(len(channels), 1)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 1.5 + 0.35 * max(n_ch, len(changes))), squeeze=True)
+    names = list(changes)
+    y = np.arange(len(names))
+    a1.barh(y, [changes[k] for k in names], xerr=[abs(spreads.get(k, np.nan)) for k in names], color="C0",
+            capsize=3)
+    a1.set_yticks(y)
+    a1.set_yticklabels(names)
+    a1.axvline(0, color="k", lw=0.5)
+    a1.set_xlabel("fitted - nominal [%] (+- 1 std)")
+    a1.grid(True, axis="x", alpha=0.3)
+    y = np.arange(len(channels))
+    a2.barh(y + 0.2, before, height=0.4, color="0.6", label="nominal")
+    a2.barh(y - 0.2, after, height=0.4, color="C2", label="re-calibrated")
+    a2.axvline(1.0, color="0.3", ls="--", lw=1, label="noise floor")
+    a2.set_yticks(y)
+    a2.set_yticklabels(channels, fontsize=8)
+    a2.invert_yaxis()
+    a2.set_xscale("log")
+    a2.set_xlabel("error (chi^2, 1 = noise floor)")
+    a2.grid(True, axis="x", which="both", alpha=0.3)
+    a2.legend(fontsize=8, loc="lower right")
+    fig.suptitle(title or "re-calibration of the uncertain parameters")
+    return _finish(fig, plt, path)

@@ -1,15 +1,29 @@
-"""Validation: compare a model with measurements, find where it fails and which effect is missing.
+"""Validation: compare a model with measurements, re-calibrate it, find where it fails and which effect is missing.
 
-* :mod:`~bscomp.validate.measurements` -- :class:`FrfData`, :class:`TimeData`, CSV readers/writers;
+* :mod:`~bscomp.validate.measurements` -- :class:`FrfData`, :class:`TimeData`, CSV readers/writers
+  (:mod:`~bscomp.validate.datasets`, :mod:`~bscomp.validate.readers`, :mod:`~bscomp.validate.writers`);
 * :mod:`~bscomp.validate.residuals` -- the model evaluated at the measurements, residuals, cost, fit %;
-* :mod:`~bscomp.validate.compare` -- :func:`compare` -> :class:`Comparison` (where the model fails);
-* :mod:`~bscomp.validate.report` -- an HTML report of comparisons (and diagnoses).
+* :mod:`~bscomp.validate.peaks` -- resonances identified from measured FRFs (peak picking, local modal fit);
+* :mod:`~bscomp.validate.residual_tests` -- MATLAB ``resid``'s whiteness and independence tests;
+* :mod:`~bscomp.validate.comparison` -- :func:`compare` -> :class:`Comparison` (where the model fails), with
+  :mod:`~bscomp.validate.frf_comparison`, :mod:`~bscomp.validate.time_comparison` and
+  :mod:`~bscomp.validate.signatures`;
+* :mod:`~bscomp.validate.calibration` -- :func:`calibrate` -> :class:`Calibration` (the uncertain parameters
+  fitted, no effect added);
+* :mod:`~bscomp.validate.diagnostics` -- :func:`diagnose` -> :class:`Diagnosis` (which effect is missing),
+  on :mod:`~bscomp.validate.evaluation` and :mod:`~bscomp.validate.candidates`;
+* :mod:`~bscomp.validate.report` -- an HTML report of comparisons (and diagnoses);
+* :mod:`~bscomp.validate.synthetic` -- synthetic measurements with hidden effects (the diagnosis test bench).
 
-Importing this package is light: the engine (CasADi, python-control) is imported when a function
-needs it, and matplotlib only by ``Comparison.plot`` (through :mod:`bscomp.plotting.validate`).
+Results draw themselves through :mod:`bscomp.plotting.validate`, imported (with matplotlib) only when a
+figure is asked for.
 """
 
-from bscomp.validate.comparison import Comparison, compare, peak_pick, resid
+from bscomp.validate.calibration import Calibration, calibrate
+from bscomp.validate.comparison import Comparison, compare, user_errors
+from bscomp.validate.diagnosis import Diagnosis
+from bscomp.validate.diagnostics import diagnose
+from bscomp.validate.frf_comparison import FrfComparison, ModePair
 from bscomp.validate.measurements import (
     FrfData,
     MeasurementFileError,
@@ -21,20 +35,13 @@ from bscomp.validate.measurements import (
     write_frf_csv,
     write_time_csv,
 )
+from bscomp.validate.peaks import peak_pick
 from bscomp.validate.report import write_report
+from bscomp.validate.residual_tests import ResidTest, resid
 from bscomp.validate.residuals import cost, fit_percent, frf_residuals, model_frf, model_time, time_residuals
+from bscomp.validate.time_comparison import TimeComparison
 
 __all__ = ["FrfData", "TimeData", "MeasurementFileError", "load", "load_all", "read_frf_csv", "read_time_csv",
            "write_frf_csv", "write_time_csv", "model_frf", "model_time", "frf_residuals", "time_residuals", "cost",
-           "fit_percent", "compare", "Comparison", "peak_pick", "resid", "write_report"]
-
-
-def __getattr__(name):  # the diagnose engineer's modules, imported on first use
-    if name in ("diagnose", "Diagnosis"):
-        import importlib
-
-        _d = importlib.import_module(".diagnose", __name__)  # the submodule, not this attribute
-        value = getattr(_d, name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'bscomp.validate' has no attribute '{name}'")
+           "fit_percent", "compare", "Comparison", "FrfComparison", "TimeComparison", "ModePair", "user_errors",
+           "peak_pick", "resid", "ResidTest", "calibrate", "Calibration", "diagnose", "Diagnosis", "write_report"]

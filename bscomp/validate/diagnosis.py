@@ -6,6 +6,10 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
+from bscomp.plotting.validate import plot_diagnosis
+
 __all__ = ["EffectFit", "Diagnosis", "Skipped"]
 
 
@@ -114,6 +118,9 @@ class Diagnosis:
         Nominal, re-calibrated, then after each accepted effect (normalised error, 1 = noise floor).
     user_errors : list of (label, dict)
         The errors as the user reads them at each step of the staircase.
+    calibration : Calibration
+        The re-calibration step (:func:`~bscomp.validate.calibration.calibrate`'s result: values, spreads,
+        errors per channel before and after).
     message : str
     """
 
@@ -130,6 +137,7 @@ class Diagnosis:
     noise: list = field(default_factory=list)
     final_values: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
+    calibration: object = None
 
     @property
     def found(self) -> bool:
@@ -223,14 +231,10 @@ class Diagnosis:
 
     def plot(self, directory):
         """Write ``error_staircase.png`` and ``candidates.png`` to ``directory``; returns the paths."""
-        from bscomp.plotting.validate import plot_diagnosis
-
         return plot_diagnosis(self, directory)
 
 
 def _json_default(o):
-    import numpy as np
-
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
     if isinstance(o, np.ndarray):

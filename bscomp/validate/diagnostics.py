@@ -7,7 +7,8 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    normalised error :math:`\chi^2` is 1 where the model explains a block within noise.
 2. **Re-calibrate** the parameters the drive declares uncertain (``system.validation.uncertain``, each
    with its spread: a wrong value is not a missing effect), bounded least squares in log space on the
-   fitted part of the data (FRFs whole, the first half of each time series).
+   fitted part of the data (FRFs whole, the first half of each time series): the same fit as
+   :func:`~bscomp.validate.calibration.calibrate` (:attr:`Diagnosis.calibration`).
 3. If every dataset is already explained within noise (:math:`\chi^2 < 1 +` ``noise_tolerance``,
    fitted and held-out parts): **no missing effect**.
 4. **Fit every applicable candidate** (:mod:`~bscomp.validate.candidates`; the drive's insertion points
@@ -37,109 +38,20 @@ import sys
 import time
 
 import numpy as np
+from scipy.optimize import minimize_scalar
+from threadpoolctl import threadpool_limits
 
 from bscomp.kernel.interface import NotApplicable
+from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
+from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
-from bscomp.validate.evaluation import Evaluator, Problem, block_stats, noise_levels, residual_blocks
-from bscomp.validate.measurements import FrfData, TimeData
+from bscomp.validate.evaluation import Problem
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
 
 
-# ---- models at the measurement conditions --------------------------------------------------------------
-def _condition_key(data, overrides):
-    cond = {**dict(getattr(data, "conditions", {}) or {}), **dict(overrides or {})}
-    return tuple(sorted((k, v if isinstance(v, (int, float, str)) else str(v)) for k, v in cond.items()))
-
-
-def _systems(system_or_build, datasets, overrides):
-    """``({key: System}, keys)``: the nominal model built at each dataset's conditions."""
-    from bscomp.kernel.system import System
-    from bscomp.validate.residuals import build_for
-
-    keys = [_condition_key(d, overrides) for d in datasets]
-    systems = {}
-    for key in dict.fromkeys(keys):
-        cond = dict(key)
-        if isinstance(system_or_build, System):
-            dotted = {k: v for k, v in cond.items() if "." in k}
-            systems[key] = system_or_build.with_parameters(dotted) if dotted else system_or_build
-        else:
-            systems[key] = build_for(system_or_build, cond)
-    return systems, keys
-
-
-def _uncertain(system, uncertain, default_spread):
-    """``{name: spread}`` from the argument, or the drive's declared interface."""
-    from bscomp.kernel.interface import interface_of
-
-    if uncertain is None:
-        iface = interface_of(system)
-        if iface is not None:
-            return iface.spreads()
-        return {k: default_spread for k in (getattr(system, "uncertain", None) or [])}
-    if isinstance(uncertain, dict):
-        return {k: float(v) for k, v in uncertain.items()}
-    return {k: default_spread for k in uncertain}
-
-
-def _specs(system, uncertain, values):
-    """(name, (lower, upper, start)) with bounds ``v0 / (1 + spread)`` .. ``v0 (1 + spread)``."""
-    out = []
-    for name, spread in uncertain.items():
-        v0 = float(system.get(name))
-        f = 1.0 + spread
-        v = min(max(values.get(name, v0), v0 / f), v0 * f)
-        out.append((name, (v0 / f, v0 * f, v)))
-    return out
-
-
-class _Structures:
-    """Evaluators per model structure (tuple of candidate names), built once each."""
-
-    def __init__(self, systems, datasets, keys, free):
-        self.systems, self.datasets, self.keys, self.free = systems, datasets, keys, list(free)
-        self.cache = {}
-
-    def get(self, effects):
-        key = tuple(c.name for c, _, _ in effects)
-        if key not in self.cache:
-            structured = {}
-            for k, s in self.systems.items():
-                for cand, _v, _f in effects:
-                    s = cand.structure(s, linear=False, for_engine=True)
-                structured[k] = s
-            self.cache[key] = (Evaluator(structured, self.datasets, self.keys, free=self.free), structured)
-        return self.cache[key]
-
-
-# ---- statistics of one evaluation ---------------------------------------------------------------------------
-def _summary(problem, theta, k):
-    """Errors of one parameter vector: fitted and held-out chi^2 (per dataset and mean), BIC, outputs."""
-    ov, hooks = problem.overrides(theta)
-    outs = problem.ev.outputs(ov, hooks)
-    blocks = [residual_blocks(y, d, s) for y, d, s in zip(outs, problem.ev.datasets, problem.sigmas)]
-    fit_d, held_d, n_fit, ss = [], [], 0, 0.0
-    for b, cut in zip(blocks, problem.ev.split):
-        fb = [x[:cut] for x in b] if cut else b
-        fit_d.append(block_stats(fb))
-        n_fit += sum(x.size for x in fb)
-        ss += sum(float(np.sum(np.where(np.isfinite(x), x, 1e6) ** 2)) for x in fb)
-        if cut:
-            held_d.append(block_stats([x[cut:] for x in b]))
-    return {"error": float(np.mean(fit_d)), "per_dataset": fit_d, "heldout": float(np.mean(held_d)) if held_d
-            else None, "heldout_per_dataset": held_d, "bic": ss + k * math.log(max(n_fit, 2)), "outputs": outs}
-
-
-def _user(outs, datasets) -> dict:
-    """The errors as the user reads them (:func:`~bscomp.validate.comparison.user_errors`), per dataset."""
-    from bscomp.validate.comparison import user_errors
-
-    per = user_errors(list(outs), datasets)
-    return {"per_dataset": [per[i] for i in range(len(datasets))]}
-
-
+# ---- acceptance -------------------------------------------------------------------------------------------
 def _clearly_worse(before: dict, after: dict) -> list:
     """User-visible errors that got clearly worse (magnitude/phase of an FRF pair, fit % of a channel)."""
     worse = []
@@ -257,8 +169,6 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
     eigen-decompositions, which a multi-threaded BLAS slows down by up to 100x on a loaded 2-core machine
     (98x98 ``eigh``: 1.7 ms on one thread, 0.24 s on two under load).
     """
-    from threadpoolctl import threadpool_limits
-
     with threadpool_limits(limits=1, user_api="blas"):
         return _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_refine, bic_threshold,
                          min_drop, min_heldout_drop, noise_tolerance, overrides, verbose, progress, default_spread,
@@ -275,33 +185,24 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         raise ValueError("diagnose needs at least one dataset")
     log = print if verbose else (lambda *a, **k: None)
     progress = sys.stderr.isatty() if progress is None else progress
-    systems, keys = _systems(system_or_build, datasets, overrides)
-    ref = systems[keys[0]]
-    unc = _uncertain(ref, uncertain, default_spread)
-    sigmas = [noise_levels(d) for d in datasets]
+    setup = FitSetup.build(system_or_build, datasets, uncertain, overrides, default_spread)
+    ref, unc, sigmas, structures = setup.reference, setup.uncertain, setup.sigmas, setup.structures
     has_frf = any(isinstance(d, FrfData) for d in datasets)
-    structures = _Structures(systems, datasets, keys, list(unc))
     thresholds = (bic_threshold, min_drop, min_heldout_drop, noise_tolerance)
 
     cands, skipped = _applicable(candidates, ref, unc)
     prog = _Progress(progress, 2 + max_effects * (len(cands) + n_refine))
 
-    # nominal, re-calibration
-    ev0, st0 = structures.get([])
-    base = Problem(ev0, sigmas, {}, [], [], st0)
-    nominal = _summary(base, np.zeros(0), 0)
-    prob = Problem(ev0, sigmas, {}, _specs(ref, unc, {}), [], st0)
-    theta, sol = prob.fit()
+    calibration = fit_uncertain(setup)            # the nominal model, then the uncertain parameters re-calibrated
     prog.step("re-calibration")
-    unc_values = prob.values(theta)
-    unc_std = prob.uncertainty(theta, sol)
-    current = _summary(prob, theta, len(unc))
-    n_evals = prob.nfev
+    nominal, current = calibration.summary_before, calibration.summary_after
+    unc_values, unc_std = dict(calibration.values), dict(calibration.std)
+    n_evals = calibration.evaluations
     staircase = [("nominal", nominal["error"])]
-    user_errs = [("nominal", _user(nominal["outputs"], datasets))]
+    user_errs = [("nominal", calibration.user_before)]
     if unc:
         staircase.append(("re-calibrated", current["error"]))
-        user_errs.append(("re-calibrated", _user(current["outputs"], datasets)))
+        user_errs.append(("re-calibrated", calibration.user_after))
     log(f"nominal error {nominal['error']:.4g}; re-calibrated {current['error']:.4g} ({unc_values})")
 
     def within_noise(st):
@@ -339,10 +240,10 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         effects = [(c, v, True) for c, v, _ in accepted_effects] + [(chosen.candidate, chosen.values, True)]
         ev, st = structures.get(effects)
         start_unc = {k: chosen._start.get(k, unc_values[k]) for k in unc}
-        pr = Problem(ev, sigmas, {}, _specs(ref, unc, start_unc), effects, st)
+        pr = Problem(ev, sigmas, {}, parameter_bounds(ref, unc, start_unc), effects, st)
         th, sl = pr.fit(max_nfev=40)
         n_evals += pr.nfev
-        new = _summary(pr, th, len(pr.free))
+        new = pr.summary(th, len(pr.free))
         vals_all, std_all = pr.values(th), pr.uncertainty(th, sl)
         unc_values = {k: vals_all[k] for k in unc}
         unc_std = {k: std_all.get(k, float("nan")) for k in unc}
@@ -360,7 +261,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
             a.std = {p.name: std_all.get(f"{a.name}.{p.name}", float("nan")) for p in a.candidate.parameters}
         accepted.append(chosen)
         staircase.append((f"+ {chosen.name}", new["error"]))
-        user_errs.append((f"+ {chosen.name}", _user(new["outputs"], datasets)))
+        user_errs.append((f"+ {chosen.name}", user_summary(new["outputs"], datasets)))
         current = new
     prog.done()
     ranked = list(rounds[0]) if rounds else []
@@ -382,7 +283,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                      skipped=skipped, user_errors=user_errs,
                      noise=[list(map(float, s)) for s in sigmas],
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
-                            "conditions": len(systems)})
+                            "conditions": len(setup.systems)}, calibration=calibration)
 
 
 def _applicable(candidates, ref, unc):
@@ -451,7 +352,7 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
         # the effects accepted before are re-fitted with the candidate: an early one was fitted while
         # this one was still missing (friction fitted without the joint absorbs part of it)
         effects_free = [(c, v, True) for c, v, _ in effects]
-        pr = Problem(ev, sigmas, {}, _specs(ref, unc, unc_nominal), effects_free, st)
+        pr = Problem(ev, sigmas, {}, parameter_bounds(ref, unc, unc_nominal), effects_free, st)
         if cand.name in refine:
             prog.step(f"fit {cand.name}")
             th, sl, n = _refine(cand, effects, ev, st, sigmas, scores, pr, has_frf and rnd > 1, rnd)
@@ -460,7 +361,7 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
         else:
             th = np.r_[pr.theta0()[:len(pr.free) - len(cand.parameters)], scores[0][1]]  # nominal start
             sl, refined = None, False
-        after = _summary(pr, th, k_now + len(cand.parameters))
+        after = pr.summary(th, k_now + len(cand.parameters))
         vals_all = pr.values(th)
         vals = {lbl.split(".", 1)[1]: v for lbl, v in vals_all.items() if lbl.startswith(cand.name + ".")}
         std = {lbl.split(".", 1)[1]: s for lbl, s in pr.uncertainty(th, sl).items()
@@ -480,13 +381,13 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
 def _choose(results, current, datasets, thresholds):
     """The first refined candidate (in ranking order) that passes every acceptance rule; each gets its
     verdict and evidence in words."""
-    user_now = _user(current["outputs"], datasets)
+    user_now = user_summary(current["outputs"], datasets)
     for r in results:
         if not r.refined:
             r.verdict = "screened only"
             continue
         bound = r._problem.at_bound(r._theta, [f"{r.name}.{p.name}" for p in r.candidate.parameters])
-        r.user_before, r.user_after = user_now, _user(r._after["outputs"], datasets)
+        r.user_before, r.user_after = user_now, user_summary(r._after["outputs"], datasets)
         ok, why = _verdict(current, r._after, r.delta_bic, bound, _clearly_worse(user_now, r.user_after),
                            thresholds)
         r.verdict = "accepted" if ok else why
@@ -557,8 +458,6 @@ def _refine(cand, effects, ev, st, sigmas, scores, pr, frf_only, rnd):
 
 def _line_search(pr, th0, scores):
     """Bounded Brent search on the first free parameter between the scan neighbours of ``th0``."""
-    from scipy.optimize import minimize_scalar
-
     xs = sorted(sc[1][0] for sc in scores if np.all(sc[1][1:] == th0[1:]))
     i = int(np.argmin([abs(x - th0[0]) for x in xs]))
     lo, hi = xs[max(i - 1, 0)], xs[min(i + 1, len(xs) - 1)]

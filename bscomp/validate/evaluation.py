@@ -1,8 +1,9 @@
 r"""A model structure evaluated on a set of measurements: whitened residuals, noise floors, fits.
 
-Used by :func:`~bscomp.validate.diagnostics.diagnose` (and calibration). The model is evaluated by the
-library's shared engine :class:`bscomp.simulation.compiled.CompiledModel` (one per model structure and measurement
-condition: one flattening, then FRFs and time series per parameter vector in modal coordinates).
+Used by :func:`~bscomp.validate.calibration.calibrate` and :func:`~bscomp.validate.diagnostics.diagnose`. The
+model is evaluated by the library's shared engine :class:`bscomp.simulation.compiled.CompiledModel` (one per model
+structure and measurement condition: one flattening, then FRFs and time series per parameter vector in modal
+coordinates).
 
 Residuals are *whitened*: each block -- the log10-magnitude or the phase error of one FRF pair, one time
 channel -- is divided by that block's **noise level** :math:`\hat\sigma`, estimated from the data alone
@@ -26,11 +27,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.optimize import least_squares
 
-from bscomp.validate.measurements import FrfData, TimeData
+from bscomp.simulation.compiled import CompiledModel
+from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.residuals import frf_errors
 
-__all__ = ["Evaluator", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]
+__all__ = ["Evaluator", "Structures", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]
 
 _MAD = 0.6744897501960817
 
@@ -119,8 +122,6 @@ class Evaluator:
     """
 
     def __init__(self, systems: dict, datasets, keys, free=(), f_keep: float = 6000.0, n_sub: int = 2):
-        from bscomp.simulation.compiled import CompiledModel
-
         self.datasets, self.keys, self.n_sub = list(datasets), list(keys), int(n_sub)
         self.models = {}
         for key, system in systems.items():
@@ -245,8 +246,6 @@ class Problem:
         return np.clip(np.log([f.start for f in self.free]), lo + 1e-9, hi - 1e-9)
 
     def fit(self, theta0=None, max_nfev=None):
-        from scipy.optimize import least_squares
-
         theta0 = self.theta0() if theta0 is None else np.asarray(theta0, float)
         if not self.free:
             return theta0, None
@@ -267,9 +266,57 @@ class Problem:
         sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
         return {f.label: float(math.exp(t) * s) for f, t, s in zip(self.free, theta, sd)}
 
+    def summary(self, theta, k: int) -> dict:
+        r"""Errors of one parameter vector with ``k`` fitted parameters: ``error`` (mean chi^2 of the fitted
+        parts), ``per_dataset``, ``heldout`` (mean over the held-out halves, None without any),
+        ``heldout_per_dataset``, ``bic`` (:math:`\sum r^2 + k \ln n` on the fitted residuals) and the model
+        ``outputs`` per dataset."""
+        ov, hooks = self.overrides(theta)
+        outs = self.ev.outputs(ov, hooks)
+        blocks = [residual_blocks(y, d, s) for y, d, s in zip(outs, self.ev.datasets, self.sigmas)]
+        fit_d, held_d, n_fit, ss = [], [], 0, 0.0
+        for b, cut in zip(blocks, self.ev.split):
+            fb = [x[:cut] for x in b] if cut else b
+            fit_d.append(block_stats(fb))
+            n_fit += sum(x.size for x in fb)
+            ss += sum(float(np.sum(np.where(np.isfinite(x), x, 1e6) ** 2)) for x in fb)
+            if cut:
+                held_d.append(block_stats([x[cut:] for x in b]))
+        return {"error": float(np.mean(fit_d)), "per_dataset": fit_d,
+                "heldout": float(np.mean(held_d)) if held_d else None, "heldout_per_dataset": held_d,
+                "bic": ss + k * math.log(max(n_fit, 2)), "outputs": outs}
+
     def at_bound(self, theta, names, tol=0.02) -> list:
         """Free parameters among ``names`` that ended within ``tol`` (in log) of a hard bound."""
         lo, hi = self.bounds()
         return [f.label for f, t, a, b in zip(self.free, theta, lo, hi)
                 if f.label in names and (t - a < tol or b - t < tol)]
 
+
+
+class Structures:
+    """Evaluators per model structure (the tuple of candidate names added), built once each.
+
+    Parameters
+    ----------
+    systems : dict
+        ``{condition key: System}``: the nominal model at each measurement condition.
+    datasets, keys, free
+        As :class:`Evaluator`.
+    """
+
+    def __init__(self, systems, datasets, keys, free):
+        self.systems, self.datasets, self.keys, self.free = systems, datasets, keys, list(free)
+        self.cache = {}
+
+    def get(self, effects):
+        """``(Evaluator, {key: System})`` of the nominal model with ``effects`` (``[(candidate, values, fit)]``)."""
+        key = tuple(c.name for c, _, _ in effects)
+        if key not in self.cache:
+            structured = {}
+            for k, s in self.systems.items():
+                for cand, _v, _f in effects:
+                    s = cand.structure(s, linear=False, for_engine=True)
+                structured[k] = s
+            self.cache[key] = (Evaluator(structured, self.datasets, self.keys, free=self.free), structured)
+        return self.cache[key]

@@ -25,6 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import find_peaks
 
 __all__ = ["Resonance", "ModalFit", "modal_fit", "peak_pick", "merge_resonances"]
 
@@ -142,8 +144,6 @@ def modal_fit(freqs, H, f0, zeta0=0.05, band=None, weights=None) -> ModalFit | N
     -------
     ModalFit, or None when the band holds too few points or the fit does not converge to damped modes.
     """
-    from scipy.optimize import least_squares
-
     f = np.asarray(freqs, float)
     h = np.asarray(H, complex)
     f0 = np.atleast_1d(np.asarray(f0, float))
@@ -218,8 +218,6 @@ def _half_power(logf, L, k, level):
 
 def _raw_peaks(f, L, min_prominence_db):
     """(index, peak frequency, peak level [dB], half-power zeta, prominence) of each peak of L."""
-    from scipy.signal import find_peaks
-
     logf = np.log(f)
     idx, props = find_peaks(L, prominence=min_prominence_db)
     out = []

@@ -15,14 +15,23 @@ Sign convention (as MATLAB's ``resid``): a residual is **measured minus model**,
 
 from __future__ import annotations
 
-import inspect
+import warnings
+from pathlib import Path
 
 import numpy as np
 
-from bscomp.validate.measurements import FrfData, MeasurementFileError, TimeData
+from bscomp.kernel.dae import Dae
+from bscomp.kernel.flattening import flatten
+from bscomp.kernel.system import System
+from bscomp.linear.response import frf
+from bscomp.model import ModelSpec, as_system, build_keywords, model_name
+from bscomp.simulation.compiled import nonlinear_elements
+from bscomp.simulation.dispatch import simulate
+from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData
 
 __all__ = ["model_frf", "model_time", "frf_residuals", "time_residuals", "cost", "fit_percent",
-           "build_for", "frf_errors", "frf_at", "simulate_for", "simulate_at", "ConditionIgnoredWarning"]
+           "build_for", "frf_errors", "frf_at", "simulate_for", "simulate_at", "check_channels",
+           "ConditionIgnoredWarning"]
 
 
 # ---- the model at the measurement's conditions ---------------------------------------------------------
@@ -43,11 +52,12 @@ def build_for(system_or_build, conditions: dict | None = None, params: dict | No
 
     Parameters
     ----------
-    system_or_build : System, callable or str
+    system_or_build : System, callable, str or ModelSpec
         A System is used as is: dotted conditions are applied to a copy, plain ones dropped with the
         warning (pass the build function or the name to honour them). A callable is called as
-        ``build(**conditions)``. A string is a registered system name or ``.py`` path, built by
-        :func:`bscomp.systems.get` (a path's ``build`` signature is read from the file, not run).
+        ``build(**conditions)``. A string is a registered system name or ``.py`` path. Both are built by
+        :func:`bscomp.model.as_system`, their keywords read by :func:`bscomp.model.build_keywords` (a path's
+        ``build`` signature is read from the file, not run).
     conditions : dict, optional
         Operating conditions of the measurement (e.g. ``nut_position``, ``table.m``).
     params : dict, optional
@@ -55,8 +65,6 @@ def build_for(system_or_build, conditions: dict | None = None, params: dict | No
     source : str, optional
         The dataset's name, for the warning.
     """
-    from bscomp.kernel.system import System
-
     conditions = dict(conditions or {})
     plain = {k: v for k, v in conditions.items() if "." not in k}
     dotted = {k: v for k, v in conditions.items() if "." in k}
@@ -64,18 +72,13 @@ def build_for(system_or_build, conditions: dict | None = None, params: dict | No
         _ignore(plain, "the model was given as a built System (pass its build function or name to honour it)",
                 source)
         system = system_or_build
-    elif isinstance(system_or_build, str) or callable(system_or_build):
-        accepted = _build_keywords(system_or_build)
+    elif isinstance(system_or_build, (str, Path, ModelSpec)) or callable(system_or_build):
+        accepted = build_keywords(system_or_build)
         kept = plain if accepted is None else {k: v for k, v in plain.items() if k in accepted}
-        label = system_or_build if isinstance(system_or_build, str) else getattr(system_or_build, "__name__", "")
+        label = model_name(system_or_build)
         _ignore([k for k in plain if k not in kept], f"not a build argument of system '{label}' (build arguments: "
                 f"{', '.join(sorted(accepted or ())) or 'none'}) nor a parameter ('component.parameter')", source)
-        if isinstance(system_or_build, str):
-            from bscomp.systems import get
-
-            system = get(system_or_build, kept)
-        else:
-            system = system_or_build(**kept)
+        system = as_system(system_or_build, kept)
     else:
         raise TypeError(f"expected a System, a build callable or a system name, got {type(system_or_build).__name__}")
     overrides = {**dotted, **(params or {})}
@@ -84,111 +87,12 @@ def build_for(system_or_build, conditions: dict | None = None, params: dict | No
 
 def _ignore(dropped, why: str, source: str) -> None:
     """One warning line per dropped condition."""
-    import warnings
-
     for k in dropped:
         warnings.warn(f"{source + ': ' if source else ''}condition '{k}' ignored: {why}", ConditionIgnoredWarning,
                       stacklevel=3)
 
 
-def _build_keywords(build) -> set | None:
-    """Keyword arguments a build function (callable, registered name or ``.py`` path) accepts; None if any."""
-    if isinstance(build, str):
-        from bscomp import systems
-
-        if build in systems.REGISTRY:
-            build = systems.REGISTRY[build]
-        else:
-            return _file_build_keywords(build)
-    node = _function_node(build)
-    if node is None:                     # no Python source (a builtin, a C function): the signature only
-        try:
-            params = inspect.signature(build).parameters.values()
-        except (TypeError, ValueError):
-            return None
-        if any(p.kind is p.VAR_KEYWORD for p in params):
-            return None
-        return {p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
-    return _node_keywords(node, _resolver(build))
-
-
-def _function_node(fn):
-    """The ``def`` of a Python function, from its source; None when unavailable."""
-    import ast
-    import textwrap
-
-    fn = inspect.unwrap(fn) if callable(fn) else fn
-    if not inspect.isfunction(fn):
-        return None
-    try:
-        tree = ast.parse(textwrap.dedent(inspect.getsource(fn)))
-    except (OSError, TypeError, SyntaxError):
-        return None
-    node = tree.body[0] if tree.body else None
-    return node if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) else None
-
-
-def _resolver(fn):
-    """Name -> (def node, resolver) for the module-level functions ``fn`` can call."""
-    scope = getattr(inspect.unwrap(fn), "__globals__", {})
-
-    def resolve(name):
-        target = scope.get(name)
-        node = _function_node(target) if target is not None else None
-        return (node, _resolver(target)) if node is not None else None
-
-    return resolve
-
-
-def _file_build_keywords(path: str) -> set | None:
-    """Keywords of ``build`` in a system file, read from its syntax tree (the file is not run)."""
-    import ast
-    from pathlib import Path
-
-    try:
-        tree = ast.parse(Path(path).read_text())
-    except (OSError, SyntaxError, UnicodeDecodeError):
-        return None                      # bscomp.systems.get reports the problem
-    defs = {n.name: n for n in tree.body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))}
-
-    def resolve(name):
-        return (defs[name], resolve) if name in defs else None
-
-    return _node_keywords(defs["build"], resolve) if "build" in defs else None
-
-
-def _node_keywords(node, resolve, depth: int = 0) -> set | None:
-    """Keywords a ``def`` accepts; ``**kwargs`` forwarded to exactly one resolvable function add that
-    function's keywords (minus those the call fills itself); None when any name may be accepted."""
-    import ast
-
-    a = node.args
-    names = {x.arg for x in a.args + a.kwonlyargs}
-    if a.kwarg is None:
-        return names
-    calls = [c for c in ast.walk(node) if isinstance(c, ast.Call) and any(
-        k.arg is None and isinstance(k.value, ast.Name) and k.value.id == a.kwarg.arg for k in c.keywords)]
-    if depth >= 4 or len(calls) != 1 or not isinstance(calls[0].func, ast.Name) \
-            or any(isinstance(x, ast.Starred) for x in calls[0].args):
-        return None
-    target = resolve(calls[0].func.id)
-    if target is None:
-        return None
-    inner = _node_keywords(target[0], target[1], depth + 1)
-    if inner is None:
-        return None
-    positional = [x.arg for x in target[0].args.posonlyargs + target[0].args.args]
-    filled = set(positional[:len(calls[0].args)]) | {k.arg for k in calls[0].keywords if k.arg}
-    return names | (inner - filled)
-
-
-def _dae(system):
-    from bscomp.kernel.flattening import flatten
-
-    return flatten(system)
-
-
-def _check_names(dae, data, inputs, outputs):
+def check_channels(dae, data, inputs, outputs):
     """Every measured channel must exist in the model; the error points at the file's column."""
     for name in inputs:
         if name not in dae.u_names:
@@ -227,12 +131,9 @@ def model_frf(system_or_build, data: FrfData, params: dict | None = None) -> dic
 def frf_at(system, data: FrfData) -> dict:
     """:func:`model_frf` of a System already built at the dataset's conditions (or of its linear
     equivalent's flattened :class:`~bscomp.Dae`)."""
-    from bscomp.kernel.dae import Dae
-    from bscomp.linear.response import frf
-
-    dae = system if isinstance(system, Dae) else _dae(system.linear_equivalent())
+    dae = system if isinstance(system, Dae) else flatten(system.linear_equivalent())
     ins, outs = data.inputs, data.outputs
-    _check_names(dae, data, ins, outs)
+    check_channels(dae, data, ins, outs)
     res = frf(dae, input=ins, output=outs, freqs=data.freqs)
     return {(i, o): res.H[:, res.outputs.index(o), res.inputs.index(i)] for i, o in data.H}
 
@@ -249,16 +150,12 @@ def simulate_for(system_or_build, data: TimeData, params: dict | None = None, ex
 
 def simulate_at(system, data: TimeData, extra=(), rtol=1e-7, atol=1e-10):
     """:func:`simulate_for` of a System already built at the dataset's conditions (the SimulationResult)."""
-    from bscomp.simulation.dispatch import simulate
-
-    dae = _dae(system)
-    _check_names(dae, data, list(data.inputs), list(data.outputs))
+    dae = flatten(system)
+    check_channels(dae, data, list(data.inputs), list(data.outputs))
     obs = set(dae.output_names())
     names = list(data.outputs) + [n for n in dict.fromkeys(extra) if n in obs and n not in data.outputs]
     # a linear model driven by held inputs is stepped exactly (zero-order hold, as the data were sampled);
     # friction, backlash or controller states need the nonlinear integrator
-    from bscomp.simulation.compiled import nonlinear_elements
-
     linear = not nonlinear_elements(system) and not dae.mech.has_internal_states and dae.nz == 0
     method = "lti" if linear else "idas"
     return simulate(dae, data.t, inputs=dict(data.inputs), outputs=names, rtol=rtol, atol=atol, method=method)

@@ -11,12 +11,13 @@ chosen values and (b) slightly mis-set nominal parameters. From it:
   Nonlinear effects (friction, backlash) are not in the FRF (large-amplitude excitation).
 * **Time data** -- a square-wave voltage (thesis Sec 5.3.1: 4.25 V peak-to-peak, 5 Hz) applied
   open loop through the current amplifier; the truth is integrated by IDAS (rtol 1e-9) on a grid of
-  8 sub-steps per sample (the fit uses another engine, :class:`bscomp.simulation.compiled.CompiledModel`), a hidden delay as
-  an exact shift of the input on that fine grid. Sensors: motor encoder 10 000 counts/rev, tachometer
+  8 sub-steps per sample (the fit uses another engine, :class:`bscomp.simulation.compiled.CompiledModel`),
+  a hidden delay as an exact shift of the input on that fine grid. Sensors: motor encoder 10 000 counts/rev, tachometer
   noise, linear encoder 1 um, accelerometer noise and 16-bit quantisation over +-50 m/s^2.
 
-Everything is seeded; :func:`write_demo_data` writes the CSV files (compare engineer's writers) and
-a README naming the hidden effects and the seed.
+The nominal drive is an argument (a System, or anything :func:`bscomp.model.as_system` resolves; by
+default the registered ``"validation_drive"``). Everything is seeded; :func:`write_demo_data` writes the
+CSV files (:mod:`bscomp.validate.writers`) and a README naming the hidden effects and the seed.
 """
 
 from __future__ import annotations
@@ -26,8 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
+from bscomp.linear.response import frf as model_frf
+from bscomp.model import as_system
+from bscomp.simulation.dispatch import simulate
 from bscomp.validate.candidates import default_candidates
-from bscomp.validate.measurements import FrfData, TimeData, write_frf_csv, write_time_csv
+from bscomp.validate.datasets import FrfData, TimeData
+from bscomp.validate.writers import write_frf_csv, write_time_csv
 
 __all__ = ["generate", "SyntheticData", "truth_system", "write_demo_data", "TRUTH_VALUES", "MISSET"]
 
@@ -99,7 +104,7 @@ def square_wave(t, amplitude=2.125, frequency=5.0):
     return np.round(u / q) * q
 
 
-def generate(hidden: dict | None = None, misset: dict | None = None, seed: int = 0, nominal=None,
+def generate(hidden: dict | None = None, misset: dict | None = None, seed: int = 0, nominal="validation_drive",
              freqs=None, n_avg: int = 20, eps: float = 3e-3, duration: float = 0.2, dt: float = 5e-4,
              amplitude: float = 2.125, frequency: float = 5.0, noise: dict | None = None) -> SyntheticData:
     """Measurements of a truth = nominal + hidden effects + mis-set parameters.
@@ -111,8 +116,9 @@ def generate(hidden: dict | None = None, misset: dict | None = None, seed: int =
     misset : dict, optional
         ``{dotted parameter: truth / nominal factor}`` (default :data:`MISSET`).
     seed : int
-    nominal : System, optional
-        Default :func:`bscomp.systems.validation_drive.validation_drive`.
+    nominal : System, str or callable, optional
+        The nominal drive, resolved by :func:`bscomp.model.as_system` (default the registered
+        ``"validation_drive"``; None means the same).
     freqs : array, optional
         FRF frequencies [Hz] (default 300 log-spaced, 2 Hz to 1 kHz).
     n_avg, eps : FRF averages and relative output noise floor (see the module docstring).
@@ -124,13 +130,7 @@ def generate(hidden: dict | None = None, misset: dict | None = None, seed: int =
     -------
     SyntheticData
     """
-    from bscomp.linear.response import frf as model_frf
-    from bscomp.simulation.dispatch import simulate
-
-    if nominal is None:
-        from bscomp.systems.validation_drive import validation_drive
-
-        nominal = validation_drive()
+    nominal = as_system("validation_drive" if nominal is None else nominal)
     hidden = {k: {**TRUTH_VALUES.get(k, {}), **(v or {})} for k, v in (hidden or {}).items()}
     misset = dict(MISSET if misset is None else misset)
     rng = np.random.default_rng(seed)

@@ -10,8 +10,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import scipy.linalg as sla
 
+from bscomp.components import Damper, Spring, TorsionalDamper, TorsionalSpring
+from bscomp.components.pade_delay import PadeDelay
+from bscomp.kernel.damping import matrix_from_ratios, modal_damping_matrix
 from bscomp.kernel.interface import NotApplicable
+from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.validate.candidates._edits import insert_series
 from bscomp.validate.candidates.base import Candidate, CandidateParameter, _state
 
@@ -42,8 +47,6 @@ class AddedModalDamping:
         return z
 
     def matrix(self, M, K, coordinates=None):
-        from bscomp.kernel.damping import matrix_from_ratios
-
         return matrix_from_ratios(self, M, K, coordinates)
 
     def __repr__(self):
@@ -61,11 +64,6 @@ class AddedDampingOnMatrix:
         self.zeta = float(zeta)
 
     def matrix(self, M, K, coordinates=None):
-        import scipy.linalg as sla
-
-        from bscomp.kernel.damping import modal_damping_matrix
-        from bscomp.kernel.system_damping import system_damping_matrix
-
         Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
         Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
         lam = sla.eigh(Kd, Md, eigvals_only=True)
@@ -97,8 +95,6 @@ class DetachedBodyDamping:
         self.bodies = list(bodies)
 
     def matrix(self, M, K, coordinates=None):
-        from bscomp.kernel.system_damping import system_damping_matrix
-
         M = M.toarray() if hasattr(M, "toarray") else np.array(M, float)
         K = K.toarray() if hasattr(K, "toarray") else np.array(K, float)
         names = list(coordinates)
@@ -148,8 +144,6 @@ class ExtraDamping(Candidate):
         self.f1 = f1
 
     def _edit(self, e, point, vi, for_engine):
-        from bscomp.components import Damper, Spring, TorsionalDamper, TorsionalSpring
-
         base = e.s.damping
         if base is not None and (hasattr(base, "modal_ratios") or hasattr(base, "matrix")):
             if not for_engine:
@@ -223,8 +217,6 @@ class AmplifierDelay(Candidate):
         self.order = order
 
     def _edit(self, e, point, vi, for_engine):
-        from bscomp.components.pade_delay import PadeDelay
-
         if for_engine:
             return {"delay": None}
         a, b = point.ports[:2]

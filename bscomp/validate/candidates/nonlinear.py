@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from bscomp.components import Backlash, CoulombFriction, Fixed, Spring, StribeckFriction
 from bscomp.kernel.interface import NotApplicable
 from bscomp.validate.candidates._edits import between, connected, insert_series
 from bscomp.validate.candidates.base import Candidate, CandidateParameter
+from bscomp.validate.candidates.hooks import DetachedBodyDamping
 
 __all__ = ["GuidewayFriction", "StribeckGuidewayFriction", "ScrewNutBacklash", "V_REG"]
 
@@ -17,8 +19,6 @@ def _ground(e, point, vi) -> str:
     g = point.ground or (vi.ground if vi is not None else None)
     if g is not None:
         return g
-    from bscomp.components import Fixed
-
     return e.add(e.unique("effect_ground"), Fixed) + ".flange"
 
 
@@ -37,8 +37,6 @@ class GuidewayFriction(Candidate):
             nonlinear=True, group="guideway_friction", kinds=("attach", "connection"))
 
     def _edit(self, e, point, vi, for_engine):
-        from bscomp.components import CoulombFriction
-
         g = _ground(e, point, vi)
         name = e.add(e.unique("friction"), CoulombFriction, F_c_pos=1000.0, F_c_neg=1000.0, v_reg=V_REG)
         e.connect(f"{name}.flange_a", g)
@@ -68,8 +66,6 @@ class StribeckGuidewayFriction(GuidewayFriction):
             nonlinear=True, group="guideway_friction", kinds=("attach", "connection"))
 
     def _edit(self, e, point, vi, for_engine):
-        from bscomp.components import StribeckFriction
-
         g = _ground(e, point, vi)
         name = e.add(e.unique("friction"), StribeckFriction, F_s_pos=300.0, F_s_neg=300.0, F_c_pos=1000.0,
                      F_c_neg=1000.0, v1_pos=5e-3, v1_neg=5e-3, v2_pos=V_REG, v2_neg=V_REG, v_reg=V_REG)
@@ -119,8 +115,6 @@ class ScrewNutBacklash(Candidate):
         return {"b": b, "s_rel0": -b / 2, "eps": self.eps_fraction * b}
 
     def _edit(self, e, point, vi, for_engine):
-        from bscomp.components import Backlash, Spring
-
         b0 = self.parameters[0].median
         ports = point.ports
         if len(ports) >= 2 and all("." in p for p in ports[:2]):
@@ -138,8 +132,6 @@ class ScrewNutBacklash(Candidate):
             detached = e.s.damping is not None and hasattr(e.s.damping, "modal_ratios") and \
                 type(e.s.component(b.split(".")[0])).__name__ == "Mass"
             if detached:   # no modal damping force across the clearance: the contact's own damping only
-                from bscomp.validate.candidates.hooks import DetachedBodyDamping
-
                 e.s.damping = DetachedBodyDamping(e.s.damping, [body])
             return {"element": name, "detached": body if detached else None}
         name = ports[0]

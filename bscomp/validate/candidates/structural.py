@@ -3,10 +3,13 @@ stiffness, missing mass and inertia (thesis Sec 3.5.2.3-3.5.2.4)."""
 
 from __future__ import annotations
 
+from bscomp.components import Backlash, Damper, Housing, Inertia, Mass, Spring
+from bscomp.components._joint6 import PartialJoint6
 from bscomp.errors import ModelDefinitionError, UnknownNameError
 from bscomp.kernel.interface import InsertionPoint, NotApplicable
 from bscomp.validate.candidates._edits import between, connected, insert_series
 from bscomp.validate.candidates.base import Candidate, CandidateParameter, _params_of, _zeta_damper
+from bscomp.validate.candidates.hooks import DetachedBodyDamping
 
 __all__ = ["NutTableJoint", "TableSubassembly", "BearingHousing", "ParameterScale", "CouplingStiffness",
            "MissingInertia", "MissingMass"]
@@ -33,8 +36,6 @@ class NutTableJoint(Candidate):
             group="nut_table", kinds=("connection",))
 
     def _edit(self, e, point, vi, for_engine):
-        from bscomp.components import Backlash, Damper, Spring
-
         a, b = point.ports[:2]
         spring = e.unique("nt_joint")
         loss = e.unique("nt_joint_loss", taken=(spring,))
@@ -81,8 +82,6 @@ class TableSubassembly(Candidate):
             group="table_mode", kinds=("connection",))
 
     def _edit(self, e, point, vi, for_engine):
-        from bscomp.components import Damper, Mass, Spring
-
         node = point.ports[1]
         spring = e.unique("sub_spring")
         loss = e.unique("sub_loss")
@@ -95,8 +94,6 @@ class TableSubassembly(Candidate):
             e.connect(f"{part}.flange_b", f"{mass}.flange_a")
         detached = e.s.damping is not None and hasattr(e.s.damping, "modal_ratios")
         if detached:   # the drive's modal damping does not reach the added body: its dashpot damps it
-            from bscomp.validate.candidates.hooks import DetachedBodyDamping
-
             e.s.damping = DetachedBodyDamping(e.s.damping, [f"{mass}.s"])
         return {"spring": spring, "damper": loss, "mass": mass, "detached": detached}
 
@@ -134,9 +131,6 @@ class BearingHousing(Candidate):
             group="bearing_housing", kinds=("support", "connection"))
 
     def _edit(self, e, point, vi, for_engine):
-        from bscomp.components import Damper, Housing, Mass, Spring
-        from bscomp.components._joint6 import PartialJoint6
-
         d0 = _zeta_damper(self.zeta, 1e9, 10.0)
         if point.kind == "support":
             bearing = point.ports[1]
@@ -229,8 +223,6 @@ class MissingInertia(Candidate):
             group="rotor_inertia", kinds=("rotational",))
 
     def _edit(self, e, point, vi, for_engine):
-        from bscomp.components import Inertia
-
         name = e.unique("extra_inertia")
         e.add(name, Inertia, J=1e-3)
         e.connect(f"{name}.flange_a", point.ports[0])
@@ -260,8 +252,6 @@ class MissingMass(Candidate):
         return {f"{comp}.m"} if "m" in system.component(comp).parameters() else set()
 
     def _edit(self, e, point, vi, for_engine):
-        from bscomp.components import Mass
-
         name = e.unique("extra_mass")
         e.add(name, Mass, m=20.0)
         e.connect(f"{name}.flange_a", point.ports[0])

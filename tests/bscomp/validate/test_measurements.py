@@ -171,3 +171,51 @@ def test_file_conditions_as_documented(tmp_path, capsys):
     with pytest.warns(ConditionIgnoredWarning):
         assert main(["compare", "validation_drive", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["cost"] < 1e-18
+
+
+def test_frf_to_csv_reads_back_with_units_and_names(tmp_path):
+    from bscomp.linear.response import frf
+
+    res = frf("small_drive", "motor.tau", ["rotor.w", "table.a"], fmin=1, fmax=500, n=40)
+    units = {("motor.tau", "rotor.w"): "rad/s/(N m)", ("motor.tau", "table.a"): "m/s^2/(N m)"}
+    plain, noted = tmp_path / "plain.csv", tmp_path / "noted.csv"
+    res.to_csv(plain)                                         # a plain table: units implied by the names
+    res.to_csv(noted, conditions={"nut_position": 0.3})       # with '#' metadata lines
+    assert len(plain.read_text().splitlines()) == 41 and noted.read_text().startswith("# kind: frf\n")
+    for path in (plain, noted):
+        d = load(path)
+        assert isinstance(d, FrfData) and d.pairs == [("motor.tau", "rotor.w"), ("motor.tau", "table.a")]
+        np.testing.assert_array_equal(d.freqs, res.freqs)
+        np.testing.assert_array_equal(d.H[("motor.tau", "rotor.w")], res.response("rotor.w"))
+        np.testing.assert_array_equal(d.H[("motor.tau", "table.a")], res.response("table.a"))
+        assert d.units == units and all(g is None for g in d.coherence.values())
+    assert load(noted).conditions == {"nut_position": 0.3} and load(noted).source == "small_drive"
+    assert load(plain).conditions == {} and load(plain).source == str(plain)
+
+
+def test_frf_to_csv_on_a_stream_and_with_given_units(tmp_path):
+    import io
+
+    from bscomp.linear.response import frf
+
+    res = frf("validation_drive", "amp.u", ["rotor.w"], fmin=2, fmax=200, n=20)
+    for units, expected in ((None, "rad/s"), ({"amp.u": "V"}, "rad/s/(V)")):   # a signal input is '1' by default
+        buf = io.StringIO()
+        res.to_csv(buf, units=units)
+        path = tmp_path / "stdout.csv"
+        path.write_text(buf.getvalue())
+        d = load(path)
+        assert d.units == {("amp.u", "rotor.w"): expected}
+        np.testing.assert_array_equal(d.H[("amp.u", "rotor.w")], res.response())
+    with pytest.raises(ValueError, match="not SI"):
+        res.to_csv(tmp_path / "rpm.csv", units={"rotor.w": "rpm"})
+
+
+def test_redundant_magnitude_and_phase_must_agree(tmp_path):
+    p = tmp_path / "r.csv"
+    p.write_text("# unit rotor.w/motor.tau: rad/s/(N m)\n"
+                 "freq_hz,motor.tau->rotor.w re,motor.tau->rotor.w im,motor.tau->rotor.w mag_db,"
+                 "motor.tau->rotor.w phase_deg\n1,1,0,0,0\n2,0,1,0,91\n")
+    with pytest.raises(MeasurementFileError) as ei:
+        load(p)
+    assert ei.value.line == 4 and ei.value.column == 4 and "disagree" in str(ei.value)
