@@ -1,6 +1,6 @@
 """Physical components, one per file (``bscomp.components``)."""
 
-from ._beam_fe import Section
+from ._beam_fe import BeamModel, DofSelection, Section, assemble_shaft, select_dofs
 from .acceleration_sensor import AccelerationSensor
 from .angle_sensor import AngleSensor
 
@@ -69,4 +69,4 @@ __all__ += [
     "DigitalPController", "NotchFilter", "RSTController",
 ]
 __all__ += ["Backlash", "CoulombFriction", "RotationalBacklash", "StribeckFriction"]
-__all__ += ["Housing", "PadeDelay", "Section"]
+__all__ += ["Housing", "PadeDelay", "Section", "BeamModel", "DofSelection", "assemble_shaft", "select_dofs"]

@@ -25,7 +25,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from bscomp.components._beam_fe import BeamModel, DofSelection, assemble_shaft, select_dofs
+from bscomp.components import BeamModel, DofSelection, assemble_shaft, select_dofs
 from bscomp.linear.reduction import ReducedModel, cms_reduce
 from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.systems.thesis_parts import thesis_sections

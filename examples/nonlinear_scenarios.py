@@ -57,7 +57,7 @@ def run(system, t, outputs=("table.v", "table.a", "rotor.w")):
 
 
 def main(out_dir="out/nonlinear", T_end=0.4):
-    from bscomp.plotting.base import _plt
+    from bscomp.plotting import pyplot as _plt
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

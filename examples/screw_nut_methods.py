@@ -11,7 +11,7 @@ from pathlib import Path
 
 
 def main(out_dir="out/screw_nut_methods"):
-    from bscomp.plotting.base import _plt
+    from bscomp.plotting import pyplot as _plt
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "components"))
     from test_screw_nut_shape_function import nut_frequencies

@@ -8,7 +8,14 @@ imported only when a figure is drawn.
 * :mod:`bscomp.plotting.validate` -- comparisons with measurements and diagnoses.
 """
 
-from bscomp.plotting.base import bode_plot, frequency_position_plot, frf_overlay_plot, mode_shape_plot, time_plot
+from bscomp.plotting.base import (
+    bode_plot,
+    frequency_position_plot,
+    frf_overlay_plot,
+    mode_shape_plot,
+    pyplot,
+    time_plot,
+)
 from bscomp.plotting.control import (
     bode_comparison_plot,
     disturbance_comparison_plot,
@@ -17,6 +24,6 @@ from bscomp.plotting.control import (
     step_comparison_plot,
 )
 
-__all__ = ["bode_plot", "frequency_position_plot", "frf_overlay_plot", "mode_shape_plot", "time_plot",
+__all__ = ["pyplot", "bode_plot", "frequency_position_plot", "frf_overlay_plot", "mode_shape_plot", "time_plot",
            "loop_plot", "bode_comparison_plot", "step_comparison_plot", "sensitivity_comparison_plot",
            "disturbance_comparison_plot"]

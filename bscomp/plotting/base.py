@@ -9,13 +9,17 @@ from __future__ import annotations
 import numpy as np
 
 
-def _plt():
+def pyplot():
+    """``matplotlib.pyplot`` with a non-interactive backend unless one is chosen (imported on first use)."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
     return plt
+
+
+_plt = pyplot
 
 
 def bode_plot(freqs_hz, H, labels=None, title="", path=None):
