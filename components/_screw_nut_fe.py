@@ -52,6 +52,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from scipy.sparse import csr_matrix
 
 from ._nut_geometry import _check_preload
 
@@ -431,7 +432,6 @@ def ksn_shape_function(
         K += count * k_ball * (T.T * W) @ T
     K = 0.5 * (K + K.T)
     if sparse:
-        from scipy.sparse import csr_matrix
 
         K[np.abs(K) < 1e-14 * np.abs(K).max()] = 0.0
         return csr_matrix(K)

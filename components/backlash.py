@@ -37,6 +37,9 @@ import casadi as ca
 from bscomp.kernel.component import Parameter
 from bscomp.kernel.partials import PartialCompliant
 
+from .spring import Spring
+from .spring_damper import SpringDamper
+
 
 def dead_zone(delta, b, eps):
     """Dead-zone penetration ``e(delta)`` and its slope ``e'(delta)`` (CasADi expressions).
@@ -91,10 +94,8 @@ class Backlash(PartialCompliant):
         """Small-signal equivalent for FRFs: the contact in engagement (spring ``c``, with the contact
         damper ``d`` beside it when there is one)."""
         if self.d > 0:
-            from .spring_damper import SpringDamper
 
             return SpringDamper(c=self.c, d=self.d)
-        from .spring import Spring
 
         return Spring(c=self.c)
 

@@ -33,6 +33,8 @@ import casadi as ca
 from bscomp.kernel.component import Parameter
 from bscomp.kernel.partials import PartialCompliant
 
+from .damper import Damper
+
 
 class CoulombFriction(PartialCompliant):
     """Regularised Coulomb + viscous friction, Eq (5.7), with asymmetric ``+/-`` constants.
@@ -80,7 +82,6 @@ class CoulombFriction(PartialCompliant):
     def linear_equivalent(self):
         """Small-signal equivalent for FRFs: the viscous part only (Coulomb friction has no tangent at
         sliding; at rest its regularised slope F_c/v_reg is not what a swept-sine test sees)."""
-        from .damper import Damper
 
         d = 0.5 * (self.d_pos + self.d_neg)
         return Damper(d=d) if d > 0 else None

@@ -17,6 +17,7 @@ from bscomp.kernel.component import Parameter
 from bscomp.kernel.partials import PartialRotCompliant
 
 from .backlash import contact_force, dead_zone
+from .torsional_spring import TorsionalSpring
 
 
 class RotationalBacklash(PartialRotCompliant):
@@ -40,7 +41,6 @@ class RotationalBacklash(PartialRotCompliant):
 
     def linear_equivalent(self):
         """Small-signal equivalent for FRFs: the contact in engagement (torsional spring ``c``)."""
-        from .torsional_spring import TorsionalSpring
 
         return TorsionalSpring(c=self.c)
 

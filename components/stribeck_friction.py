@@ -35,6 +35,8 @@ import casadi as ca
 from bscomp.kernel.component import Parameter
 from bscomp.kernel.partials import PartialCompliant
 
+from .damper import Damper
+
 
 class StribeckFriction(PartialCompliant):
     """Regularised Stribeck friction, Eq (5.6), with asymmetric ``+/-`` constants.
@@ -93,7 +95,6 @@ class StribeckFriction(PartialCompliant):
 
     def linear_equivalent(self):
         """Small-signal equivalent for FRFs: the viscous part only (see CoulombFriction)."""
-        from .damper import Damper
 
         d = 0.5 * (self.d_pos + self.d_neg)
         return Damper(d=d) if d > 0 else None

@@ -83,7 +83,6 @@ def get(name_or_path: str, overrides: dict | None = None):
 
 def _call_build(build, name: str, kwargs: dict):
     """Call a build function with keyword arguments, naming the bad key if it does not take one."""
-    import inspect
 
     if kwargs:
         sig = inspect.signature(build)

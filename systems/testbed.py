@@ -75,6 +75,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import scipy.sparse as sp
 
 from bscomp import System
 from bscomp.components import (
@@ -137,7 +138,6 @@ DRIVE_FIELDS = ("w", "tz", "phi", "s")
 
 def drive_fraction(shapes, M, coordinates) -> np.ndarray:
     """Share of each mode's kinetic energy ``phi^T M phi`` in the axial/torsional coordinates."""
-    import scipy.sparse as sp
 
     drive = np.array([c.rsplit(".", 1)[-1] in DRIVE_FIELDS for c in coordinates], float)
     M = sp.csr_matrix(M)

@@ -48,10 +48,12 @@ import math
 import re
 import tempfile
 import time as _time
+from dataclasses import replace
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
+import scipy.linalg as sla
 
 from bscomp.components import Damper, Fixed, Mass, Spring
 from bscomp.kernel.component import Parameter
@@ -261,7 +263,6 @@ def _base(model, x, mesh_C, misset, nut_joint="moving"):
 
 
 def _modes_hz(so):
-    import scipy.linalg as sla
 
     lam, phi = sla.eigh(so.K.toarray(), so.M.toarray())
     return np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi), phi
@@ -284,7 +285,6 @@ def _joint_stiffness(s, m_p, f_target) -> float:
     ``s`` has the part on a spring ``part_spring``; K is linear in its constant, so one linearization and
     a bisection on the number of modes below the target (monotone: every eigenvalue grows with k) do.
     """
-    import scipy.linalg as sla
 
     from bscomp import flatten, second_order
 
@@ -538,7 +538,6 @@ def generate_case(case: str, model: str, out_dir, seed: int | None = None, *, ti
                   **time_kw) -> dict:
     """Write ``frf.csv``, ``time.csv`` (unless ``time=False``) and ``truth.json`` of one truth into
     ``out_dir/model/case``; returns ``{"frf": path, "time": path, "truth": path, "info": info}``."""
-    from dataclasses import replace
 
     from bscomp.validate.measurements import write_frf_csv, write_time_csv
 
