@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 
 from bscomp.validate import FrfData, MeasurementFileError, TimeData, load
 
-CI_EXAMPLES = int(os.environ.get("BSCOMP_FUZZ_EXAMPLES", "2000"))
+CI_EXAMPLES = int(os.environ.get("BSCOMP_FUZZ_EXAMPLES", "1500"))
 _DIR = Path(tempfile.mkdtemp(prefix="bscomp-fuzz-"))
 
 UNITS = ["m", "um", "mm", "N", "kN", "N m", "rad/s", "rad/s/(N m)", "m/s^2/(N m)", "Hz", "kHz", "s", "ms", "deg",
