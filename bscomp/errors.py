@@ -20,6 +20,8 @@ __all__ = [
     "SolverError",
     "OutputFileError",
     "UsageError",
+    "ModelLimitationWarning",
+    "check_number",
 ]
 
 
@@ -103,3 +105,31 @@ class OutputFileError(BscompError, OSError):
 
 class UsageError(BscompError, ValueError):
     """A command-line argument or a function argument is malformed or out of range."""
+
+
+class ModelLimitationWarning(UserWarning):
+    """A method ignores part of the model (e.g. ``simulate(method="lti")`` on a nonlinear model)."""
+
+
+def check_number(name: str, value, *, positive: bool = False, nonnegative: bool = False, integer: bool = False,
+                 minimum=None, error=None):
+    """``value`` as a float (int if ``integer``), finite and in range, else ``error`` (:class:`UsageError`)
+    naming the argument ``name``."""
+    error = error or UsageError
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise error(f"{name} must be a number, got {value!r}") from None
+    if v != v or v in (float("inf"), float("-inf")):
+        raise error(f"{name} must be finite, got {v}")
+    if integer:
+        if v != int(v):
+            raise error(f"{name} must be an integer, got {value!r}")
+        v = int(v)
+    if positive and not v > 0:
+        raise error(f"{name} must be > 0, got {value!r}")
+    if nonnegative and not v >= 0:
+        raise error(f"{name} must be >= 0, got {value!r}")
+    if minimum is not None and v < minimum:
+        raise error(f"{name} must be >= {minimum}, got {value!r}")
+    return v

@@ -46,8 +46,14 @@ _SPECIAL = {
     "-": (1.0, (0, 0, 0, 0, 0), "1"),
 }
 _PREFIX = {"n": 1e-9, "u": 1e-6, "µ": 1e-6, "μ": 1e-6, "m": 1e-3, "c": 1e-2, "k": 1e3, "M": 1e6, "G": 1e9}
-_TOKEN = re.compile(r"\s*(?:(?P<num>[+-]?\d+)|(?P<word>[A-Za-zµμ]+|-)|(?P<op>\*\*|[*/·.()^])|(?P<sup>[⁻¹²³⁴]+))")
-_SUP = str.maketrans("⁻¹²³⁴", "-1234")
+_TOKEN = re.compile(r"\s*(?:(?P<num>[+-]?\d+)|(?P<word>[A-Za-zµμ]+|-)|(?P<op>\*\*|[*/·.()^])|"
+                    r"(?P<sup>⁻?[¹²³⁴⁵⁶⁷⁸⁹⁰]+))")
+_SUP = str.maketrans("⁻¹²³⁴⁵⁶⁷⁸⁹⁰", "-1234567890")
+#: bounds that keep every unit a physical one and every scale a finite, nonzero float
+MAX_EXPONENT = 9           # |n| in m^n, s⁻², ...
+MAX_DIMENSION = 12         # |exponent| of a base dimension in the result (kg m^2 s^-3 A^-1 is 3)
+MAX_LENGTH = 200           # characters of a unit string
+MAX_DEPTH = 10             # nested parentheses
 
 
 class UnitSyntaxError(ValueError):
@@ -68,6 +74,14 @@ class Unit:
     si: str
 
 
+def _power(scale: float, n: int) -> float:
+    """``scale ** n``; inf on overflow (the final check of :func:`parse_unit` names it)."""
+    try:
+        return scale ** n
+    except (OverflowError, ZeroDivisionError):
+        return math.inf
+
+
 def _lookup(word, pos):
     if word in _SPECIAL:
         return _SPECIAL[word]
@@ -85,6 +99,8 @@ def parse_unit(text: str) -> Unit:
     text = str(text).strip()
     if not text:
         raise UnitSyntaxError("empty unit (write 1 for a dimensionless quantity)", 0)
+    if len(text) > MAX_LENGTH:
+        raise UnitSyntaxError(f"unit of {len(text)} characters (at most {MAX_LENGTH})", MAX_LENGTH)
     toks = []
     pos = 0
     while pos < len(text):
@@ -95,12 +111,22 @@ def parse_unit(text: str) -> Unit:
         toks.append((kind, m.group(kind), m.start(kind)))
         pos = m.end()
     i = 0
+    depth = 0
+
+    def exponent(val, p):
+        try:
+            n = int(val.translate(_SUP))
+        except ValueError:
+            raise UnitSyntaxError(f"malformed exponent {val!r} in unit '{text}'", p) from None
+        if abs(n) > MAX_EXPONENT:
+            raise UnitSyntaxError(f"exponent {n} in unit '{text}' is out of range (|n| <= {MAX_EXPONENT})", p)
+        return n
 
     def peek():
         return toks[i] if i < len(toks) else (None, None, len(text))
 
     def factor():
-        nonlocal i
+        nonlocal i, depth
         kind, val, p = peek()
         if kind == "word" or (kind == "num" and val == "1"):
             i += 1
@@ -108,7 +134,11 @@ def parse_unit(text: str) -> Unit:
             node = (sc, np.array(d, float), si)
         elif kind == "op" and val == "(":
             i += 1
+            depth += 1
+            if depth > MAX_DEPTH:
+                raise UnitSyntaxError(f"parentheses nested deeper than {MAX_DEPTH} in unit '{text}'", p)
             node = expr()
+            depth -= 1
             k2, v2, p2 = peek()
             if v2 != ")":
                 raise UnitSyntaxError(f"missing ')' in unit '{text}'", p2)
@@ -124,15 +154,15 @@ def parse_unit(text: str) -> Unit:
             if k2 != "num":
                 raise UnitSyntaxError(f"expected an integer exponent after '{val}' in '{text}'", p2)
             i += 1
-            exp = int(v2)
+            exp = exponent(v2, p2)
         elif kind == "sup":
             i += 1
-            exp = int(val.translate(_SUP))
+            exp = exponent(val, p)
         elif kind == "num":
             i += 1
-            exp = int(val)
+            exp = exponent(val, p)
         if exp is not None:
-            node = (node[0] ** exp, node[1] * exp, f"{node[2]}^{exp}")
+            node = (_power(node[0], exp), node[1] * exp, f"{node[2]}^{exp}")
         return node
 
     def expr():
@@ -145,7 +175,7 @@ def parse_unit(text: str) -> Unit:
             if kind == "op" and val == "/":
                 i += 1
                 s2, d2, si2 = factor()
-                sc, d, si = sc / s2, d - d2, f"{si}/{si2}"
+                sc, d, si = (sc / s2 if s2 else math.inf), d - d2, f"{si}/{si2}"
             else:
                 if kind == "op" and val in ("*", "·", "."):
                     i += 1
@@ -155,6 +185,10 @@ def parse_unit(text: str) -> Unit:
     sc, d, si = expr()
     if i != len(toks):
         raise UnitSyntaxError(f"unexpected {toks[i][1]!r} in unit '{text}'", toks[i][2])
+    if np.max(np.abs(d)) > MAX_DIMENSION:
+        raise UnitSyntaxError(f"unit '{text}' has a dimension exponent beyond {MAX_DIMENSION}: not a physical unit", 0)
+    if not (math.isfinite(sc) and sc > 0):
+        raise UnitSyntaxError(f"unit '{text}' has a scale to SI ({sc}) that is not a finite positive number", 0)
     return Unit(text=text, scale=float(sc), dims=tuple(float(x) for x in d), si=si)
 
 

@@ -23,7 +23,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from bscomp.errors import SingularSystemError, UnknownNameError
+from bscomp.errors import SingularSystemError, UnknownNameError, check_number
 from bscomp.kernel import Dae, System
 from bscomp.linear.linearization import SecondOrderModel, second_order
 from bscomp.model import as_system
@@ -153,7 +153,7 @@ def _undamped(red: _Reduced, n=None, fmax=None, dense_limit=DENSE_LIMIT):
         keep &= np.sqrt(lam) <= 2 * np.pi * fmax
     idx = np.flatnonzero(keep)
     if n is not None:
-        idx = idx[:n]
+        idx = idx[:check_number("n", n, integer=True, minimum=1)]
     phi = phi[:, idx]
     # sign convention: the largest component of each mode is positive
     big = np.argmax(np.abs(phi), axis=0)

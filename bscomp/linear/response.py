@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from bscomp.errors import NotLinearError, UnknownNameError
+from bscomp.errors import NotLinearError, UnknownNameError, UsageError, check_number
 from bscomp.kernel import Dae, System
 from bscomp.kernel.units import convention_units, parse_unit
 from bscomp.linear.linearization import SecondOrderModel, control_labels, linearize
@@ -175,11 +175,13 @@ def _freq_grid(freqs, fmin, fmax, n):
     if freqs is not None:
         f = np.atleast_1d(np.asarray(freqs, float))
     else:
-        if not (0 < fmin < fmax):
-            raise ValueError(f"need 0 < fmin < fmax, got fmin={fmin}, fmax={fmax}")
-        f = np.logspace(np.log10(fmin), np.log10(fmax), int(n))
-    if f.ndim != 1 or not np.all(np.isfinite(f)) or np.any(f < 0):
-        raise ValueError("freqs must be a 1-D array of finite non-negative frequencies [Hz]")
+        fmin, fmax = check_number("fmin", fmin, positive=True), check_number("fmax", fmax, positive=True)
+        if not fmin < fmax:
+            raise UsageError(f"need fmin < fmax, got fmin={fmin}, fmax={fmax}")
+        f = np.logspace(np.log10(fmin), np.log10(fmax), check_number("n", n, integer=True, minimum=1))
+    if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
+        raise UsageError("freqs must be a non-empty 1-D array of finite positive frequencies [Hz]" + (
+            f", got {float(f[~np.isfinite(f) | (f <= 0)][0])!r}" if f.ndim == 1 and f.size else ""))
     return f
 
 

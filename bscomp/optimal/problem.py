@@ -22,7 +22,7 @@ from typing import Callable
 
 import numpy as np
 
-from bscomp.errors import UnknownNameError
+from bscomp.errors import UnknownNameError, UsageError, check_number
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.system import System
 from bscomp.model import as_dae
@@ -108,8 +108,10 @@ class Ocp:
     def bound(self, name, lo=-np.inf, hi=np.inf, scale=None):
         """Path bound ``lo <= name <= hi`` on a state, input or observable (enforced at every point)."""
         self.kind(name)
+        if lo != lo or hi != hi:
+            raise UsageError(f"bound on '{name}': a bound is NaN (lo={lo}, hi={hi}); use -inf/inf for none")
         if lo > hi:
-            raise ValueError(f"bound on '{name}': lower {lo} > upper {hi}")
+            raise UsageError(f"bound on '{name}': lower {lo} > upper {hi}")
         self.bounds[name] = (float(lo), float(hi))
         if scale is not None:
             self.scale[name] = float(scale)
@@ -167,14 +169,14 @@ class Ocp:
     def minimize_time(self, T_guess: float = 1.0):
         """Minimise the horizon T; ``T_guess`` [s] starts the search (and is the unit of T in the NLP)."""
         self.objective_kind = "time"
-        self.T_guess = float(T_guess)
+        self.T_guess = check_number("T_guess", T_guess, positive=True)
         self.T_fixed = None
         return self
 
     def minimize_effort(self, T: float, weights: dict | None = None):
         """Minimise ∫ Σ w_i u_i² dt over a fixed horizon T."""
         self.objective_kind = "effort"
-        self.T_fixed = float(T)
+        self.T_fixed = check_number("T", T, positive=True)
         self.objective_args = {"weights": weights or {}}
         return self
 
@@ -182,7 +184,7 @@ class Ocp:
         """Minimise ∫ (y - r(t))² dt (+ effort) over a fixed horizon."""
         self.kind(output)
         self.objective_kind = "tracking"
-        self.T_fixed = float(T)
+        self.T_fixed = check_number("T", T, positive=True)
         self.objective_args = {"output": output, "reference": reference, "effort_weight": effort_weight}
         return self
 
@@ -191,7 +193,7 @@ class Ocp:
         or screw stretch after arrival)."""
         self.kind(output)
         self.objective_kind = "vibration"
-        self.T_fixed = float(T)
+        self.T_fixed = check_number("T", T, positive=True)
         self.objective_args = {"output": output, "T_settle": float(T_settle)}
         return self
 

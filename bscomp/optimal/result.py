@@ -13,7 +13,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from bscomp.errors import BscompError, UnknownNameError
+from bscomp.errors import SolverError, UnknownNameError
 from bscomp.model import as_dae
 from bscomp.plotting.base import time_plot  # plotting (matplotlib) only when a figure is asked for
 from bscomp.simulation.dispatch import simulate
@@ -21,7 +21,7 @@ from bscomp.simulation.dispatch import simulate
 __all__ = ["OcpResult", "OcpError", "active_fraction", "convergence_error"]
 
 
-class OcpError(BscompError):
+class OcpError(SolverError):
     """Ipopt did not converge; the message gives its status, the largest violations and a hint."""
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bscomp.errors import UnknownNameError
+from bscomp.errors import UnknownNameError, UsageError
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.system import System
 from bscomp.model import as_dae
@@ -87,9 +87,17 @@ def prepare(model, t, inputs=None, x0=None, params=None, outputs=None, controlle
     also build keywords (applied when the system is built).
     """
     dae = as_dae(model, params)
-    t = np.asarray(t, float)
-    if t.ndim != 1 or len(t) < 2 or np.any(np.diff(t) <= 0):
-        raise ValueError("t must be an increasing 1-D array of at least two times")
+    try:
+        t = np.asarray(t, float)
+    except (TypeError, ValueError):
+        raise UsageError(f"t must be an array of times [s], got {type(t).__name__}") from None
+    if t.ndim != 1 or len(t) < 2:
+        raise UsageError(f"t must be a 1-D array of at least two times, got shape {t.shape}")
+    if not np.all(np.isfinite(t)):
+        raise UsageError(f"t holds a non-finite time at index {int(np.flatnonzero(~np.isfinite(t))[0])}")
+    if np.any(np.diff(t) <= 0):
+        k = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
+        raise UsageError(f"t must be strictly increasing: t[{k}] = {t[k]} after t[{k - 1}] = {t[k - 1]}")
     controllers = list(controllers or [])
     own = (params or {}) if isinstance(model, (System, Dae)) else {}  # the other forms built them in
     p = dae.parameter_vector({k: v for k, v in own.items() if k not in dae.structural_parameters})

@@ -19,6 +19,7 @@ A new method is one more entry in :data:`METHODS`.
 
 from __future__ import annotations
 
+from bscomp.errors import UsageError, check_number
 from bscomp.simulation.common import SimulationOptions, prepare
 from bscomp.simulation.fixed_step import simulate_fixed
 from bscomp.simulation.idas import simulate_idas
@@ -125,7 +126,13 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
     """
     run = METHODS.get(method)
     if run is None:
-        raise ValueError(f"method must be one of {', '.join(map(repr, METHODS))}, got {method!r}")
+        raise UsageError(f"method must be one of {', '.join(map(repr, METHODS))}, got {method!r}")
+    check_number("rtol", rtol, positive=True)
+    check_number("atol", atol, positive=True)
+    check_number("max_order", max_order, integer=True, minimum=1)
+    check_number("max_num_steps", max_num_steps, integer=True, minimum=1)
+    check_number("substeps", substeps, integer=True, minimum=1)
+    check_number("newton_iter", newton_iter, integer=True, minimum=1)
     problem = prepare(model, t, inputs, x0, params, outputs, controllers, progress)
     options = SimulationOptions(rtol=rtol, atol=atol, max_order=max_order, max_num_steps=max_num_steps,
                                 substeps=substeps, newton_iter=newton_iter, jit=jit)

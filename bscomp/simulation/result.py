@@ -6,13 +6,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bscomp.errors import BscompError, UnknownNameError
+from bscomp.errors import SolverError, UnknownNameError
 from bscomp.plotting.base import time_plot  # matplotlib only when plotting
 
 __all__ = ["SimulationResult", "SimulationError"]
 
 
-class SimulationError(BscompError):
+class SimulationError(SolverError):
     """The integrator failed; the message names the time window, the variable and a hint."""
 
 

@@ -8,13 +8,24 @@ declared in its file, so later checks (an unknown channel name) can point at the
 
 from __future__ import annotations
 
+import math
+import re
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from bscomp.errors import BscompError
 
-__all__ = ["FrfData", "TimeData", "MeasurementFileError"]
+__all__ = ["FrfData", "TimeData", "MeasurementFileError", "MeasurementWarning", "check_condition",
+           "MIN_COHERENCE"]
+
+#: a pair whose coherence stays below this everywhere carries no usable signal (error)
+MIN_COHERENCE = 0.1
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
+_FILE_SUFFIX = re.compile(r"\.(toml|json|py|pyc|csv|txt|ya?ml|ini|cfg|pkl|pickle|npz|npy|so|dll|sh)$", re.I)
+#: build arguments a data file may not set: they name files the library would open
+FORBIDDEN_CONDITIONS = frozenset({"params", "path", "file", "filename", "parameters", "parameter_file"})
 
 
 class MeasurementFileError(BscompError, ValueError):
@@ -39,6 +50,59 @@ class MeasurementFileError(BscompError, ValueError):
             if column_name:
                 where += f" ({column_name!r})"
         super().__init__(f"{where}: {message}")
+
+
+class MeasurementWarning(UserWarning):
+    """A measurement can be used but part of it is doubtful (e.g. low coherence over much of the band)."""
+
+
+def check_condition(name, value, where=(None, None, None)):
+    """A measurement condition as a build function may take it: a finite number or a short plain string.
+
+    Nothing from a data file becomes a path that is opened: a condition named like a file argument
+    (``params``...) or whose value looks like a path (``../x``, ``a/b``, ``~``, ``x.toml``) is refused.
+    Returns the value; raises :class:`MeasurementFileError` at ``where`` = ``(file, line, column)``.
+    """
+    def fail(msg):
+        raise MeasurementFileError(where[0] or "<measurement>", where[1], where[2], msg, str(name))
+
+    name = str(name)
+    if not _NAME.match(name):
+        fail(f"condition name {name!r} is not a plain or dotted identifier (e.g. nut_position, table.m)")
+    if name.rsplit(".", 1)[-1].lower() in FORBIDDEN_CONDITIONS:
+        fail(f"condition {name!r} is not allowed: a measurement file cannot choose files or parameter sets "
+             "(pass params= to the function instead)")
+    if isinstance(value, bool) or not isinstance(value, (int, float, str, np.floating, np.integer)):
+        fail(f"condition {name!r} must be a number or a string, not {type(value).__name__}")
+    if isinstance(value, str):
+        v = value.strip()
+        if len(v) > 100 or any(ch in v for ch in "/\\\0") or v.startswith(("~", ".")) or _FILE_SUFFIX.search(v):
+            fail(f"condition {name!r} = {v[:60]!r} looks like a file path: conditions are numbers or plain words "
+                 "and never name files")
+        return v
+    v = float(value)
+    if not math.isfinite(v):
+        fail(f"condition {name!r} = {v} is not finite")
+    return v
+
+
+def check_coherence(pair, g, source, where=(None, None)):
+    """Coherence all below :data:`MIN_COHERENCE` is an error (it would weight every error to zero and give a
+    perfect score); below 0.5 on more than half the band a :class:`MeasurementWarning`."""
+    if g is None or g.size == 0:
+        return
+    label = f"{pair[1]}/{pair[0]}"
+    if not np.all(np.isfinite(g)) or np.any((g < 0) | (g > 1)):
+        raise MeasurementFileError(source or "<measurement>", where[0], where[1], f"coherence of {label} must be "
+                                   "finite and in [0, 1]", f"coh({label})")
+    if float(np.max(g)) < MIN_COHERENCE:
+        raise MeasurementFileError(source or "<measurement>", where[0], where[1], f"coherence of {label} is below "
+                                   f"{MIN_COHERENCE} at every frequency (max {float(np.max(g)):.3g}): the response "
+                                   "is not related to the excitation; re-measure or drop the pair", f"coh({label})")
+    low = float(np.mean(g < 0.5))
+    if low > 0.5:
+        warnings.warn(f"{source}: coherence of {label} is below 0.5 at {100 * low:.0f}% of the frequencies: "
+                      "the comparison rests on few points", MeasurementWarning, stacklevel=3)
 
 
 # ---- data classes -------------------------------------------------------------------------------------
@@ -95,6 +159,8 @@ class FrfData:
         self.coherence = {tuple(k): (None if v is None else np.asarray(v, float))
                           for k, v in (self.coherence or {}).items()}
         self.units = {tuple(k): v for k, v in (self.units or {}).items()}
+        for pair, g in self.coherence.items():
+            check_coherence(pair, g, self.source, self.locations.get(("column", pair), (None, None)))
 
 
 @dataclass

@@ -8,19 +8,14 @@ naming the file, the line and the column.
 
 from __future__ import annotations
 
-import csv
-import io
-import json
-import math
 import re
-from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from bscomp.kernel.units import UnitSyntaxError, convention_units, expected_dimension_ok, parse_unit
 from bscomp.linear.response import Frf
 from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData
+from bscomp.validate.parsing import read_table
 
 __all__ = ["read_frf_csv", "read_time_csv", "load", "load_all"]
 
@@ -30,175 +25,14 @@ _FRF_COL = re.compile(r"^(re|im|mag|mag_db|phase_deg|phase_rad|coh)\((.+)\)$")
 _FRF_ARROW = re.compile(r"^(.+?)->(.+)\s+(re|im|mag|mag_db|phase_deg|phase_rad|coh)$")  # Frf.to_csv
 
 
-# ---- metadata --------------------------------------------------------------------------------------------
-@dataclass
-class _Meta:
-    kind: str | None = None
-    source: str | None = None
-    conditions: dict = field(default_factory=dict)
-    units: dict = field(default_factory=dict)      # name -> (text, where: (file, line, col))
-    roles: dict = field(default_factory=dict)      # name -> "input" | "output"
-    where: dict = field(default_factory=dict)      # key -> (file, line, col)
-
-
-def _value(text):
-    text = str(text).strip()
-    try:
-        return float(text)
-    except ValueError:
-        return text
-
-
-def _meta_set(meta, path, key, value, where):
-    """One metadata entry ``key: value``; ``key`` as in the comment syntax."""
-    key = key.strip()
-    words = key.split(None, 1)
-    head = words[0].lower() if words else ""
-    if head in ("kind", "source", "description", "name") and len(words) == 1:
-        if head == "kind":
-            v = str(value).strip().lower()
-            if v not in ("frf", "time"):
-                raise MeasurementFileError(where[0], where[1], where[2], f"kind must be 'frf' or 'time', got {v!r}")
-            meta.kind = v
-        elif head == "source":
-            meta.source = str(value).strip()
-        return
-    if head in ("condition", "unit", "input", "output") and len(words) == 2:
-        name = words[1].strip()
-        if head == "condition":
-            meta.conditions[name] = _value(value)
-        else:
-            if head in ("input", "output"):
-                meta.roles[name] = head
-            if str(value).strip():
-                meta.units[name] = (str(value).strip(), where)
-        meta.where[(head, name)] = where
-        return
-    raise MeasurementFileError(where[0], where[1], where[2],
-                               f"unknown metadata key {key!r}: use 'kind', 'source', 'condition NAME', "
-                               "'unit NAME', 'input NAME' or 'output NAME'")
-
-
-def _line_of(text, needle):
-    """(line, col) of the first occurrence of ``needle`` in ``text`` (1-based), or (None, None)."""
-    k = text.find(needle)
-    if k < 0:
-        return None, None
-    return text.count("\n", 0, k) + 1, k - (text.rfind("\n", 0, k) + 1) + 1
-
-
-def _sidecar(path: Path, meta: _Meta):
-    cands = [Path(str(path) + ".json"), Path(str(path) + ".toml"), path.with_suffix(".json"),
-             path.with_suffix(".toml")]
-    for sc in cands:
-        if sc == path or not sc.is_file():
-            continue
-        text = sc.read_text(encoding="utf-8")
-        if sc.suffix == ".json":
-            try:
-                d = json.loads(text)
-            except json.JSONDecodeError as exc:
-                raise MeasurementFileError(sc, exc.lineno, exc.colno, f"invalid JSON: {exc.msg}") from exc
-        else:
-            import tomllib  # Python >= 3.11; TOML sidecars only
-
-            try:
-                d = tomllib.loads(text)
-            except tomllib.TOMLDecodeError as exc:
-                m = re.search(r"line (\d+), column (\d+)", str(exc))
-                raise MeasurementFileError(sc, int(m.group(1)) if m else None, int(m.group(2)) if m else None,
-                                           f"invalid TOML: {exc}") from exc
-        if not isinstance(d, dict):
-            raise MeasurementFileError(sc, 1, 1, "the sidecar must hold a table/object of metadata")
-
-        def at(key, text=text, sc=sc):
-            ln, col = _line_of(text, f'"{key}"' if sc.suffix == ".json" else key)
-            return (sc, ln, col)
-
-        for k, v in d.items():
-            if k in ("kind", "source", "description", "name"):
-                _meta_set(meta, sc, k, v, at(k))
-            elif k in ("conditions", "units", "inputs", "outputs"):
-                if not isinstance(v, dict):
-                    w = at(k)
-                    raise MeasurementFileError(w[0], w[1], w[2], f"'{k}' must map names to values")
-                sub = {"conditions": "condition", "units": "unit", "inputs": "input", "outputs": "output"}[k]
-                for name, val in v.items():
-                    _meta_set(meta, sc, f"{sub} {name}", val, at(name))
-            else:
-                w = at(k)
-                raise MeasurementFileError(w[0], w[1], w[2], f"unknown sidecar key {k!r}: use kind, source, "
-                                           "conditions, units, inputs, outputs")
-        return sc
-    return None
-
-
-def _read(path):
-    """(meta, header, header_line, rows[(line, fields)]) of a CSV file."""
-    path = Path(path)
-    if not path.is_file():
-        raise MeasurementFileError(path, None, None, "no such file")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise MeasurementFileError(path, None, None, f"not a UTF-8 text file ({exc})") from exc
-    meta = _Meta()
-    _sidecar(path, meta)
-    lines = text.splitlines()
-    header, header_line, rows = None, None, []
-    for ln, line in enumerate(lines, start=1):
-        s = line.strip()
-        if not s:
-            continue
-        if s.startswith("#"):
-            body = s[1:].strip()
-            if header is None and body:
-                key, colon, value = body.partition(":")
-                if colon:
-                    vcol = line.find(":") + 2 + (len(value) - len(value.lstrip()))
-                    _meta_set(meta, path, key, value, (path, ln, vcol))
-                elif body.split()[0].lower() in ("input", "output") and len(body.split()) == 2:
-                    _meta_set(meta, path, body, "", (path, ln, len(line) + 1))  # declared, unit missing
-            continue
-        fields = next(csv.reader(io.StringIO(line), skipinitialspace=True))
-        fields = [f.strip() for f in fields]
-        if header is None:
-            header, header_line = fields, ln
-        else:
-            rows.append((ln, fields))
-    if header is None:
-        raise MeasurementFileError(path, len(lines) or 1, 1, "empty file: no header row and no data")
-    if not rows:
-        raise MeasurementFileError(path, header_line, 1, "no data rows after the header")
-    seen = {}
-    for c, name in enumerate(header, start=1):
-        if not name:
-            raise MeasurementFileError(path, header_line, c, "empty column name in the header")
-        if name in seen:
-            raise MeasurementFileError(path, header_line, c, f"column {name!r} repeats column {seen[name]}", name)
-        seen[name] = c
-    return path, meta, header, header_line, rows
-
-
-def _matrix(path, header, rows):
-    """Float matrix (n_rows, n_cols); NaN/inf/non-numeric and ragged rows raise naming line and column."""
-    n = len(header)
-    A = np.empty((len(rows), n))
-    for r, (ln, fields) in enumerate(rows):
-        if len(fields) != n:
-            c = min(len(fields), n) + 1
-            raise MeasurementFileError(path, ln, c, f"row has {len(fields)} fields, the header has {n}",
-                                       header[c - 1] if c <= n else None)
-        for c, txt in enumerate(fields):
-            try:
-                v = float(txt)
-            except ValueError:
-                raise MeasurementFileError(path, ln, c + 1, f"{txt!r} is not a number", header[c]) from None
-            if not math.isfinite(v):
-                raise MeasurementFileError(path, ln, c + 1, f"value {txt!r} is not finite (NaN or inf): remove "
-                                           "the row or fill the gap", header[c])
-            A[r, c] = v
-    return A
+def _finite(path, x, rows, col, name, what):
+    """Values must stay finite after conversion to SI (``mag_db`` of 7000 overflows 10**(x/20))."""
+    bad = np.flatnonzero(~np.isfinite(x))
+    if bad.size:
+        k = int(bad[0])
+        raise MeasurementFileError(path, rows.line(k), col, f"{what} is not finite after conversion to SI (value "
+                                   f"{float(rows.A[k, col - 1])!r} in the file): out of range of a float", name)
+    return x
 
 
 def _increasing(path, x, rows, col, name, what):
@@ -206,7 +40,7 @@ def _increasing(path, x, rows, col, name, what):
     bad = np.flatnonzero(d <= 0)
     if bad.size:
         k = int(bad[0]) + 1
-        raise MeasurementFileError(path, rows[k][0], col, f"{what} is not strictly increasing ({x[k]:.6g} after "
+        raise MeasurementFileError(path, rows.line(k), col, f"{what} is not strictly increasing ({x[k]:.6g} after "
                                    f"{x[k - 1]:.6g}): sort the rows and remove duplicates", name)
 
 
@@ -268,7 +102,7 @@ def read_frf_csv(path) -> FrfData:
     """Read an FRF file (columns ``f``, then ``re(out/in)``/``im(out/in)`` or ``mag``/``mag_db`` with
     ``phase_deg``/``phase_rad``, optional ``coh``; or the ``<in>-><out> re`` columns of
     :meth:`bscomp.linear.response.Frf.to_csv`); see ``docs/measurements.md``."""
-    path, meta, header, hl, rows = _read(path)
+    path, meta, header, hl, rows = read_table(path)
     return _frf_from(path, meta, header, hl, rows)
 
 
@@ -278,11 +112,11 @@ def _frf_from(path, meta, header, hl, rows):
     if header[0].lower() not in _FREQ_NAMES:
         raise MeasurementFileError(path, hl, 1, f"the first column of an FRF file must be the frequency "
                                    f"(one of {list(_FREQ_NAMES)}), got {header[0]!r}", header[0])
-    A = _matrix(path, header, rows)
-    f = A[:, 0] * _frequency_scale(path, meta, header, hl)
+    A = rows.A
+    f = _finite(path, A[:, 0] * _frequency_scale(path, meta, header, hl), rows, 1, header[0], "frequency")
     if np.any(f < 0):
         k = int(np.flatnonzero(f < 0)[0])
-        raise MeasurementFileError(path, rows[k][0], 1, "negative frequency", header[0])
+        raise MeasurementFileError(path, rows.line(k), 1, "negative frequency", header[0])
     _increasing(path, f, rows, 1, header[0], "frequency")
     cols: dict = {}
     written = set()                      # pairs in the columns of Frf.to_csv (SI, units implied by the names)
@@ -298,14 +132,15 @@ def _frf_from(path, meta, header, hl, rows):
         pname = f"{out}/{inp}"
         first = min(c for c, _ in d.values())
         loc[("column", (inp, out))] = (hl, first)
-        h = _pair_response(path, header, hl, rows, pname, d, first)
+        with np.errstate(over="ignore", invalid="ignore"):
+            h = _pair_response(path, header, hl, rows, pname, d, first)
         coh[(inp, out)] = None
         if "coh" in d:
             c, g = d["coh"]
             bad = np.flatnonzero((g < 0) | (g > 1))
             if bad.size:
                 k = int(bad[0])
-                raise MeasurementFileError(path, rows[k][0], c, f"coherence {g[k]:.6g} outside [0, 1]", header[c - 1])
+                raise MeasurementFileError(path, rows.line(k), c, f"coherence {g[k]:.6g} outside [0, 1]", header[c - 1])
             coh[(inp, out)] = g
         if pname not in meta.units and (inp, out) in written:
             meta.units[pname] = (Frf.pair_unit(out, inp), (path, hl, first))
@@ -313,7 +148,8 @@ def _frf_from(path, meta, header, hl, rows):
         w = meta.units[pname][1]
         loc[("unit", (inp, out))] = (w[1], w[2])
         _check_frf_unit(pname, out, inp, u, meta, w)
-        H[(inp, out)] = h * u.scale
+        with np.errstate(over="ignore", invalid="ignore"):
+            H[(inp, out)] = _finite(path, h * u.scale, rows, first, header[first - 1], f"response {pname}")
         units[(inp, out)] = u.si
     extra = [n for n in meta.units if "/" in n and n not in {f"{o}/{i}" for i, o in H}]
     if extra:
@@ -378,7 +214,7 @@ def _pair_response(path, header, hl, rows, pname, d, first):
                                            "magnitude and one phase column that agree)", header[c - 1])
             bad = np.flatnonzero(np.abs(_polar(path, header, rows, d, mags[0], phs[0]) - h) > 1e-6 * np.abs(h))
             if bad.size:
-                raise MeasurementFileError(path, rows[int(bad[0])][0], c, f"{pname}: magnitude/phase disagree with "
+                raise MeasurementFileError(path, rows.line(int(bad[0])), c, f"{pname}: magnitude/phase disagree with "
                                            "re/im", header[c - 1])
         return h
     if "coh" in d and len(d) == 1:
@@ -398,7 +234,7 @@ def _polar(path, header, rows, d, mag_key, phase_key):
         mag = 10.0 ** (mag / 20.0)
     elif np.any(mag < 0):
         k = int(np.flatnonzero(mag < 0)[0])
-        raise MeasurementFileError(path, rows[k][0], d["mag"][0], "negative magnitude", header[d["mag"][0] - 1])
+        raise MeasurementFileError(path, rows.line(k), d["mag"][0], "negative magnitude", header[d["mag"][0] - 1])
     ph = d[phase_key][1]
     return mag * np.exp(1j * (np.radians(ph) if phase_key == "phase_deg" else ph))
 
@@ -406,7 +242,7 @@ def _polar(path, header, rows, d, mag_key, phase_key):
 # ---- time series ------------------------------------------------------------------------------------------
 def read_time_csv(path) -> TimeData:
     """Read a time-series file (column ``t``, then channels declared as inputs or outputs with units)."""
-    path, meta, header, hl, rows = _read(path)
+    path, meta, header, hl, rows = read_table(path)
     return _time_from(path, meta, header, hl, rows)
 
 
@@ -416,7 +252,7 @@ def _time_from(path, meta, header, hl, rows):
     if header[0].lower() not in _TIME_NAMES:
         raise MeasurementFileError(path, hl, 1, f"the first column of a time-series file must be the time "
                                    f"('t'), got {header[0]!r}", header[0])
-    A = _matrix(path, header, rows)
+    A = rows.A
     t = A[:, 0]
     if header[0] in meta.units:
         u = _unit(path, meta, header[0], (path, hl, 1))
@@ -424,10 +260,10 @@ def _time_from(path, meta, header, hl, rows):
             w = meta.units[header[0]][1]
             raise MeasurementFileError(w[0], w[1], w[2], f"wrong unit {u.text!r} for the time: use s or ms",
                                        header[0])
-        t = t * u.scale
+        t = _finite(path, t * u.scale, rows, 1, header[0], "time")
     _increasing(path, t, rows, 1, header[0], "time")
     if len(t) < 2:
-        raise MeasurementFileError(path, rows[0][0], 1, "a time series needs at least two samples", header[0])
+        raise MeasurementFileError(path, rows.line(0), 1, "a time series needs at least two samples", header[0])
     inputs, outputs, units, loc = {}, {}, {}, {}
     for c, name in enumerate(header[1:], start=2):
         role = meta.roles.get(name)
@@ -439,7 +275,8 @@ def _time_from(path, meta, header, hl, rows):
         u = _unit(path, meta, name, (path, hl, c))
         w = meta.units[name][1]
         _check_convention(name, u, w)
-        (inputs if role == "input" else outputs)[name] = A[:, c - 1] * u.scale
+        (inputs if role == "input" else outputs)[name] = _finite(path, A[:, c - 1] * u.scale, rows, c, name,
+                                                                 f"channel {name!r}")
         units[name] = u.si
         loc[("column", name)] = (hl, c)
         loc[("unit", name)] = (w[1], w[2])
@@ -460,7 +297,7 @@ def _time_from(path, meta, header, hl, rows):
 # ---- dispatch ----------------------------------------------------------------------------------------------
 def load(path):
     """Read an FRF or time-series file, deciding by the ``kind`` metadata or else the first column name."""
-    path, meta, header, hl, rows = _read(path)
+    path, meta, header, hl, rows = read_table(path)
     kind = meta.kind
     if kind is None:
         first = header[0].lower()

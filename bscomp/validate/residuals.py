@@ -27,7 +27,7 @@ from bscomp.linear.response import frf
 from bscomp.model import ModelSpec, as_system, build_keywords, model_name
 from bscomp.simulation.compiled import nonlinear_elements
 from bscomp.simulation.dispatch import simulate
-from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData
+from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData, check_condition
 
 __all__ = ["model_frf", "model_time", "frf_residuals", "time_residuals", "cost", "fit_percent",
            "build_for", "frf_errors", "frf_at", "simulate_for", "simulate_at", "check_channels",
@@ -65,7 +65,8 @@ def build_for(system_or_build, conditions: dict | None = None, params: dict | No
     source : str, optional
         The dataset's name, for the warning.
     """
-    conditions = dict(conditions or {})
+    conditions = {k: check_condition(k, v, (source or "<measurement>", None, None))
+                  for k, v in (conditions or {}).items()}      # never a file path, never a parameter set
     plain = {k: v for k, v in conditions.items() if "." not in k}
     dotted = {k: v for k, v in conditions.items() if "." in k}
     if isinstance(system_or_build, System):
