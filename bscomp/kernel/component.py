@@ -151,8 +151,8 @@ class Parameter:
         try:
             number, given = parse_quantity(text)
         except UnitSyntaxError as exc:
-            raise ParameterError(f"parameter {where} [{self.unit}]: cannot read {text!r} as '<number> <unit>' "
-                                 f"({exc}); e.g. '1 {self.units[0].text}'") from None
+            raise ParameterError(f"parameter {where} [{self.unit}] must be a number or a '<number> <unit>' "
+                                 f"string, got {text!r} ({exc}); e.g. '1 {self.units[0].text}'") from None
         if given is None:
             return number
         if len(self.units) != 1:
