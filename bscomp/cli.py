@@ -1,5 +1,5 @@
 """Command line: a thin layer over the library (``bscomp demo``, ``systems``, ``modes``, ``frf``,
-``compare``, ``diagnose``).
+``compare``, ``diagnose``, ``fmu``).
 
 One error boundary (:func:`main`): every failure is one line ``bscomp <verb>: <ErrorName>: what is wrong --
 how to fix it`` on stderr (with ``--json``: a JSON object ``{"error", "type", "hint"}`` on stdout), exit
@@ -265,6 +265,20 @@ def _systems(args) -> int:
     return 0
 
 
+def _fmu(args) -> int:
+    """``bscomp fmu SYSTEM -o drive.fmu``: an FMI 3.0 model-exchange FMU of the drive (docs/fmu.md)."""
+    from bscomp.files import writable_path
+    from bscomp.fmu import export_fmu
+
+    writable_path(args.output_file, "-o file", (".fmu",))
+    params = args.parameter or ()
+    params = "all" if list(params) == ["all"] else params
+    path = export_fmu(args.system, args.output_file, inputs=args.input or None, outputs=args.output or None,
+                      parameters=params, overrides=_parse_set(args.set) or None)
+    print(f"written {path}")
+    return 0
+
+
 def _add_system_args(p):
     p.add_argument("system", help="a system registered in bscomp.systems (see `bscomp systems`) or a .py file "
                                   "defining build()")
@@ -372,6 +386,18 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the diagnosis as JSON")
     p.add_argument("--verbose", action="store_true", help="print each round's fits (debug lines)")
     p.set_defaults(func=_diagnose)
+
+    p = sub.add_parser("fmu", parents=[common], help="export the drive as an FMI 3.0 model-exchange FMU (Simulink, "
+                                                      "OpenModelica, FMPy; needs gcc)")
+    p.add_argument("system", help="a system registered in bscomp.systems or a .py file defining build()")
+    p.add_argument("-o", "--output-file", required=True, metavar="FILE.fmu", help="the FMU to write")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="parameter or build override fixed in the FMU (repeatable)")
+    p.add_argument("--parameter", action="append", metavar="NAME",
+                   help="parameter exposed as a tunable FMU parameter (repeatable; 'all': every non-structural one)")
+    p.add_argument("--input", action="append", help="input exposed (repeatable; default all)")
+    p.add_argument("--output", action="append", help="output exposed (repeatable; default the measured outputs)")
+    p.set_defaults(func=_fmu)
     return parser
 
 

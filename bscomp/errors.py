@@ -22,6 +22,8 @@ __all__ = [
     "UsageError",
     "ModelLimitationWarning",
     "check_number",
+    "FmuExportError",
+    "CompilerNotFoundError",
 ]
 
 
@@ -133,3 +135,11 @@ def check_number(name: str, value, *, positive: bool = False, nonnegative: bool 
     if minimum is not None and v < minimum:
         raise error(f"{name} must be >= {minimum}, got {value!r}")
     return v
+
+
+class FmuExportError(BscompError):
+    """A model cannot be exported as an FMU as asked (bad path, structural tunable parameter, name clash...)."""
+
+
+class CompilerNotFoundError(FmuExportError):
+    """The C compiler needed to build an FMU binary is not on PATH."""

@@ -1,0 +1,296 @@
+"""FMU export: a flattened drive as an FMI 3.0 model-exchange FMU (CasADi ``DaeBuilder``).
+
+The FMU is an ODE ``x' = f(x, u, p)`` with outputs ``y = g(x, u, p)``, because an FMI importer (FMPy,
+Simulink's FMU Import block, OpenModelica, Dymola) integrates the states it is given and solves no
+algebraic equations. The bscomp DAE ``F(x', x, z, u, p) = 0`` is index 1 with ``w = (x', z)`` entering
+it affinely for every drive bscomp builds (linear structures, friction and backlash act through
+positions and velocities, which are states), so
+
+.. math:: F(w) = F(0) + W w, \\qquad w = -W^{-1} F(0, x, 0, u, p), \\qquad W = [\\partial F/\\partial x',
+   \\partial F/\\partial z]
+
+is exact. ``W`` depends on the tunable parameters only (masses and inertias), so the generated C code
+factorises the sparse ``W`` (CasADi's ``qr`` linear solver, code-generated) at each call: changing a
+tunable mass in the importer acts like :meth:`bscomp.System.set`. Parameters that are not exported are
+folded in as constants; structural ones (baked into FE or constraint matrices) cannot be tunable.
+
+Pipeline: ``DaeBuilder.export_fmu`` (C sources and a ``modelDescription.xml``) -> the description is
+rewritten (:mod:`bscomp._fmu_xml`: structured names, units, descriptions, model structure) ->
+``compile_fmu`` (gcc, ``-O2``, the FMI 3.0 headers pinned in ``bscomp/fmi3/``) -> ``pack_fmu`` to a
+temporary file renamed onto the target (never a half-written ``.fmu``). See ``docs/fmu.md``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from bscomp import __version__
+from bscomp._fmu_meta import input_meta, output_meta, parameter_meta, state_meta
+from bscomp._fmu_xml import FmuVariable, derivative_name, derivative_unit, structured_name, write_model_description
+from bscomp.errors import CompilerNotFoundError, FmuExportError, UnknownNameError
+from bscomp.files import atomic_path, writable_path
+from bscomp.model import as_dae
+
+__all__ = ["export_fmu", "FMI3_HEADERS"]
+
+#: Folder with the FMI 3.0 headers (2-Clause BSD, Modelica Association) the FMU is compiled against.
+FMI3_HEADERS = Path(__file__).with_name("fmi3")
+
+
+def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overrides: dict | None = None,
+               compiler: str | None = None, flags=("-O2",)) -> Path:
+    """Write a drive as an FMI 3.0 model-exchange FMU.
+
+    Parameters
+    ----------
+    system : str, path, ModelSpec, build function, System or Dae
+        Anything :func:`bscomp.model.as_dae` takes: a registered system name
+        (``"testbed_axial_torsional"``), a ``.py`` file defining ``build()``, a System or a flattened Dae.
+    path : path-like
+        Target file, ending in ``.fmu``. Written to a temporary file first and renamed.
+    inputs : list of str, optional
+        System inputs exposed as FMU inputs (default: all); the others are held at zero.
+    outputs : list of str, optional
+        Observables exposed as FMU outputs (``"table.a"``...). Default: the system's declared measured
+        outputs (``system.validation.outputs``), else every state.
+    parameters : list of str or "all"
+        Parameters exposed as tunable FMU parameters (dotted names); the rest are constants of the FMU at
+        their current values. ``"all"``: every non-structural parameter.
+    overrides : dict, optional
+        Parameter / build overrides applied before flattening (``{"coupling.k_T": 45940}``).
+    compiler : str, optional
+        C compiler executable (default ``gcc``; ``cl.exe`` on Windows).
+    flags : sequence of str
+        Compiler flags (default ``-O2``: ~5x faster derivatives than CasADi's default ``-O0``).
+
+    Returns
+    -------
+    Path
+        The written FMU.
+
+    Raises
+    ------
+    OutputFileError
+        ``path`` does not end in ``.fmu``, is a folder, or its folder does not exist.
+    FmuExportError
+        A structural (or damping-dependent) tunable parameter, an output name clash, a DAE the explicit
+        form does not cover, or a failed compilation.
+    CompilerNotFoundError
+        No C compiler on PATH.
+    UnknownNameError
+        An input or output that the model does not have.
+    """
+    path = writable_path(path, "export_fmu: path", (".fmu",)).absolute()
+    cc = _find_compiler(compiler)
+    dae = as_dae(system, overrides)
+    inputs = _check_inputs(dae, inputs)
+    outputs = _default_outputs(dae) if outputs is None else list(outputs)
+    dae.output_expr(outputs)  # unknown names raise UnknownNameError here
+    tunable = _check_parameters(dae, parameters)
+    ident = re.sub(r"\W", "_", dae.name) or "model"
+    ident = ident if not ident[0].isdigit() else "m_" + ident
+    builder, plan = _builder(dae, ident, inputs, outputs, tunable)
+    cwd = os.getcwd()
+    with tempfile.TemporaryDirectory(prefix="bscomp_fmu_") as tmp, atomic_path(path) as target:
+        try:
+            os.chdir(tmp)                    # DaeBuilder writes and compiles in the current directory
+            files = builder.export_fmu({"no_warning": True, "with_serialization": False})
+            _describe(dae, builder, plan, Path(tmp) / "modelDescription.xml")
+            opts = {"include_dirs": [str(FMI3_HEADERS)],
+                    "compiler_options": {"compiler": cc, "compiler_flags": list(flags)}}
+            try:
+                files = builder.compile_fmu(files, opts)
+            except RuntimeError as exc:
+                raise FmuExportError(f"export_fmu: compiling the FMU of '{dae.name}' with {cc} failed: "
+                                     f"{str(exc).strip().splitlines()[-1]}") from exc
+            target.unlink()
+            packed = Path(builder.pack_fmu(files, {"path": str(target)}))
+            if packed.resolve() != target.resolve():
+                os.replace(packed, target)
+        finally:
+            os.chdir(cwd)
+    return path
+
+
+def _find_compiler(compiler):
+    cc = compiler or ("cl.exe" if sys.platform == "win32" else "gcc")
+    if shutil.which(cc) is None:
+        raise CompilerNotFoundError(
+            f"export_fmu needs a C compiler to build the FMU binary and '{cc}' is not on PATH: install one "
+            "(Debian/Ubuntu: apt-get install gcc; macOS: xcode-select --install; Windows: Visual Studio Build "
+            "Tools) or pass compiler='/path/to/cc'")
+    return cc
+
+
+def _check_inputs(dae, inputs):
+    if inputs is None:
+        return list(dae.u_names)
+    inputs = list(inputs)
+    bad = [n for n in inputs if n not in dae.u_names]
+    if bad:
+        raise UnknownNameError(f"export_fmu: '{bad[0]}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
+    return inputs
+
+
+def _default_outputs(dae):
+    val = getattr(dae.system, "validation", None)
+    outs = [o for o in (getattr(val, "outputs", None) or []) if o in dae.observables]
+    return outs or [n for n in dae.x_names if n in dae.observables]
+
+
+def _check_parameters(dae, parameters):
+    if isinstance(parameters, str):
+        if parameters != "all":
+            raise FmuExportError(f"export_fmu: parameters must be a list of names or 'all', got {parameters!r}")
+        return [n for n in dae.p_names if n not in dae.structural_parameters]
+    names = list(parameters or ())
+    for n in names:
+        if n in dae.structural_parameters:
+            raise FmuExportError(
+                f"export_fmu: parameter '{n}' is structural in '{dae.name}' (baked into the FE or constraint "
+                f"matrices), so the FMU cannot make it tunable: fix its value at export instead (overrides="
+                f"{{'{n}': value}}, CLI --set {n}=VALUE)")
+        if n not in dae.p_names:
+            close = [p for p in dae.p_names if p.split(".")[0] == n.split(".")[0]][:12]
+            raise UnknownNameError(f"export_fmu: '{dae.name}' has no parameter '{n}' (parameters of that "
+                                   f"component: {close})")
+    _check_damping_parameters(dae, names)
+    return names
+
+
+def _check_damping_parameters(dae, names):
+    """Refuse tunable masses / stiffnesses when the system's damping matrix is computed from M and K.
+
+    ``System.set`` re-flattens and recomputes such a damping matrix (modal damping), while a parameter of the
+    FMU could only change the mass or stiffness under the damping matrix of the export.
+    """
+    damping = getattr(dae, "system_damping", None) or getattr(dae.system, "damping", None)
+    if damping is None or not names:
+        return
+    q = [dae.xs[i] for i in dae.mech.q_in_x.values()]
+    J = ca.jacobian(dae.F_sx, ca.vertcat(dae.xds, *q)) if q else ca.jacobian(dae.F_sx, dae.xds)
+    for n in names:
+        if ca.depends_on(J, dae.ps[dae.p_names.index(n)]):
+            raise FmuExportError(
+                f"export_fmu: parameter '{n}' enters the mass or stiffness of '{dae.name}', whose damping matrix "
+                f"({type(damping).__name__}) is computed from M and K at flattening: System.set would "
+                "recompute it, an FMU parameter cannot. Fix the value at export instead (overrides=, CLI --set)")
+
+
+def _builder(dae, ident, inputs, outputs, tunable):
+    """The DaeBuilder of the explicit ODE (internal names ``x3``, ``u0``, ``p1``, ``y2``) and the naming plan."""
+    w_all = ca.vertcat(dae.xds, dae.zs)
+    if w_all.numel() and ca.depends_on(ca.jacobian(dae.F_sx, w_all), w_all):
+        rows = [dae.eq_origin[i] for i in range(dae.F_sx.numel())
+                if ca.depends_on(ca.jacobian(dae.F_sx[i], w_all), w_all)][:6]
+        raise FmuExportError(
+            f"export_fmu: '{dae.name}' enters its derivatives or algebraic variables nonlinearly (equations of "
+            f"{rows}), e.g. a nonlinear law on a massless coordinate; the FMU needs the explicit form x' = f(x, u, "
+            "p), exact only for an affine dependence. Give that coordinate a (small) mass or damper")
+    b = ca.DaeBuilder(ident)
+    X = [b.add(f"x{i}", {"start": float(dae.x_start[i])}) for i in range(dae.nx)]
+    U = {n: b.add(f"u{k}", "input", {"start": 0.0}) for k, n in enumerate(inputs)}
+    T = {n: b.add(f"p{k}", "parameter", "tunable", {"start": float(dae.p0[dae.p_names.index(n)])})
+         for k, n in enumerate(tunable)}
+    x = ca.vertcat(*X) if X else ca.MX(0, 1)
+    u = ca.vertcat(*[U.get(n, ca.MX(0.0)) for n in dae.u_names]) if dae.nu else ca.MX(0, 1)
+    p = ca.vertcat(*[T.get(n, ca.MX(float(v))) for n, v in zip(dae.p_names, dae.p0)]) if dae.np else ca.MX(0, 1)
+    res, Jxd, _, Jz, _ = dae.jacobians(ca.MX.zeros(dae.nx), x, ca.MX.zeros(dae.nz), u, p)
+    w = -ca.solve(ca.horzcat(Jxd, Jz), res, "qr") if dae.nx + dae.nz else ca.MX(0, 1)
+    xd, z = w[:dae.nx], w[dae.nx:]
+    y = dae.output_function(outputs)(xd, x, z, u, p) if outputs else ca.MX(0, 1)
+    for i in range(dae.nx):
+        b.eq(b.der(X[i]), xd[i])
+    Y = []
+    for j in range(len(outputs)):
+        Y.append(b.add(f"y{j}", "output"))
+        b.eq(Y[j], y[j])
+    known = ca.vertcat(x, *U.values()) if U else x
+    plan = {"inputs": inputs, "outputs": outputs, "tunable": tunable,
+            "dep_xd": _dependencies(xd, known), "dep_y": _dependencies(y, known),
+            "out_syms": [dae.output_expr([o]) for o in outputs]}
+    return b, plan
+
+
+def _dependencies(expr, known):
+    """Row -> columns of ``known`` (states, then inputs) that ``expr`` depends on (structural)."""
+    if expr.numel() == 0:
+        return []
+    S = ca.jacobian_sparsity(expr, known)
+    cols = [[] for _ in range(S.size1())]
+    for r, c in zip(*S.get_triplet()):
+        cols[r].append(c)
+    return cols
+
+
+def _describe(dae, b, plan, xml_path):
+    """Rewrite CasADi's model description with public names, units and the model structure."""
+    system = dae.system
+    vr = b.value_reference
+    x_vr = [vr(f"x{i}") for i in range(dae.nx)]
+    u_vr = [vr(f"u{k}") for k in range(len(plan["inputs"]))]
+    names = {n: i for i, n in enumerate(dae.x_names)}
+    public = {}                                           # public name -> kind, for clash checks
+    variables, derivs, initial = [], [], []
+    state_vars = []
+    for i, n in enumerate(dae.x_names):
+        unit, desc = state_meta(dae, i)
+        v = FmuVariable(structured_name(n), x_vr[i], initial="exact", start=float(dae.x_start[i]), unit=unit,
+                        description=desc)
+        state_vars.append(v)
+        public[v.name] = "state"
+    for i, n in enumerate(dae.x_names):
+        dn = derivative_name(n)
+        if dn in names:                                   # the velocity state is this state's derivative
+            state_vars[names[dn]].derivative = x_vr[i]
+            derivs.append((x_vr[names[dn]], i))
+            continue
+        unit, _ = state_meta(dae, i)
+        v = FmuVariable(structured_name(dn), vr(f"der(x{i})"), initial="calculated", derivative=x_vr[i],
+                        unit=derivative_unit(unit), description=f"time derivative of {n}")
+        variables.append(v)
+        derivs.append((v.vr, i))
+        public[v.name] = "derivative"
+    for k, n in enumerate(plan["inputs"]):
+        unit, desc = input_meta(dae, n)
+        variables.append(FmuVariable(structured_name(n), u_vr[k], causality="input", start=0.0, unit=unit,
+                                     description=desc))
+        public[structured_name(n)] = "input"
+    for k, n in enumerate(plan["tunable"]):
+        unit, desc, lo, hi = parameter_meta(system, n)
+        variables.append(FmuVariable(structured_name(n), vr(f"p{k}"), causality="parameter", variability="tunable",
+                                     initial="exact", start=float(dae.p0[dae.p_names.index(n)]), unit=unit,
+                                     description=desc, min=lo, max=hi))
+        public[structured_name(n)] = "parameter"
+    outputs = []
+    for j, n in enumerate(plan["outputs"]):
+        sn, e = structured_name(n), plan["out_syms"][j]
+        if public.get(sn) == "state" and e.is_symbolic() and e.name() == n:
+            st = state_vars[names[n]]                     # the state itself is the output
+            st.causality = "output"
+            outputs.append((st.vr, [names[n]]))
+            continue
+        if sn in public:
+            raise FmuExportError(f"export_fmu: output '{n}' has the name of an FMU {public[sn]}; leave it out of "
+                                 "outputs (the importer reads it there already) or rename the observable")
+        unit, desc = output_meta(dae, n, e)
+        v = FmuVariable(sn, vr(f"y{j}"), causality="output", initial="calculated", unit=unit, description=desc)
+        variables.append(v)
+        outputs.append((v.vr, plan["dep_y"][j]))
+        public[sn] = "output"
+    known_vr = x_vr + u_vr
+    out_entries = [(v, sorted({known_vr[c] for c in cols})) for v, cols in outputs]
+    der_entries = [(v, sorted({known_vr[c] for c in plan["dep_xd"][i]})) for v, i in derivs]
+    initial = sorted(v.vr for v in variables if v.initial == "calculated")
+    write_model_description(xml_path, state_vars + variables, out_entries, der_entries, initial,
+                            description=getattr(system, "description", "") or dae.name,
+                            generation_tool=f"bscomp {__version__} (CasADi {ca.__version__} DaeBuilder)")
+    return np.asarray(x_vr)
