@@ -34,6 +34,7 @@ _LAZY = {
     "cms_reduce": "bscomp.linear", "simulate": "bscomp.simulation", "SimulationResult": "bscomp.simulation",
     "CompiledModel": "bscomp.simulation", "Ocp": "bscomp.optimal", "compare": "bscomp.validate",
     "diagnose": "bscomp.validate", "calibrate": "bscomp.validate", "load": "bscomp.validate",
+    "export_fmu": "bscomp.fmu", "design_study": "bscomp.design_sweep", "ModelSpec": "bscomp.model",
 }
 
 __all__ = [

@@ -38,7 +38,6 @@ import sys
 import time
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 from threadpoolctl import threadpool_limits
 
 from bscomp.kernel.interface import NotApplicable
@@ -47,6 +46,7 @@ from bscomp.validate.candidates import default_candidates
 from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
 from bscomp.validate.evaluation import Problem
+from bscomp.validate.refinement import job_base, refine_candidate, refine_task
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
 
@@ -133,7 +133,7 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
              n_refine: int = 3, bic_threshold: float = 10.0, min_drop: float = 0.5, min_heldout_drop: float = 0.25,
              noise_tolerance: float = 0.5, overrides: dict | None = None, verbose: bool = False,
              progress: bool | None = None, default_spread: float = 0.2, n_screen: int = 5, n_scan: int = 21,
-             **_legacy) -> Diagnosis:
+             executor=None, **_legacy) -> Diagnosis:
     """Find the physical effects the model is missing (see the module docstring).
 
     Parameters
@@ -158,6 +158,10 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
         conditions.
     progress : bool, optional
         Progress bar on stderr (default: when stderr is a terminal).
+    executor : concurrent.futures.Executor, optional
+        Run each round's candidate fits (the least-squares refinements) on it, e.g. a process pool or a Dask
+        ``Client.get_executor()``; the model travels as its name / path / ModelSpec and each worker builds
+        its evaluators once (:mod:`bscomp.validate.refinement`). Same result as the serial run.
 
     Returns
     -------
@@ -172,11 +176,13 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
     with threadpool_limits(limits=1, user_api="blas"):
         return _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_refine, bic_threshold,
                          min_drop, min_heldout_drop, noise_tolerance, overrides, verbose, progress, default_spread,
-                         n_screen, n_scan)
+                         n_screen, n_scan, None if executor is None else
+                         (executor, job_base(system_or_build, datasets, overrides)))
 
 
 def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_refine, bic_threshold, min_drop,
-              min_heldout_drop, noise_tolerance, overrides, verbose, progress, default_spread, n_screen, n_scan):
+              min_heldout_drop, noise_tolerance, overrides, verbose, progress, default_spread, n_screen, n_scan,
+              remote):
     t_start = time.perf_counter()
     if isinstance(datasets, (FrfData, TimeData)):
         datasets = [datasets]
@@ -227,7 +233,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         unc_start = dict(unc_values)
         unc_nominal = {k: float(ref.get(k)) for k in unc} if rnd == 1 else dict(unc_values)
         ctx = dict(structures=structures, sigmas=sigmas, ref=ref, unc=unc, has_frf=has_frf, n_scan=n_scan,
-                   n_screen=n_screen, n_refine=n_refine, prog=prog, skipped=skipped)
+                   n_screen=n_screen, n_refine=n_refine, prog=prog, skipped=skipped, remote=remote)
         results, n = _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, **ctx)
         n_evals += n
         results.sort(key=lambda r: (not r.refined, _score(r), r.delta_bic))
@@ -306,7 +312,7 @@ def _applicable(candidates, ref, unc):
 
 
 def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, structures, sigmas, ref, unc,
-           has_frf, n_scan, n_screen, n_refine, prog, skipped):
+           has_frf, n_scan, n_screen, n_refine, prog, skipped, remote=None):
     """One round: screen every candidate of the pool on top of the effects accepted so far, refine the
     best ``n_refine``; returns ([EffectFit], evaluations)."""
     n_evals = 0
@@ -346,6 +352,12 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
                                                     default=np.inf))
         refine |= {x[1].name for x in by_set[:max(n_refine - 1, 1)]}
     refine |= {x[1].name for x in screened[:n_refine]}
+    futures = {}
+    if remote is not None:                       # the refinements on the executor, collected in order below
+        executor, job = remote
+        futures = {cand.name: executor.submit(refine_task, job, unc, cand, effects, scores, unc_nominal,
+                                              has_frf and rnd > 1, rnd)
+                   for _e, cand, effects, scores in screened if cand.name in refine}
     results = []
     for _e, cand, effects, scores in screened:
         ev, st = structures.get(effects)
@@ -355,7 +367,8 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
         pr = Problem(ev, sigmas, {}, parameter_bounds(ref, unc, unc_nominal), effects_free, st)
         if cand.name in refine:
             prog.step(f"fit {cand.name}")
-            th, sl, n = _refine(cand, effects, ev, st, sigmas, scores, pr, has_frf and rnd > 1, rnd)
+            th, sl, n = futures[cand.name].result() if cand.name in futures else \
+                refine_candidate(cand, effects, ev, st, sigmas, scores, pr, has_frf and rnd > 1, rnd)
             n_evals += n
             refined = True
         else:
@@ -439,37 +452,3 @@ def _screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen,
         nfev += pr0.nfev
     scores.sort(key=lambda x: x[0])
     return scores, nfev
-
-
-def _refine(cand, effects, ev, st, sigmas, scores, pr, frf_only, rnd):
-    """Least squares from the best screening point: the candidate alone (into the valley), then jointly
-    with the uncertain parameters and the effects accepted before (``pr``). Returns (theta, sol, nfev)."""
-    pr0 = Problem(ev, sigmas, dict(scores[0][2]), [], effects, st)
-    pr0.only_frf = frf_only and not cand.nonlinear
-    th0 = scores[0][1]
-    if cand.nonlinear:
-        th0 = _line_search(pr0, th0, [sc for sc in scores if sc[2] == scores[0][2]])
-    th0, _ = pr0.fit(th0, max_nfev=8 if cand.nonlinear else 15)
-    th_prev = pr.theta0()[:len(pr.free) - len(cand.parameters)]   # uncertain + earlier effects
-    slow = cand.nonlinear or any(c.nonlinear for c, _, _ in effects)
-    th, sl = pr.fit(np.r_[th_prev, th0], max_nfev=(12 if rnd > 1 else 6) if slow else 20)
-    return th, sl, pr.nfev + pr0.nfev
-
-
-def _line_search(pr, th0, scores):
-    """Bounded Brent search on the first free parameter between the scan neighbours of ``th0``."""
-    xs = sorted(sc[1][0] for sc in scores if np.all(sc[1][1:] == th0[1:]))
-    i = int(np.argmin([abs(x - th0[0]) for x in xs]))
-    lo, hi = xs[max(i - 1, 0)], xs[min(i + 1, len(xs) - 1)]
-    if hi <= lo:
-        return th0
-
-    def f(x):
-        th = np.array(th0, float)
-        th[0] = x
-        return float(np.sum(pr.residual(th) ** 2))
-
-    res = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 2e-3})
-    th = np.array(th0, float)
-    th[0] = res.x if res.fun <= f(th0[0]) else th0[0]
-    return th

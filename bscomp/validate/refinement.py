@@ -1,0 +1,88 @@
+"""diagnose's candidate refinement: least squares from the best screening point, in this process or on a
+worker (``diagnose(..., executor=)``).
+
+What travels to a worker: the model as its registered name, ``.py`` path, :class:`~bscomp.model.ModelSpec`
+or a module-level build function (never a built System or compiled CasADi objects), the datasets
+(numbers), the overrides and the uncertain parameters, and per fit the candidate with its screening
+results. Each worker process builds the :class:`~bscomp.validate.calibration.FitSetup` (the models at the
+measurement conditions and their evaluators) once per diagnosis -- a token names it -- and keeps it for the
+following rounds.
+"""
+
+from __future__ import annotations
+
+import uuid
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+from threadpoolctl import threadpool_limits
+
+from bscomp.errors import UnknownNameError
+from bscomp.kernel.system import System
+from bscomp.validate.calibration import FitSetup, parameter_bounds
+from bscomp.validate.evaluation import Problem
+
+__all__ = ["refine_candidate", "job_base", "refine_task"]
+
+_CACHE: dict = {}
+"""(token, uncertain names) -> FitSetup, per worker process (the two latest diagnoses)."""
+
+
+def refine_candidate(cand, effects, ev, st, sigmas, scores, pr, frf_only, rnd):
+    """Least squares from the best screening point: the candidate alone (into the valley), then jointly
+    with the uncertain parameters and the effects accepted before (``pr``). Returns (theta, sol, nfev)."""
+    pr0 = Problem(ev, sigmas, dict(scores[0][2]), [], effects, st)
+    pr0.only_frf = frf_only and not cand.nonlinear
+    th0 = scores[0][1]
+    if cand.nonlinear:
+        th0 = _line_search(pr0, th0, [sc for sc in scores if sc[2] == scores[0][2]])
+    th0, _ = pr0.fit(th0, max_nfev=8 if cand.nonlinear else 15)
+    th_prev = pr.theta0()[:len(pr.free) - len(cand.parameters)]   # uncertain + earlier effects
+    slow = cand.nonlinear or any(c.nonlinear for c, _, _ in effects)
+    th, sl = pr.fit(np.r_[th_prev, th0], max_nfev=(12 if rnd > 1 else 6) if slow else 20)
+    return th, sl, pr.nfev + pr0.nfev
+
+
+def _line_search(pr, th0, scores):
+    """Bounded Brent search on the first free parameter between the scan neighbours of ``th0``."""
+    xs = sorted(sc[1][0] for sc in scores if np.all(sc[1][1:] == th0[1:]))
+    i = int(np.argmin([abs(x - th0[0]) for x in xs]))
+    lo, hi = xs[max(i - 1, 0)], xs[min(i + 1, len(xs) - 1)]
+    if hi <= lo:
+        return th0
+
+    def f(x):
+        th = np.array(th0, float)
+        th[0] = x
+        return float(np.sum(pr.residual(th) ** 2))
+
+    res = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 2e-3})
+    th = np.array(th0, float)
+    th[0] = res.x if res.fun <= f(th0[0]) else th0[0]
+    return th
+
+
+# ---- on a worker ----------------------------------------------------------------------------------------
+def job_base(system_or_build, datasets, overrides) -> tuple:
+    """The part of every fit's job that is the same for the whole diagnosis."""
+    if isinstance(system_or_build, System):
+        raise UnknownNameError(f"diagnose(executor=...): a built System ('{system_or_build.name}') cannot travel to "
+                               "a worker: pass the system's registered name, .py path, a ModelSpec or a module-level "
+                               "build function")
+    return (system_or_build, list(datasets), dict(overrides or {}), uuid.uuid4().hex)
+
+
+def refine_task(job, unc, cand, effects, scores, unc_nominal, frf_only, rnd):
+    """One candidate's refinement as ``diagnose`` does it in process: ``(theta, sol, nfev)``."""
+    model, datasets, overrides, token = job
+    key = (token, tuple(unc))
+    if key not in _CACHE:
+        _CACHE[key] = FitSetup.build(model, datasets, dict(unc), overrides)
+        while len(_CACHE) > 2:
+            _CACHE.pop(next(iter(_CACHE)))
+    setup = _CACHE[key]
+    with threadpool_limits(limits=1, user_api="blas"):
+        ev, st = setup.structures.get(effects)
+        effects_free = [(c, v, True) for c, v, _ in effects]
+        pr = Problem(ev, setup.sigmas, {}, parameter_bounds(setup.reference, unc, unc_nominal), effects_free, st)
+        return refine_candidate(cand, effects, ev, st, setup.sigmas, scores, pr, frf_only, rnd)
