@@ -27,8 +27,8 @@ CASES = [
     ("joint", {"table_mode"}, 0.80),
     ("friction", {"guideway_friction"}, 0.80),
     pytest.param("backlash", {"backlash"}, 0.50, marks=pytest.mark.xfail(
-        strict=True, reason="named first (compliant_backlash) but b -18 %, only 37 % of the excess error "
-                            "removed: see docs/validation.md, Results")),
+        strict=True, reason="compliant_backlash named first and accepted (error -99 %), but b +16 %: its "
+                            "parabolic corners are not the truth's softplus ones; see docs/validation.md, Results")),
     ("delay", {"delay"}, 0.80),
     ("joint_friction", {"table_mode", "guideway_friction"}, 0.80),
 ]

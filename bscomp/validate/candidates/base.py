@@ -35,6 +35,9 @@ class CandidateParameter:
         Prior spread: the prior is log-normal, ``ln(value) ~ N(ln(median), sigma_log^2)`` (used to draw
         extra starting points; the bounds are the hard limits).
     doc : str
+    linear : bool
+        True when the parameter shows in the small-signal (FRF) model of a nonlinear effect (a contact
+        stiffness): diagnose then takes its screening value from the FRFs before scanning the rest.
     """
 
     name: str
@@ -44,6 +47,7 @@ class CandidateParameter:
     median: float
     sigma_log: float = 1.0
     doc: str = ""
+    linear: bool = False
 
     def starts(self, n: int) -> list:
         """``n`` starting values: the median, then quantiles of the prior inside the bounds."""

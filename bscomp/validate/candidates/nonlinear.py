@@ -8,7 +8,7 @@ from bscomp.validate.candidates._edits import between, connected, insert_series
 from bscomp.validate.candidates.base import Candidate, CandidateParameter
 from bscomp.validate.candidates.hooks import DetachedBodyDamping
 
-__all__ = ["GuidewayFriction", "StribeckGuidewayFriction", "ScrewNutBacklash", "V_REG"]
+__all__ = ["GuidewayFriction", "StribeckGuidewayFriction", "ScrewNutBacklash", "CompliantBacklash", "V_REG"]
 
 
 V_REG = 5e-4
@@ -153,13 +153,30 @@ class ScrewNutBacklash(Candidate):
 
 
 class CompliantBacklash(ScrewNutBacklash):
-    """Backlash at the screw-nut with a **compliant** contact: clearance ``b`` and contact stiffness ``k``.
+    """Backlash at the screw-nut with a **compliant, progressive** contact: clearance ``b``, contact
+    stiffness ``k``, corner width ``w`` and the position ``x0`` of the nut in the gap at rest.
 
     A worn or lightly preloaded nut has both: a gap, and in contact an axial stiffness well below the
     rigid-contact value -- the FRF (measured in contact) sees the stiffness, the time series around
     every reversal the gap. Only where the ``screw_nut`` point is a connection (the FE drive's nut--table
     line): a :class:`~components.backlash.Backlash` in series with contact stiffness ``k`` (prior
     1e7..1e11 N/m). Same group as :class:`ScrewNutBacklash`: the better of the two is kept.
+
+    Two more free parameters describe what a real clearance does that a sharp dead zone does not:
+
+    * ``w``, the **corner width** as a fraction of ``b`` (the dead zone's ``eps = w b``, parabolic
+      corners): the balls of a worn nut do not all take load at the same axial deflection (ball-size
+      scatter, lead errors, Hertzian contact stiffening with load), so the contact stiffness comes in
+      over a travel of some fraction of the gap. Prior: log-normal, median 0.25, bounds 0.01..1 (1:
+      no flat part left), sigma_log 1 -- from sharp (a new nut) to fully progressive.
+    * ``x0``, **where the nut sits in the gap at t = 0**: ``s_rel0 = (1 - x0) b / 2``, so ``x0 = 1`` is the
+      centre, ``x0 -> 0`` / ``x0 -> 2`` the two flanks. A record starting from rest says nothing about which
+      flank the last motion left the contact on; the prior is centred (no preferred flank), bounds
+      0.05..1.95, sigma_log 0.5 (fitted in log space as every candidate parameter).
+
+    The linear part (FRF, modal damping) is the contact in engagement whatever ``x0``: the table is
+    detached from the drive's modal damping (:class:`DetachedBodyDamping`), so the start position
+    changes only the time series.
     """
 
     def __init__(self, contact_damping: float = 1e3):
@@ -167,7 +184,12 @@ class CompliantBacklash(ScrewNutBacklash):
         self.name = "compliant_backlash"
         self.title = "backlash at the screw-nut with a compliant contact"
         self.parameters = [self.parameters[0],
-                           CandidateParameter("k", "N/m", 1e7, 1e11, 3e9, 1.5, "axial contact stiffness")]
+                           CandidateParameter("k", "N/m", 1e7, 1e11, 3e9, 1.5, "axial contact stiffness",
+                                              linear=True),
+                           CandidateParameter("w", "1", 0.01, 1.0, 0.25, 1.0,
+                                              "corner width / b (the travel over which the contact comes in)"),
+                           CandidateParameter("x0", "1", 0.05, 1.95, 1.0, 0.5,
+                                              "position in the gap at rest (1: centred, 0 and 2: the flanks)")]
         self.signature = ("as backlash, and the drive's axial mode lower than modelled (the contact is softer "
                           "than the rigid nut-table bolting)")
 
@@ -178,6 +200,9 @@ class CompliantBacklash(ScrewNutBacklash):
                                 "connection to put a compliant clearance in")
         return point
 
+    def _gap(self, b, w=0.25, x0=1.0):
+        return {"b": b, "s_rel0": (1.0 - x0) * b / 2, "eps": w * b}
+
     def _edit(self, e, point, vi, for_engine):
         state = super()._edit(e, point, vi, for_engine)
         # on a joint already accepted the clearance takes that joint's stiffness (fitted there)
@@ -185,7 +210,8 @@ class CompliantBacklash(ScrewNutBacklash):
         return state
 
     def _overrides(self, values, state):
-        out = super()._overrides(values, state)
+        gap = self._gap(values["b"], values.get("w", 0.25), values.get("x0", 1.0))
+        out = {f"{state['element']}.{k}": v for k, v in gap.items()}
         if not state.get("merged"):
             out[f"{state['element']}.c"] = values["k"]
         return out
