@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from bscomp.errors import OutputFileError
+from bscomp.files import atomic_path
+
 
 def pyplot():
     """``matplotlib.pyplot`` with a non-interactive backend unless one is chosen (imported on first use)."""
@@ -20,6 +23,24 @@ def pyplot():
 
 
 _plt = pyplot
+
+
+def save_figure(fig, path, dpi=120):
+    """``fig.savefig(path)`` through a temporary file with the same suffix (format chosen by extension), renamed
+    into place when complete: a failing write leaves an existing figure intact.
+
+    Raises :class:`bscomp.errors.OutputFileError` for an extension matplotlib cannot write (before writing).
+    """
+    from pathlib import Path
+
+    suffix = Path(path).suffix.lower().lstrip(".")
+    known = fig.canvas.get_supported_filetypes()
+    if suffix not in known:
+        raise OutputFileError(f"figure file {str(path)!r} has the extension {('.' + suffix) if suffix else '(none)'!r}"
+                              f"; use one of {', '.join('.' + k for k in sorted(known))}")
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi)
+    return path
 
 
 def bode_plot(freqs_hz, H, labels=None, title="", path=None):
@@ -44,7 +65,7 @@ def bode_plot(freqs_hz, H, labels=None, title="", path=None):
         ax1.set_title(title)
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=120)
+        save_figure(fig, path, dpi=120)
         plt.close(fig)
     return fig
 
@@ -52,7 +73,7 @@ def bode_plot(freqs_hz, H, labels=None, title="", path=None):
 def _finish(fig, plt, path):
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=120)
+        save_figure(fig, path, dpi=120)
         plt.close(fig)
     return fig
 
@@ -146,6 +167,6 @@ def time_plot(t, signals, names, title="", path=None):
         axes[0, 0].set_title(title)
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=120)
+        save_figure(fig, path, dpi=120)
         plt.close(fig)
     return fig

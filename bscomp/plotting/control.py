@@ -18,6 +18,8 @@ import sys
 
 import numpy as np
 
+from bscomp.plotting.base import save_figure
+
 __all__ = ["loop_plot", "bode_comparison_plot", "step_comparison_plot", "sensitivity_comparison_plot",
            "disturbance_comparison_plot"]
 
@@ -39,7 +41,7 @@ def _interactive():
 def _finish(fig, path):
     if path is not None:
         fig.tight_layout()
-        fig.savefig(path, dpi=120)
+        save_figure(fig, path, dpi=120)
         _plt().close(fig)
     return fig
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bscomp.plotting.base import _finish, _plt
+from bscomp.plotting.base import _finish, _plt, save_figure
 
 __all__ = ["comparison_plots", "frf_comparison_plot", "band_error_plot", "time_comparison_plot", "resid_plot",
            "signature_plot", "plot_diagnosis", "calibration_plot"]
@@ -199,7 +199,7 @@ def plot_diagnosis(diag, directory):
     ax.legend(loc="upper right")
     fig.tight_layout()
     p1 = d / "error_staircase.png"
-    fig.savefig(p1, dpi=110)
+    save_figure(fig, p1, dpi=110)
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(7, 4))
     names = [r.name for r in diag.ranked][::-1]
@@ -210,7 +210,7 @@ def plot_diagnosis(diag, directory):
     ax.set_title("candidate effects (green: accepted)")
     fig.tight_layout()
     p2 = d / "candidates.png"
-    fig.savefig(p2, dpi=110)
+    save_figure(fig, p2, dpi=110)
     plt.close(fig)
     return [p1, p2]
 
