@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from bscomp.errors import UnknownNameError
+from bscomp.files import atomic_write
 from bscomp.plotting.control import (
     bode_comparison_plot,
     disturbance_comparison_plot,
@@ -116,7 +117,9 @@ class LoopAnalysis:
 
     def to_json(self, path) -> Path:
         path = Path(path)
-        path.write_text(json.dumps(self.to_dict(), indent=2, default=_json_default))
+        text = json.dumps(self.to_dict(), indent=2, default=_json_default)
+        with atomic_write(path) as fh:
+            fh.write(text)
         return path
 
     def table(self) -> str:

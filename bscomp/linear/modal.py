@@ -24,6 +24,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from bscomp.errors import SingularSystemError, UnknownNameError, check_number
+from bscomp.files import atomic_write
 from bscomp.kernel import Dae, System
 from bscomp.linear.linearization import SecondOrderModel, second_order
 from bscomp.model import as_system
@@ -364,7 +365,7 @@ class Modes:
         """JSON text (``shapes`` as one list per mode); written to ``path`` if given."""
         text = json.dumps(self.to_dict(), indent=1)
         if path is not None:
-            with open(path, "w") as fh:
+            with atomic_write(path) as fh:
                 fh.write(text)
         return text
 
@@ -372,7 +373,7 @@ class Modes:
         """One row per mode: frequency, damping, rigid flag, modal mass, then the shape over coordinates."""
         import csv
 
-        with open(path, "w", newline="") as fh:
+        with atomic_write(path, newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["mode", "f_n_hz", "zeta", "rigid_body", "modal_mass"]
                        + [f"phi[{c}]" for c in self.coordinates])

@@ -19,7 +19,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import json
 from dataclasses import dataclass, field
@@ -29,6 +28,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from bscomp.errors import NotLinearError, UnknownNameError, UsageError, check_number
+from bscomp.files import atomic_write
 from bscomp.kernel import Dae, System
 from bscomp.kernel.units import convention_units, parse_unit
 from bscomp.linear.linearization import SecondOrderModel, control_labels, linearize
@@ -115,7 +115,7 @@ class Frf:
                 out, inp = self.outputs[j], self.inputs[i]
                 lines.append(f"# unit {out}/{inp}: {self.pair_unit(out, inp, units)}")
         mag, ph = self.magnitude_db, self.phase_deg
-        with (contextlib.nullcontext(path) if hasattr(path, "write") else open(path, "w", newline="")) as fh:
+        with atomic_write(path, newline="") as fh:
             fh.writelines(line + "\n" for line in lines)
             w = csv.writer(fh, lineterminator="\n")
             head = ["freq_hz"]
@@ -158,7 +158,7 @@ class Frf:
         """JSON text (``H_re``/``H_im`` indexed [freq][output][input]); written to ``path`` if given."""
         text = json.dumps(self.to_dict())
         if path is not None:
-            with open(path, "w") as fh:
+            with atomic_write(path) as fh:
                 fh.write(text)
         return text
 

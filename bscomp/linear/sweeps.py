@@ -17,6 +17,7 @@ import numpy as np
 
 from bscomp import plotting
 from bscomp.errors import BscompError, UnknownNameError
+from bscomp.files import atomic_write
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import modal_frf
@@ -272,7 +273,7 @@ class PositionSweep:
         import csv
 
         m = self.frequencies.shape[1]
-        with open(path, "w", newline="") as fh:
+        with atomic_write(path, newline="") as fh:
             w = csv.writer(fh)
             w.writerow([self.parameter] + [f"f{k + 1}_hz" for k in range(m)]
                        + [f"zeta{k + 1}" for k in range(m)])
@@ -293,7 +294,7 @@ class PositionSweep:
     def to_json(self, path=None) -> str:
         text = json.dumps(self.to_dict())
         if path is not None:
-            with open(path, "w") as fh:
+            with atomic_write(path) as fh:
                 fh.write(text)
         return text
 

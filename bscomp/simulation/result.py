@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp.errors import SolverError, UnknownNameError
+from bscomp.files import atomic_path
 from bscomp.plotting.base import time_plot  # matplotlib only when plotting
 
 __all__ = ["SimulationResult", "SimulationError"]
@@ -60,7 +61,12 @@ class SimulationResult:
         """Write t and the named signals (default: outputs, else states) as CSV with a header row."""
         names = list(names or (list(self.outputs) or self.x_names))
         data = np.column_stack([self.t] + [self[n] for n in names])
-        np.savetxt(path, data, delimiter=",", header=",".join(["t"] + names), comments="")
+        header = ",".join(["t"] + names)
+        if hasattr(path, "write"):
+            np.savetxt(path, data, delimiter=",", header=header, comments="")
+            return path
+        with atomic_path(path) as tmp:
+            np.savetxt(tmp, data, delimiter=",", header=header, comments="")
         return path
 
     def plot(self, names=None, path=None, title=""):

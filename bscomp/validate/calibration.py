@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from bscomp.files import atomic_write
 from bscomp.kernel.interface import interface_of
 from bscomp.kernel.system import System
 from bscomp.plotting.validate import calibration_plot
@@ -254,7 +255,8 @@ class Calibration:
         """JSON text of :meth:`to_dict`; written to ``path`` if given."""
         text = json.dumps(self.to_dict(), indent=2, default=_json_default)
         if path is not None:
-            Path(path).write_text(text)
+            with atomic_write(path) as fh:
+                fh.write(text)
         return text
 
     def plot(self, path=None):

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bscomp.files import atomic_write
 from bscomp.model import model_name
 from bscomp.plotting.validate import comparison_plots
 from bscomp.validate.datasets import FrfData, TimeData
@@ -146,7 +147,8 @@ class Comparison:
         """JSON text of the whole comparison; written to ``path`` if given."""
         text = json.dumps(_clean(self.to_dict()))
         if path is not None:
-            Path(path).write_text(text)
+            with atomic_write(path) as fh:
+                fh.write(text)
         return text
 
     def plot(self, out_dir) -> list:

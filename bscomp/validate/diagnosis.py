@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
+from bscomp.files import atomic_write
 from bscomp.plotting.validate import plot_diagnosis
 
 __all__ = ["EffectFit", "Diagnosis", "Skipped"]
@@ -226,7 +226,8 @@ class Diagnosis:
     def to_json(self, path=None) -> str:
         text = json.dumps(self.to_dict(), indent=2, default=_json_default)
         if path is not None:
-            Path(path).write_text(text)
+            with atomic_write(path) as fh:
+                fh.write(text)
         return text
 
     def plot(self, directory):

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bscomp.files import atomic_write
 from bscomp.linear.response import frf as model_frf
 from bscomp.model import as_system
 from bscomp.simulation.dispatch import simulate
@@ -202,5 +203,6 @@ def write_demo_data(directory, hidden: dict | None = None, seed: int = 2024, **k
              "- `time.csv`: 4.25 V peak-to-peak 5 Hz square wave (thesis Sec 5.3.1), 0.2 s at 2 kHz", "",
              "Regenerate: `python -c \"from bscomp.validate.synthetic import write_demo_data; "
              f"write_demo_data('systems/data/validation', seed={seed})\"`", ""]
-    (d / "README.md").write_text("\n".join(lines))
+    with atomic_write(d / "README.md") as fh:
+        fh.write("\n".join(lines))
     return [Path(p1), Path(p2), d / "README.md"]

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bscomp.files import atomic_write
 from bscomp.validate.datasets import FrfData, TimeData
 
 __all__ = ["write_frf_csv", "write_time_csv"]
@@ -16,6 +17,16 @@ __all__ = ["write_frf_csv", "write_time_csv"]
 
 def _fmt(x):
     return repr(float(x))
+
+
+def _write(path, lines, M):
+    """The metadata/header ``lines`` then one row per line of ``M``, through a temporary file renamed into place
+    when complete (an error while formatting leaves an existing file intact)."""
+    with atomic_write(path, newline="\n") as fh:
+        for line in lines:
+            fh.write(line + "\n")
+        for row in M:
+            fh.write(",".join(_fmt(v) for v in row) + "\n")
 
 
 def _meta_lines(kind, source, conditions):
@@ -49,9 +60,7 @@ def write_frf_csv(data: FrfData, path, form: str = "reim") -> Path:
             head.append(f"coh({p})")
             cols.append(np.asarray(g, float))
     lines.append(",".join(head))
-    M = np.column_stack(cols)
-    lines += [",".join(_fmt(v) for v in row) for row in M]
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    _write(path, lines, np.column_stack(cols))
     return path
 
 
@@ -68,7 +77,6 @@ def write_time_csv(data: TimeData, path) -> Path:
     names = list(data.inputs) + list(data.outputs)
     lines.append(",".join(["t"] + names))
     M = np.column_stack([data.t] + [data.inputs[n] for n in data.inputs] + [data.outputs[n] for n in data.outputs])
-    lines += [",".join(_fmt(v) for v in row) for row in M]
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    _write(path, lines, M)
     return path
 
