@@ -122,18 +122,39 @@ class staged:
         return False
 
 
+#: the file :func:`atomic_dir` puts in every folder it writes: such a folder may be replaced as a whole
+OUTPUT_MARKER = ".bscomp-output"
+
+
+def _check_replaceable(p: Path) -> None:
+    if not p.exists():
+        return
+    if not p.is_dir():
+        raise OutputFileError(f"output folder {str(p)!r} is a file: give a folder name (it is created)")
+    entries = sorted(e.name for e in p.iterdir())
+    if entries and OUTPUT_MARKER not in entries:
+        shown = ", ".join(entries[:3]) + (", ..." if len(entries) > 3 else "")
+        raise OutputFileError(f"output folder {str(p)!r} holds files bscomp did not write ({shown}); it would be "
+                              "replaced as a whole", hint="give a new or empty folder, or delete this one first")
+
+
 @contextlib.contextmanager
 def atomic_dir(path):
     """Yield a fresh temporary folder; on success it replaces ``path`` (a report is complete or absent).
 
-    An existing ``path`` is moved aside first and deleted only after the new folder is in place.
+    An existing ``path`` is moved aside first and deleted only after the new folder is in place. Since the
+    whole folder is replaced, an existing ``path`` must be empty or a folder this function wrote (it holds
+    the marker file ``.bscomp-output``); anything else raises :class:`bscomp.errors.OutputFileError` before
+    the block runs, so a user's folder given by mistake is never deleted.
     """
     import shutil
 
     p = Path(path)
+    _check_replaceable(p)
     parent = p.parent if str(p.parent) else Path(".")
     parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{p.name}.", dir=parent))
+    (tmp / OUTPUT_MARKER).write_text("written by bscomp; the folder is replaced as a whole when rewritten\n")
     try:
         yield tmp
     except BaseException:

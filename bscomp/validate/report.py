@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bscomp.files import atomic_dir
 from bscomp.validate.comparison import Comparison
 
 __all__ = ["write_report"]
@@ -145,21 +146,23 @@ def write_report(comparisons_or_diagnosis, out_dir, title: str = "bscomp: model 
     ----------
     comparisons_or_diagnosis : Comparison, Diagnosis-like object, or a list of them
     out_dir : path
-        Created if needed; figures go to sub-folders and are linked relatively, so the folder can be
-        moved or zipped.
+        Created if needed, and replaced as a whole when complete (an error leaves the previous report as it
+        was); it must be new, empty or a folder bscomp wrote. Figures go to sub-folders and are linked
+        relatively, so the folder can be moved or zipped.
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     items = comparisons_or_diagnosis
     if not isinstance(items, (list, tuple)):
         items = [items]
-    body = []
-    for k, obj in enumerate(items, 1):
-        body.append(_comparison_html(obj, out, k) if isinstance(obj, Comparison) else _other_html(obj, out, k))
-    doc = (f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>{_e(title)}</title><style>{_CSS}</style>"
-           f"</head><body>\n<h1>{_e(title)}</h1>\n<p>Residuals are measured minus model. Cost: mean squared "
-           "residual (log10-magnitude and phase [rad] for FRFs, RMS-normalised for time series).</p>\n"
-           + "\n".join(body) + "\n</body></html>\n")
-    path = out / "index.html"
-    path.write_text(doc, encoding="utf-8")
-    return path
+    with atomic_dir(out_dir) as out:   # complete or absent: built in a temporary folder, renamed into place
+        body = []
+        for k, obj in enumerate(items, 1):
+            body.append(_comparison_html(obj, out, k) if isinstance(obj, Comparison) else _other_html(obj, out, k))
+        (out / "index.html").write_text(_document(title, body), encoding="utf-8")
+    return Path(out_dir) / "index.html"
+
+
+def _document(title, body) -> str:
+    return (f"<!DOCTYPE html>\n<html><head><meta charset='utf-8'><title>{_e(title)}</title><style>{_CSS}</style>"
+            f"</head><body>\n<h1>{_e(title)}</h1>\n<p>Residuals are measured minus model. Cost: mean squared "
+            "residual (log10-magnitude and phase [rad] for FRFs, RMS-normalised for time series).</p>\n"
+            + "\n".join(body) + "\n</body></html>\n")
