@@ -20,6 +20,7 @@ __all__ = [
     "SolverError",
     "OutputFileError",
     "UsageError",
+    "ArgumentTypeError",
     "ModelLimitationWarning",
     "check_number",
     "FmuExportError",
@@ -107,6 +108,10 @@ class OutputFileError(BscompError, OSError):
 
 class UsageError(BscompError, ValueError):
     """A command-line argument or a function argument is malformed or out of range."""
+
+
+class ArgumentTypeError(UsageError, TypeError):
+    """A function argument has the wrong type (a ``TypeError`` too, for Python callers that catch that)."""
 
 
 class ModelLimitationWarning(UserWarning):

@@ -122,6 +122,8 @@ class Parameter:
                                  f"{type(owner).__name__}({self.name}=...) or system.set('{where}', ...)")
         if isinstance(value, str):
             value = self.from_text(value, where)
+        if isinstance(value, (bool, np.bool_)):
+            raise ParameterError(f"parameter {where} [{self.unit}] must be a number, got {value!r} (a bool)")
         try:
             arr = np.asarray(value, dtype=float)
         except (TypeError, ValueError) as exc:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from bscomp.errors import ModelDefinitionError
+from bscomp.errors import ModelDefinitionError, PortConnectionError
 from bscomp.kernel.templates import Template, parameter_symbol, template_key, vc
 
 __all__ = ["Assembly"]
@@ -65,6 +65,7 @@ class Assembly:
         self.xint, self.xint_d, self.xint_names, self.xint_start = [], [], [], []
         self.zint, self.zint_names, self.zint_start = [], [], []
         self.sig_def = {}                          # signal index -> expression
+        self.sig_source = {}                       # signal index -> the output port that defines it
         self.constraints = []                      # (coeff dict, const, solve_for coord, origin)
         self.observables = {}
         self.blocks = []                           # (coord indices, M, C, K)
@@ -103,7 +104,12 @@ class Assembly:
         flows_e, outs_e, rem_e, obs_e = out
         self._flows(tpl, path, comp, ports, cidx, struct_coords, flows_e)
         for j, k in enumerate(tpl.out_sig_idx):
+            if sidx[k] in self.sig_def:        # a second output on one signal would silently replace the first
+                into = [f"{a}.{b}" for a, b, _ in self.sets.sig_inputs[sidx[k]]]
+                raise PortConnectionError(f"two outputs '{self.sig_source[sidx[k]]}' and '{path}.{tpl.sig_ports[k]}' "
+                                          f"drive one signal (into {into}): a signal has one source; disconnect one")
             self.sig_def[sidx[k]] = outs_e[j]
+            self.sig_source[sidx[k]] = f"{path}.{tpl.sig_ports[k]}"
         self._variables(tpl, path, variables, vsym, dsym)
         for j, k in enumerate(tpl.rem_index):
             self.eqs.append(rem_e[j])

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import copy
 
-from bscomp.errors import DuplicateNameError, PortConnectionError, UnknownNameError
+from bscomp.errors import ArgumentTypeError, DuplicateNameError, PortConnectionError, UnknownNameError
 from bscomp.kernel.component import Component, PortRef
 from bscomp.kernel.ports import PortSpec
 
@@ -49,7 +49,8 @@ class System:
             raise DuplicateNameError(f"system '{self.name}' already has a component named '{name}' "
                                      f"({type(self._components[name]).__name__}); choose another name")
         if not isinstance(component, (Component, System)):
-            raise TypeError(f"system.add('{name}', ...) needs a Component or System, got {type(component).__name__}")
+            raise ArgumentTypeError(f"system.add('{name}', ...) needs a Component or System, got "
+                                    f"{type(component).__name__}")
         if component._parent is not None:
             raise DuplicateNameError(f"this {type(component).__name__} instance is already in system "
                                      f"'{component._parent.name}' as '{component._name}'; add a copy "
@@ -175,7 +176,7 @@ class System:
             if obj is not self:
                 raise UnknownNameError(f"port {p} belongs to a component that is not in system '{self.name}'")
             return ".".join(reversed(path)) + "." + p.port
-        raise TypeError(f"a port is given as 'component.port' or component.port, got {p!r}")
+        raise ArgumentTypeError(f"a port is given as 'component.port' or component.port, got {p!r}")
 
     def component(self, dotted: str):
         """The component (or sub-system) at a dotted path."""
