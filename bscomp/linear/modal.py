@@ -23,7 +23,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from bscomp.errors import SingularSystemError, UnknownNameError, check_number
+from bscomp.errors import SingularSystemError, UnknownNameError, UsageError, check_number
 from bscomp.files import atomic_write
 from bscomp.kernel import Dae, System
 from bscomp.linear.linearization import SecondOrderModel, second_order
@@ -436,6 +436,12 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
     SingularSystemError
         If massless coordinates are not held by a stiffness, or ``M`` is not positive definite.
     """
+    if n is not None:
+        n = check_number("n", n, integer=True, minimum=1)
+    if fmax is not None:
+        fmax = check_number("fmax", fmax, positive=True)
+    if damping not in ("auto", "complex", "projection"):
+        raise UsageError(f"damping must be 'auto', 'complex' or 'projection', got {damping!r}")
     so = _second_order(model, inputs, outputs, at, params)
     red = _condense(so)
     lam, phi, rigid, method = _undamped(red, n=n, fmax=fmax)
@@ -447,7 +453,7 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
     if damping == "auto":
         damping = "complex" if m <= DENSE_LIMIT else "projection"
     if damping not in ("complex", "projection"):
-        raise ValueError(f"damping must be 'auto', 'complex' or 'projection', got {damping!r}")
+        raise UsageError(f"damping must be 'auto', 'complex' or 'projection', got {damping!r}")
     zeta = np.full(m, np.nan)
     el = ~rigid
     zeta[el] = decay[el] / (2 * omega[el])

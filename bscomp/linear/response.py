@@ -137,12 +137,12 @@ class Frf:
 
         A channel's unit is ``units[name]`` if given, else the Modelica naming convention's for its last
         name part (``s`` m, ``v`` m/s, ``a`` m/s^2, ``f`` N, ``phi`` rad, ``w`` rad/s, ``tau`` N m), else
-        ``1`` (a signal). Raises ValueError for a unit that is not SI (the FRF holds SI values).
+        ``1`` (a signal). Raises UsageError (a ValueError) for a unit that is not SI (the FRF holds SI values).
         """
         def unit(name):
             text = (units or {}).get(name) or convention_units.get(name.rsplit(".", 1)[-1], ("1",))[0]
             if parse_unit(text).scale != 1.0:
-                raise ValueError(f"unit {text!r} of {name!r} is not SI: the FRF holds SI values (give e.g. 'm', "
+                raise UsageError(f"unit {text!r} of {name!r} is not SI: the FRF holds SI values (give e.g. 'm', "
                                  "not 'mm')")
             return text
 
@@ -173,7 +173,10 @@ class Frf:
 
 def _freq_grid(freqs, fmin, fmax, n):
     if freqs is not None:
-        f = np.atleast_1d(np.asarray(freqs, float))
+        try:
+            f = np.atleast_1d(np.asarray(freqs, float))
+        except (TypeError, ValueError):
+            raise UsageError(f"freqs must be an array of frequencies [Hz], got {freqs!r}") from None
     else:
         fmin, fmax = check_number("fmin", fmin, positive=True), check_number("fmax", fmax, positive=True)
         if not fmin < fmax:

@@ -71,7 +71,7 @@ class Ocp:
     def __init__(self, model, N: int = 100, degree: int = 3, params: dict | None = None,
                  coordinates: str = "physical"):
         if coordinates not in COORDINATES:
-            raise ValueError("coordinates must be 'physical', 'modal', 'modal-condensed' or 'modal-sparse', not "
+            raise UsageError("coordinates must be 'physical', 'modal', 'modal-condensed' or 'modal-sparse', not "
                              f"{coordinates!r}")
         self.coordinates = coordinates
         self.dae = as_dae(model, params)
@@ -80,7 +80,8 @@ class Ocp:
                                                 if k not in self.dae.structural_parameters})
         else:                    # built from a name, path, spec or build function: the overrides are in p0
             self.p = self.dae.parameter_vector({})
-        self.N, self.d = int(N), int(degree)
+        self.N = check_number("N", N, integer=True, minimum=1)
+        self.d = check_number("degree", degree, integer=True, minimum=1)
         self.bounds: dict[str, tuple] = {}
         self.rate_limits: dict[str, float] = {}
         self.x_init: dict[str, float] = {}
@@ -134,7 +135,7 @@ class Ocp:
         """
         self.kind(name)
         if not limit > 0:
-            raise ValueError(f"rate limit on '{name}' must be > 0, not {limit}")
+            raise UsageError(f"rate limit on '{name}' must be > 0, not {limit}")
         self.rate_limits[name] = float(limit)
         return self
 
@@ -143,7 +144,7 @@ class Ocp:
         for k in values:
             if self.kind(k) != "x":
                 raise UnknownNameError(f"initial value for '{k}': only states can be given")
-        self.x_init.update({k: float(v) for k, v in values.items()})
+        self.x_init.update({k: check_number(f"initial value of '{k}'", v) for k, v in values.items()})
         return self
 
     def final(self, values: dict, rest: bool = True, rest_below_hz: float | None = None):
@@ -161,7 +162,7 @@ class Ocp:
         for k in values:
             if self.kind(k) != "x":
                 raise UnknownNameError(f"final value for '{k}': only states can be given")
-        self.x_final.update({k: float(v) for k, v in values.items()})
+        self.x_final.update({k: check_number(f"final value of '{k}'", v) for k, v in values.items()})
         self.final_rest = bool(rest) and rest_below_hz is None
         self.rest_below_hz = None if rest_below_hz is None else float(rest_below_hz)
         return self
@@ -222,7 +223,7 @@ class Ocp:
             if self.kind(k) == "u":
                 raise UnknownNameError(f"residual-vibration limit on '{k}': give an output or a state, not an input")
             if not v > 0:
-                raise ValueError(f"residual-vibration limit on '{k}' must be > 0, not {v}")
+                raise UsageError(f"residual-vibration limit on '{k}' must be > 0, not {v}")
         for k in hold or {}:
             if self.kind(k) != "u":
                 raise UnknownNameError(f"hold value for '{k}': only inputs can be held")

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bscomp.errors import UnknownNameError, UsageError
+from bscomp.errors import UnknownNameError, UsageError, check_number
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.system import System
 from bscomp.model import as_dae
@@ -74,7 +74,7 @@ class SimulationOptions:
     def fixed_steps(self) -> tuple[int, int]:
         """``(substeps, newton_iter)`` of the fixed-step methods, both at least 1."""
         if int(self.substeps) < 1 or int(self.newton_iter) < 1:
-            raise ValueError(f"substeps and newton_iter must be >= 1, got {self.substeps} and {self.newton_iter}")
+            raise UsageError(f"substeps and newton_iter must be >= 1, got {self.substeps} and {self.newton_iter}")
         return int(self.substeps), int(self.newton_iter)
 
 
@@ -105,7 +105,7 @@ def prepare(model, t, inputs=None, x0=None, params=None, outputs=None, controlle
     for k, v in (x0 or {}).items():
         if k not in dae.x_names:
             raise UnknownNameError(f"x0 names '{k}', which is not a state of '{dae.name}' ({dae.x_names[:8]}...)")
-        xs[dae.x_names.index(k)] = float(v)
+        xs[dae.x_names.index(k)] = check_number(f"x0['{k}']", v)
     U = input_matrix(dae, t, inputs, [a for c in controllers for a in c.actuate])
     outputs = list(outputs or [])
     if outputs:
@@ -132,7 +132,10 @@ def input_matrix(dae, t, inputs, fixed=()):
             tm = 0.5 * (t[:-1] + t[1:])
             U[i] = np.array([float(v(tt)) for tt in tm])
         else:
-            arr = np.asarray(v, float)
+            try:
+                arr = np.asarray(v, float)
+            except (TypeError, ValueError):
+                raise UsageError(f"input '{k}' must be a number, an array or a function of t, got {v!r}") from None
             if arr.ndim == 0:
                 U[i] = float(arr)
             elif arr.shape == (len(t),):
@@ -140,8 +143,11 @@ def input_matrix(dae, t, inputs, fixed=()):
             elif arr.shape == (nint,):
                 U[i] = arr
             else:
-                raise ValueError(f"input '{k}' has {arr.shape[0]} values; give one per time point ({len(t)}) or per "
-                                 f"interval ({nint}), a scalar, or a function of t")
+                raise UsageError(f"input '{k}' has {arr.shape[0]} values; give one per time point ({len(t)}) or "
+                                 f"per interval ({nint}), a scalar, or a function of t")
+        if not np.all(np.isfinite(U[i])):
+            j = int(np.flatnonzero(~np.isfinite(U[i]))[0])
+            raise UsageError(f"input '{k}' is not finite ({U[i, j]}) on the interval starting at t = {t[j]}")
     for k in fixed:
         if k not in dae.u_names:
             raise UnknownNameError(f"'{k}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
