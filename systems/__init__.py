@@ -6,11 +6,13 @@ parameter overrides, so ``(name, overrides)`` is all a worker process needs to r
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
 import inspect
+import traceback
 from pathlib import Path
 
-from bscomp.errors import UnknownNameError
+from bscomp.errors import BscompError, ModelDefinitionError, UnknownNameError
 
 from .small_drive import small_drive  # noqa: E402
 from .validation_drive import validation_drive  # noqa: E402
@@ -68,17 +70,40 @@ def get(name_or_path: str, overrides: dict | None = None):
     elif name_or_path.endswith(".py") and Path(name_or_path).is_file():
         spec = importlib.util.spec_from_file_location("bscomp_user_system", name_or_path)
         mod = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(mod)
+        with _user_file(name_or_path, "loading it"):
+            spec.loader.exec_module(mod)
         build = getattr(mod, "build", None)
         if build is None:
             raise UnknownNameError(f"system file {name_or_path} must define build() returning a bscomp.System")
-        system = _call_build(build, name_or_path, build_kwargs)
+        with _user_file(name_or_path, "in its build()"):
+            system = _call_build(build, name_or_path, build_kwargs)
+    elif str(name_or_path).endswith(".py"):
+        raise UnknownNameError(f"system file {name_or_path!r} does not exist (or is not a file)")
     else:
         raise UnknownNameError(f"unknown system '{name_or_path}': use one of {sorted(REGISTRY)} or a path to a .py "
                                "file that defines build()")
     for k, v in overrides.items():
         system.set(k, v)
     return system
+
+
+@contextlib.contextmanager
+def _user_file(path, when: str):
+    """Errors of a user's system file (a syntax error, an exception in build()) as a ModelDefinitionError naming
+    the file and line; the library's own named errors pass through."""
+    try:
+        yield
+    except BscompError:
+        raise
+    except SyntaxError as exc:
+        raise ModelDefinitionError(f"system file {path}, line {exc.lineno}: {exc.msg}",
+                                   hint="fix the Python syntax of the file") from exc
+    except Exception as exc:
+        tb = traceback.extract_tb(exc.__traceback__)
+        line = next((f.lineno for f in reversed(tb) if Path(f.filename).resolve() == Path(path).resolve()), None)
+        where = f", line {line}" if line else ""
+        raise ModelDefinitionError(f"system file {path}{where}: {type(exc).__name__} {when}: {exc}",
+                                   hint="run the file with python to debug it, or use --debug") from exc
 
 
 def _call_build(build, name: str, kwargs: dict):
