@@ -1,0 +1,301 @@
+"""Library-level bad inputs (issue 15): each raises a named ``BscompError`` whose message names the offending thing.
+
+One row per case: what is called, the error class expected and a regex the message must match (the name of
+the argument, parameter, port or file at fault). Analyses use the small lumped ``small_drive`` (4 DOF) so the
+whole table runs in seconds. ``docs/errors.md`` quotes some of these messages.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import bscomp
+from bscomp import Component, System, Variable, flatten
+from bscomp.components import Fixed, Gain, Inertia, Mass, Spring
+from bscomp.errors import (
+    ArgumentTypeError,
+    BscompError,
+    DuplicateNameError,
+    ModelDefinitionError,
+    OutputFileError,
+    OverdeterminedError,
+    ParameterError,
+    PortConnectionError,
+    UnconnectedPortError,
+    UnderdeterminedError,
+    UnknownNameError,
+    UsageError,
+)
+from bscomp.kernel.ports import Flange
+from bscomp.model import as_dae, as_system
+from bscomp.optimal import Ocp
+from bscomp.optimal.problem import OcpError
+from bscomp.systems import small_drive
+from bscomp.validate import MeasurementFileError, load
+
+T = np.linspace(0.0, 0.01, 11)
+F = [5.0, 10.0]
+NAN = math.nan
+
+
+def sd():
+    return small_drive()
+
+
+class Dangling(Component):
+    """A component with a variable no equation determines."""
+
+    flange = Flange()
+    x = Variable()
+
+    def equations(self):
+        return [self.flange.f]
+
+
+def _underdetermined():
+    s = System("custom")
+    s.add("wall", Fixed())
+    s.add("k", Spring(c=1.0e3))
+    s.add("m", Mass(m=1.0))
+    s.add("c", Dangling())
+    s.connect("wall.flange", "k.flange_a")
+    s.connect("k.flange_b", "m.flange_a")
+    s.connect("c.flange", "m.flange_b")
+    return flatten(s)
+
+
+def _overdetermined():
+    s = System("o")
+    s.add("g1", Fixed())
+    s.add("g2", Fixed())
+    s.add("m", Mass(m=1.0))
+    s.connect("g1.flange", "m.flange_a")
+    s.connect("g2.flange", "m.flange_a")
+    s.connect("m.flange_b", "g1.flange")
+    return flatten(s)
+
+
+def _unconnected():
+    s = System("s")
+    s.add("m", Mass(m=1.0))
+    s.add("k", Spring(c=1.0))
+    return flatten(s)
+
+
+def _two_sources():
+    s = System("sig")
+    for n in "abc":
+        s.add(n, Gain(k=1.0))
+    s.connect("a.y", "c.u")
+    s.connect("b.y", "c.u")
+    return flatten(s)
+
+
+def _different_kinds():
+    s = System("bad")
+    s.add("m", Mass(m=1.0))
+    s.add("J", Inertia(J=1.0))
+    s.connect("m.flange_a", "J.flange_a")
+
+
+def _measurement(tmp, name, text, encoding="utf-8"):
+    p = tmp / name
+    p.write_bytes(text.encode(encoding))
+    return p
+
+
+PAIR = "f,re(table.s/motor.tau),im(table.s/motor.tau)"
+
+CASES = [
+    # ---- components and parameters -------------------------------------------------------------------
+    ("mass_negative", lambda tmp: Mass(m=-1), ParameterError, r"Mass\.m = -1 kg must be > 0"),
+    ("mass_nan", lambda tmp: Mass(m=NAN), ParameterError, r"Mass\.m \[kg\] is nan"),
+    ("mass_inf", lambda tmp: Mass(m=math.inf), ParameterError, r"Mass\.m \[kg\] is inf"),
+    ("mass_text", lambda tmp: Mass(m="abc"), ParameterError, r"Mass\.m \[kg\] must be a number.*'abc'"),
+    ("mass_wrong_unit", lambda tmp: Mass(m="3 m"), ParameterError, r"Mass\.m: '3 m'.*'kg'"),
+    ("mass_none", lambda tmp: Mass(m=None), ParameterError, r"Mass\.m \[kg\] has no value"),
+    ("mass_bool", lambda tmp: Mass(m=True), ParameterError, r"Mass\.m \[kg\] must be a number, got True"),
+    ("mass_unknown_keyword", lambda tmp: Mass(mass=1.0), UnknownNameError, r"Mass has no parameter.*'mass'"),
+    ("spring_zero", lambda tmp: Spring(c=0.0), ParameterError, r"Spring\.c = 0\.0 N/m must be > 0"),
+    ("inertia_negative", lambda tmp: Inertia(J=-1e-3), ParameterError, r"Inertia\.J = -0\.001"),
+    ("set_unknown_parameter", lambda tmp: sd().set("table.mm", 1.0), UnknownNameError, r"table.*no parameter 'mm'"),
+    ("set_unknown_component", lambda tmp: sd().set("tabel.m", 1.0), UnknownNameError, r"no component 'tabel'"),
+    ("set_nan", lambda tmp: sd().set("table.m", NAN), ParameterError, r"table\.m \[kg\] is nan"),
+    ("with_parameters_negative", lambda tmp: sd().with_parameters({"table.m": -3}), ParameterError,
+     r"table\.m = -3 kg"),
+    # ---- building a System -----------------------------------------------------------------------------
+    ("connect_unknown_port", lambda tmp: sd().connect("table.flange_c", "ground.flange"), UnknownNameError,
+     r"'table' \(Mass\) has no port 'flange_c'"),
+    ("connect_unknown_component", lambda tmp: sd().connect("tabel.flange_a", "ground.flange"), UnknownNameError,
+     r"no component 'tabel'"),
+    ("connect_not_a_port", lambda tmp: sd().connect("table", "ground.flange"), UnknownNameError,
+     r"'table' is not a port name"),
+    ("connect_a_number", lambda tmp: sd().connect(3, "ground.flange"), ArgumentTypeError, r"got 3"),
+    ("connect_to_itself", lambda tmp: sd().connect("table.flange_a", "table.flange_a"), PortConnectionError,
+     r"'table\.flange_a' to itself"),
+    ("connect_different_kinds", lambda tmp: _different_kinds(), PortConnectionError, r"m\.flange_a.*J\.flange_a"),
+    ("connect_two_sources", lambda tmp: _two_sources(), PortConnectionError, r"'a\.y' and 'b\.y'.*c\.u"),
+    ("add_duplicate_name", lambda tmp: sd().add("table", Mass(m=1.0)), DuplicateNameError,
+     r"already has a component named 'table'"),
+    ("add_dotted_name", lambda tmp: System("x").add("a.b", Mass(m=1.0)), DuplicateNameError,
+     r"invalid component name 'a\.b'"),
+    ("add_not_a_component", lambda tmp: System("x").add("m", 42), ArgumentTypeError, r"add\('m'.*got int"),
+    ("remove_unknown", lambda tmp: sd().remove("nope"), UnknownNameError, r"no component 'nope'"),
+    # ---- flattening ------------------------------------------------------------------------------------
+    ("underdetermined", lambda tmp: _underdetermined(), UnderdeterminedError, r"c\.x"),
+    ("overdetermined", lambda tmp: _overdetermined(), OverdeterminedError, r"'g2' \(Fixed\).*'g1'"),
+    ("unconnected_port", lambda tmp: _unconnected(), UnconnectedPortError, r"'k\.flange_a'"),
+    # ---- modes -----------------------------------------------------------------------------------------
+    ("modes_n_zero", lambda tmp: bscomp.modes(sd(), n=0), UsageError, r"n must be >= 1, got 0"),
+    ("modes_n_negative", lambda tmp: bscomp.modes(sd(), n=-1), UsageError, r"n must be >= 1, got -1"),
+    ("modes_n_fraction", lambda tmp: bscomp.modes(sd(), n=1.5), UsageError, r"n must be an integer"),
+    ("modes_fmax_negative", lambda tmp: bscomp.modes(sd(), fmax=-1), UsageError, r"fmax must be > 0"),
+    ("modes_damping_method", lambda tmp: bscomp.modes(sd(), damping="foo"), UsageError, r"damping.*'foo'"),
+    ("modes_unknown_input", lambda tmp: bscomp.modes(sd(), inputs=["motor.tauu"]), UnknownNameError,
+     r"'motor\.tauu' is not an input"),
+    ("modes_unknown_output", lambda tmp: bscomp.modes(sd(), outputs=["table.ss"]), UnknownNameError,
+     r"'table\.ss'"),
+    ("modes_unknown_operating_point", lambda tmp: bscomp.modes(sd(), at={"table.mm": 1}), UnknownNameError,
+     r"'table\.mm'"),
+    # ---- frf -------------------------------------------------------------------------------------------
+    ("frf_zero_frequency", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", [0.0, 1.0]), UsageError,
+     r"freqs.*positive.*got 0\.0"),
+    ("frf_negative_frequency", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", [-1.0, 1.0]), UsageError,
+     r"freqs.*got -1\.0"),
+    ("frf_nan_frequency", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", [NAN, 1.0]), UsageError,
+     r"freqs.*finite.*got nan"),
+    ("frf_no_frequencies", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", []), UsageError,
+     r"freqs must be a non-empty"),
+    ("frf_text_frequencies", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", "abc"), UsageError,
+     r"freqs.*'abc'"),
+    ("frf_fmin_zero", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", fmin=0), UsageError, r"fmin must be > 0"),
+    ("frf_fmin_above_fmax", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", fmin=100, fmax=10), UsageError,
+     r"fmin=100\.0, fmax=10\.0"),
+    ("frf_n_zero", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", n=0), UsageError, r"n must be >= 1"),
+    ("frf_unknown_input", lambda tmp: bscomp.frf(sd(), "motor.tauu", "table.s", F), UnknownNameError,
+     r"'motor\.tauu' is not an input"),
+    ("frf_unknown_output", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.ss", F), UnknownNameError,
+     r"'table\.ss'"),
+    ("frf_csv_unit_not_si", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", F).to_csv(
+        tmp / "x.csv", units={"table.s": "mm"}), UsageError, r"unit 'mm' of 'table\.s' is not SI"),
+    ("frf_plot_unknown_extension", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", F).plot(tmp / "x.xyz"),
+     OutputFileError, r"x\.xyz.*'\.xyz'"),
+    # ---- simulate --------------------------------------------------------------------------------------
+    ("simulate_nan_time", lambda tmp: bscomp.simulate(sd(), [0, NAN, 0.01]), UsageError,
+     r"t holds a non-finite time at index 1"),
+    ("simulate_decreasing_time", lambda tmp: bscomp.simulate(sd(), [0, 0.02, 0.01]), UsageError,
+     r"t must be strictly increasing: t\[2\]"),
+    ("simulate_one_time", lambda tmp: bscomp.simulate(sd(), [0.0]), UsageError, r"t must be .* at least two"),
+    ("simulate_unknown_method", lambda tmp: bscomp.simulate(sd(), T, method="rk4"), UsageError,
+     r"method must be one of .*'rk4'"),
+    ("simulate_rtol_zero", lambda tmp: bscomp.simulate(sd(), T, rtol=0), UsageError, r"rtol must be > 0"),
+    ("simulate_rtol_nan", lambda tmp: bscomp.simulate(sd(), T, rtol=NAN), UsageError, r"rtol must be finite"),
+    ("simulate_atol_negative", lambda tmp: bscomp.simulate(sd(), T, atol=-1), UsageError, r"atol must be > 0"),
+    ("simulate_substeps_zero", lambda tmp: bscomp.simulate(sd(), T, method="fixed", substeps=0), UsageError,
+     r"substeps"),
+    ("simulate_unknown_input", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tauu": 1.0}), UnknownNameError,
+     r"'motor\.tauu' is not an input"),
+    ("simulate_nan_input", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": NAN}), UsageError,
+     r"input 'motor\.tau' is not finite"),
+    ("simulate_input_length", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": np.ones(5)}), UsageError,
+     r"input 'motor\.tau' has 5 values"),
+    ("simulate_text_input", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": "abc"}), UsageError,
+     r"input 'motor\.tau' must be a number.*'abc'"),
+    ("simulate_unknown_output", lambda tmp: bscomp.simulate(sd(), T, outputs=["table.ss"]), UnknownNameError,
+     r"'table\.ss'"),
+    ("simulate_unknown_x0", lambda tmp: bscomp.simulate(sd(), T, x0={"table.ss": 1.0}), UnknownNameError,
+     r"x0 names 'table\.ss'"),
+    ("simulate_nan_x0", lambda tmp: bscomp.simulate(sd(), T, x0={"table.s": NAN}), UsageError,
+     r"x0\['table\.s'\] must be finite"),
+    ("simulate_unknown_parameter", lambda tmp: bscomp.simulate(sd(), T, params={"table.mm": 1.0}), UnknownNameError,
+     r"no parameter 'mm'"),
+    # ---- Ocp -------------------------------------------------------------------------------------------
+    ("ocp_T_zero", lambda tmp: Ocp(sd()).minimize_effort(T=0), UsageError, r"T must be > 0, got 0"),
+    ("ocp_T_negative", lambda tmp: Ocp(sd()).minimize_effort(T=-1), UsageError, r"T must be > 0, got -1"),
+    ("ocp_T_nan", lambda tmp: Ocp(sd()).minimize_effort(T=NAN), UsageError, r"T must be finite"),
+    ("ocp_T_guess_negative", lambda tmp: Ocp(sd()).minimize_time(T_guess=-1), UsageError, r"T_guess must be > 0"),
+    ("ocp_bound_nan", lambda tmp: Ocp(sd()).bound("motor.tau", NAN, 1.0), UsageError,
+     r"bound on 'motor\.tau': a bound is NaN"),
+    ("ocp_bound_reversed", lambda tmp: Ocp(sd()).bound("motor.tau", 2.0, 1.0), UsageError,
+     r"'motor\.tau': lower 2\.0 > upper 1\.0"),
+    ("ocp_bound_unknown", lambda tmp: Ocp(sd()).bound("motor.tauu", -1, 1), UnknownNameError, r"'motor\.tauu'"),
+    ("ocp_N_zero", lambda tmp: Ocp(sd(), N=0), UsageError, r"N must be >= 1, got 0"),
+    ("ocp_degree_zero", lambda tmp: Ocp(sd(), degree=0), UsageError, r"degree must be >= 1"),
+    ("ocp_coordinates", lambda tmp: Ocp(sd(), coordinates="polar"), UsageError, r"coordinates.*'polar'"),
+    ("ocp_rate_negative", lambda tmp: Ocp(sd()).bound_rate("motor.tau", -1), UsageError,
+     r"rate limit on 'motor\.tau' must be > 0"),
+    ("ocp_final_nan", lambda tmp: Ocp(sd()).final({"table.s": NAN}), UsageError,
+     r"final value of 'table\.s' must be finite"),
+    ("ocp_initial_not_a_state", lambda tmp: Ocp(sd()).initial({"motor.tau": 0.0}), UnknownNameError,
+     r"initial value for 'motor\.tau'"),
+    ("ocp_no_objective", lambda tmp: Ocp(sd()).solve(), OcpError, r"no objective"),
+    # ---- measurement files -----------------------------------------------------------------------------
+    ("measurement_missing", lambda tmp: load(tmp / "missing.csv"), MeasurementFileError,
+     r"missing\.csv: no such file"),
+    ("measurement_empty", lambda tmp: load(_measurement(tmp, "e.csv", "")), MeasurementFileError,
+     r"e\.csv, line 1.*empty file"),
+    ("measurement_text_cell", lambda tmp: load(_measurement(tmp, "t.csv", f"# kind: frf\n{PAIR}\n1,2,3\n2,abc,4\n")),
+     MeasurementFileError, r"t\.csv, line 4, column 2.*'abc' is not a number"),
+    ("measurement_frequency_order", lambda tmp: load(_measurement(
+        tmp, "o.csv", f"# kind: frf\n{PAIR}\n2,2,3\n1,1,4\n")),
+     MeasurementFileError, r"o\.csv, line 4.*not strictly increasing"),
+    ("measurement_unknown_unit", lambda tmp: load(_measurement(
+        tmp, "u.csv", f"# kind: frf\n# unit table.s/motor.tau: furlong\n{PAIR}\n1,2,3\n2,1,4\n")),
+     MeasurementFileError, r"u\.csv, line 2.*unknown unit 'furlong'"),
+    ("measurement_condition_names_a_file", lambda tmp: load(_measurement(
+        tmp, "c.csv", f"# kind: frf\n# condition params: ../../etc/passwd\n{PAIR}\n1,2,3\n2,1,4\n")),
+     MeasurementFileError, r"c\.csv, line 2.*condition 'params' is not allowed"),
+    ("measurement_latin1", lambda tmp: load(_measurement(
+        tmp, "l.csv", f"# kind: frf\n# source: m\xe9sure\n{PAIR}\n1,2,3\n2,1,4\n", "latin-1")),
+     MeasurementFileError, r"l\.csv, line 2: not a UTF-8"),
+    ("measurement_ragged_row", lambda tmp: load(_measurement(tmp, "r.csv", f"# kind: frf\n{PAIR}\n1,2,3\n2,1\n")),
+     MeasurementFileError, r"r\.csv, line 4.*row has 2 fields, the header has 3"),
+    ("measurement_nan_value", lambda tmp: load(_measurement(
+        tmp, "n.csv", "# kind: time\n# input motor.tau: N m\n# output table.s: m\nt,motor.tau,table.s\n"
+        "0,1,nan\n0.1,1,2\n")), MeasurementFileError, r"n\.csv, line 5, column 3 \('table\.s'\).*not finite"),
+    # ---- model resolution ------------------------------------------------------------------------------
+    ("model_a_number", lambda tmp: as_system(42), UnknownNameError, r"cannot use int as a model"),
+    ("model_none", lambda tmp: as_dae(None), UnknownNameError, r"cannot use NoneType as a model"),
+    ("model_unknown_name", lambda tmp: as_system("no_such_drive"), UnknownNameError,
+     r"unknown system 'no_such_drive'.*small_drive"),
+    ("model_missing_file", lambda tmp: as_system(str(tmp / "nope.py")), UnknownNameError,
+     r"nope\.py' does not exist"),
+    ("model_file_syntax_error", lambda tmp: as_system(str(_measurement(tmp, "broken.py", "def build(:\n"))),
+     ModelDefinitionError, r"broken\.py, line 1: invalid syntax"),
+    ("model_file_without_build", lambda tmp: as_system(str(_measurement(tmp, "nobuild.py", "x = 1\n"))),
+     UnknownNameError, r"nobuild\.py must define build\(\)"),
+    ("model_file_build_raises", lambda tmp: as_system(str(_measurement(
+        tmp, "raises.py", "def build():\n    raise RuntimeError('oops')\n"))), ModelDefinitionError,
+     r"raises\.py, line 2: RuntimeError in its build\(\): oops"),
+    ("model_unknown_build_keyword", lambda tmp: as_system("small_drive", {"k_axiall": 1.0}), UnknownNameError,
+     r"'k_axiall' is neither a parameter.*k_axial"),
+    ("model_build_keyword_nan", lambda tmp: as_system("small_drive", {"k_axial": NAN}), ParameterError,
+     r"Spring\.c \[N/m\] is nan"),
+    ("model_build_returns_not_a_system", lambda tmp: as_system(lambda: 42), UnknownNameError,
+     r"'<lambda>' returned int"),
+    ("model_build_keyword_for_a_system", lambda tmp: as_system(sd(), {"k_axial": 1.0}), UnknownNameError,
+     r"\['k_axial'\] are build keywords"),
+]
+
+
+@pytest.mark.parametrize("call, error, message", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_input_raises_a_named_error(tmp_path, call, error, message):
+    assert issubclass(error, BscompError)
+    with pytest.raises(error, match=message) as info:
+        call(tmp_path)
+    assert isinstance(info.value, BscompError)
+
+
+def test_the_table_is_large_and_ids_are_unique():
+    ids = [c[0] for c in CASES]
+    assert len(ids) == len(set(ids)) and len(ids) >= 40
+
+
+def test_python_bases_are_kept():
+    """Named errors keep the built-in base a Python caller might catch."""
+    assert issubclass(UsageError, ValueError) and issubclass(ParameterError, ValueError)
+    assert issubclass(ArgumentTypeError, TypeError) and issubclass(UnknownNameError, KeyError)
+    assert issubclass(OutputFileError, OSError) and issubclass(MeasurementFileError, ValueError)
