@@ -30,7 +30,8 @@ CASES = [
         strict=True, reason="compliant_backlash named first and accepted (error -99 %), but b +16 %: its "
                             "parabolic corners are not the truth's softplus ones; see docs/validation.md, Results")),
     ("delay", {"delay"}, 0.80),
-    ("joint_friction", {"table_mode", "guideway_friction"}, 0.80),
+    # joint + friction: the same diagnose call as `bscomp demo`; its assertions (groups, named first, values,
+    # error drop, evidence) run in tests/bscomp/test_cli.py::test_demo_tells_the_story_on_the_fe_test_bed
 ]
 
 
