@@ -1,0 +1,180 @@
+r"""The compiled step of ``simulate(method="modal")``: one CasADi SX Function per shape, run over chunks of
+steps by ``mapaccum`` through zero-copy buffers (no per-step Python inside a regime).
+
+A step's numbers -- the exponentials and the channel rows at the end and at the interior points
+(:class:`bscomp._moving_step.StepData`) -- are one flat input vector, the channel laws' numbers another
+(:meth:`bscomp._moving_law.LawSpec.pack`), so one Function serves every regime, reference, element and step
+length of a shape (modal coordinates ``m``, inputs, channel forces ``r``, channel coordinates ``r_m``). The
+state is ``[Re ξ; Im ξ; g]``; per step the Function returns the next state and
+``[error, max |f|, regime ok, element ok, Newton update]``.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+__all__ = ["pack_step", "Kernel"]
+
+INFO = 5
+
+
+def pack_step(sd, n_el_rows) -> np.ndarray:
+    """Flat vector of a :class:`~bscomp._moving_step.StepData` (the layout of :meth:`Kernel._unpack`): the end
+    and the midpoint with every channel row, the other interior points with the elements' rows only."""
+    parts = [sd.E.real, sd.E.imag, sd.Qu.real, sd.Qu.imag, sd.qc.real, sd.qc.imag, sd.Q0.real, sd.Q0.imag,
+             sd.Q1.real, sd.Q1.imag]
+    for k, (CE, Yu, Y0, Y1, yc) in enumerate([sd.end] + list(sd.samples)):
+        rows = slice(None) if k in (0, 2) else slice(0, n_el_rows)
+        parts += [CE[rows].real, CE[rows].imag, Yu[rows], Y0[rows], Y1[rows], yc[rows]]
+    return np.concatenate([np.asarray(a, float).reshape(-1, order="F") for a in parts])
+
+
+class Kernel:
+    """Step Functions of one shape (see the module docstring).
+
+    Parameters
+    ----------
+    m, nu, r, rm : int
+        Modal coordinates, inputs, channel forces, channel coordinates.
+    law : casadi.Function
+        ``(y, theta) -> (g, dg/dy, fmax, regime_ok, element_ok)``.
+    thetas : tuple of float
+        Interior points of the error check.
+    """
+
+    def __init__(self, m, nu, r, rm, laws, n_el_rows, thetas, n_newton=3):
+        self.m, self.nu, self.r, self.rm, self.thetas = m, nu, r, rm, tuple(thetas)
+        self.law_newton, self.law_check, self.law_elements = laws
+        self.n_theta = self.law_newton.size1_in(1)
+        self.ne = n_el_rows
+        self.shapes = [(m, 1)] * 2 + [(m, nu)] * 2 + [(m, 1)] * 2 + [(m, r)] * 4
+        for k in range(1 + len(self.thetas)):
+            n = rm if k in (0, 2) else n_el_rows
+            self.shapes += [(n, m), (n, m), (n, nu), (n, r), (n, r), (n, 1)]
+        self.n_mats = sum(a * b for a, b in self.shapes)
+        self.nx = 2 * m + r
+        self._f = {}
+        self._runs = {}
+        self.n_newton = n_newton
+
+    def _unpack(self, mats):
+        out, off = [], 0
+        for a, b in self.shapes:
+            out.append(ca.reshape(mats[off:off + a * b], a, b))
+            off += a * b
+        return out
+
+    def step(self, n_newton):
+        """SX Function ``(x, u, mats, theta) -> (x1, info)``; ``n_newton`` Newton iterations, or when
+        negative that many fixed-point iterations (no Jacobian: the chunks of calm steps)."""
+        f = self._f.get(n_newton)
+        if f is not None:
+            return f
+        m, r = self.m, self.r
+        x = ca.SX.sym("x", self.nx)
+        u = ca.SX.sym("u", self.nu)
+        mats = ca.SX.sym("mats", self.n_mats)
+        th = ca.SX.sym("theta", self.n_theta)
+        xr, xi, g0 = x[:m], x[m:2 * m], x[2 * m:]
+        P = self._unpack(mats)
+        Er, Ei, Qur, Qui, qcr, qci, Q0r, Q0i, Q1r, Q1i = P[:10]
+        points = [P[10 + 6 * k:16 + 6 * k] for k in range(1 + len(self.thetas))]
+        CEr, CEi, Yu, Y0, H, yc = points[0]
+        y_free = ca.mtimes(CEr, xr) - ca.mtimes(CEi, xi) + ca.mtimes(Yu, u) + ca.mtimes(Y0, g0) + yc
+        g = g0
+        upd = ca.SX(0)
+        eye = ca.SX.eye(r)
+        for _ in range(abs(n_newton)):
+            if n_newton > 0:                            # Newton
+                gl, L = self.law_newton(y_free + ca.mtimes(H, g), th)
+                dg = ca.solve(eye - ca.mtimes(L, H), gl - g)
+            else:                                       # fixed point: calm steps, where |dg/dy H| << 1
+                dg = self.law_check(y_free + ca.mtimes(H, g), th)[0] - g
+            g = g + dg
+            upd = ca.norm_inf(dg) / (1 + ca.norm_inf(g))
+        _, fmax, okr, oke = self.law_check(y_free + ca.mtimes(H, g), th)
+        err = ca.SX(0)
+        ne = self.ne
+        for k, (theta, (Cr, Ci, Yuj, Y0j, Y1j, ycj)) in enumerate(zip(self.thetas, points[1:], strict=True)):
+            yj = ca.mtimes(Cr, xr) - ca.mtimes(Ci, xi) + ca.mtimes(Yuj, u) + ca.mtimes(Y0j, g0) \
+                + ca.mtimes(Y1j, g) + ycj
+            if k == 1:                                  # the midpoint: every channel
+                gj, fj, okrj, okej = self.law_check(yj, th)
+                gi = g0 + theta * (g - g0)
+            elif ne:                                    # quarter points: the elements (short events)
+                gj, fj, okrj = self.law_elements(yj, th)
+                okej = 1
+                nel = gj.numel()
+                gi = g0[:nel] + theta * (g[:nel] - g0[:nel])
+            else:
+                continue
+            err = ca.fmax(err, ca.norm_inf(gj - gi))
+            fmax, okr, oke = ca.fmax(fmax, fj), okr * okrj, oke * okej
+        ur = ca.mtimes(Qur, u) + qcr + ca.mtimes(Q0r, g0) + ca.mtimes(Q1r, g)
+        ui = ca.mtimes(Qui, u) + qci + ca.mtimes(Q0i, g0) + ca.mtimes(Q1i, g)
+        x1r = Er * xr - Ei * xi + ur
+        x1i = Er * xi + Ei * xr + ui
+        info = ca.vertcat(err, fmax, okr, oke, upd)
+        f = ca.Function("modal_step", [x, u, mats, th], [ca.vertcat(x1r, x1i, g), info])
+        self._f[n_newton] = f
+        return f
+
+    def chunk(self, n, n_newton):
+        """MX Function of ``n`` steps (n a power of 4): four calls of the chunk a quarter as long, so the
+        step matrices and law numbers are passed once, not per step. ``(x0, U, mats, theta) -> (X, INFO)``
+        with ``U`` (nu, n), ``X`` (nx, n) the states after each step and ``INFO`` (5, n)."""
+        key = ("chunk", n, n_newton)
+        F = self._f.get(key)
+        if F is not None:
+            return F
+        if n == 1:
+            F = self.step(n_newton)
+        else:
+            sub = self.chunk(n // 4, n_newton)
+            x0 = ca.MX.sym("x", self.nx)
+            U = ca.MX.sym("U", self.nu, n)
+            mats = ca.MX.sym("mats", self.n_mats)
+            th = ca.MX.sym("theta", self.n_theta)
+            Xs, Is, x = [], [], x0
+            q = n // 4
+            for j in range(4):
+                X, I = sub(x, U[:, j * q:(j + 1) * q], mats, th)
+                Xs.append(X)
+                Is.append(I)
+                x = X[:, -1]
+            F = ca.Function(f"modal_chunk{n}", [x0, U, mats, th], [ca.horzcat(*Xs), ca.horzcat(*Is)])
+        self._f[key] = F
+        return F
+
+    def runner(self, n, n_newton=None):
+        """A buffered caller of ``n`` steps (a power of 4): ``call(x0, U (n, nu), mats, theta) -> (X, INFO)``."""
+        n_newton = self.n_newton if n_newton is None else n_newton
+        key = (n, n_newton)
+        run = self._runs.get(key)
+        if run is None:
+            run = self._runs[key] = _Buffered(self.chunk(n, n_newton), self.nx, n)
+        return run
+
+
+class _Buffered:
+    """Calls a Function through its zero-copy buffer (arguments and results numpy, column-major)."""
+
+    def __init__(self, F, nx, n):
+        self.F, self.n = F, n
+        self.buf, self.trigger = F.buffer()
+        self.X = np.zeros((n, nx))           # row k: state after step k (C-order rows = CasADi columns)
+        self.I = np.zeros((n, INFO))
+        self.buf.set_res(0, memoryview(self.X.reshape(-1)))
+        self.buf.set_res(1, memoryview(self.I.reshape(-1)))
+
+    def __call__(self, x0, U, mats, theta):
+        x0 = np.ascontiguousarray(x0, float)
+        U = np.ascontiguousarray(U, float)            # (n, nu) rows = CasADi columns
+        self.buf.set_arg(0, memoryview(x0))
+        self.buf.set_arg(1, memoryview(U.reshape(-1)))
+        self.buf.set_arg(2, memoryview(mats))
+        self.buf.set_arg(3, memoryview(theta))
+        self._keep = (x0, U, mats, theta)
+        self.trigger()
+        return self.X, self.I
