@@ -6,7 +6,7 @@ A step's numbers -- the exponentials and the channel rows at the end and at the 
 (:meth:`bscomp._moving_law.LawSpec.pack`), so one Function serves every regime, reference, element and step
 length of a shape (modal coordinates ``m``, inputs, channel forces ``r``, channel coordinates ``r_m``). The
 state is ``[Re ξ; Im ξ; g]``; per step the Function returns the next state and
-``[error, max |f|, regime ok, element ok, Newton update]``.
+``[error, max |f|, regime ok, element ok, last Newton update]`` (error and update in force units).
 """
 
 from __future__ import annotations
@@ -66,8 +66,9 @@ class Kernel:
         return out
 
     def step(self, n_newton):
-        """SX Function ``(x, u, mats, theta) -> (x1, info)``; ``n_newton`` Newton iterations, or when
-        negative that many fixed-point iterations (no Jacobian: the chunks of calm steps)."""
+        """SX Function ``(x, u, mats, theta, chord) -> (x1, info)``; ``n_newton`` Newton iterations, or when
+        negative that many chord iterations with the matrix ``chord = (I - L_0 H)^{-1}`` (the law's Jacobian
+        at the chunk's start: no Jacobian per step, for the chunks of calm steps)."""
         f = self._f.get(n_newton)
         if f is not None:
             return f
@@ -76,6 +77,7 @@ class Kernel:
         u = ca.SX.sym("u", self.nu)
         mats = ca.SX.sym("mats", self.n_mats)
         th = ca.SX.sym("theta", self.n_theta)
+        Mc = ca.SX.sym("chord", r, r)
         xr, xi, g0 = x[:m], x[m:2 * m], x[2 * m:]
         P = self._unpack(mats)
         Er, Ei, Qur, Qui, qcr, qci, Q0r, Q0i, Q1r, Q1i = P[:10]
@@ -85,14 +87,14 @@ class Kernel:
         g = g0
         upd = ca.SX(0)
         eye = ca.SX.eye(r)
-        for _ in range(abs(n_newton)):
+        for _ in range(abs(n_newton) if r else 0):
             if n_newton > 0:                            # Newton
                 gl, L = self.law_newton(y_free + ca.mtimes(H, g), th)
                 dg = ca.solve(eye - ca.mtimes(L, H), gl - g)
-            else:                                       # fixed point: calm steps, where |dg/dy H| << 1
-                dg = self.law_check(y_free + ca.mtimes(H, g), th)[0] - g
+            else:                                       # chord: (I - L0 H)^-1 from the chunk's start
+                dg = ca.mtimes(Mc, self.law_check(y_free + ca.mtimes(H, g), th)[0] - g)
             g = g + dg
-            upd = ca.norm_inf(dg) / (1 + ca.norm_inf(g))
+            upd = ca.norm_inf(dg)
         _, fmax, okr, oke = self.law_check(y_free + ca.mtimes(H, g), th)
         err = ca.SX(0)
         ne = self.ne
@@ -116,7 +118,7 @@ class Kernel:
         x1r = Er * xr - Ei * xi + ur
         x1i = Er * xi + Ei * xr + ui
         info = ca.vertcat(err, fmax, okr, oke, upd)
-        f = ca.Function("modal_step", [x, u, mats, th], [ca.vertcat(x1r, x1i, g), info])
+        f = ca.Function("modal_step", [x, u, mats, th, Mc], [ca.vertcat(x1r, x1i, g), info])
         self._f[n_newton] = f
         return f
 
@@ -136,14 +138,15 @@ class Kernel:
             U = ca.MX.sym("U", self.nu, n)
             mats = ca.MX.sym("mats", self.n_mats)
             th = ca.MX.sym("theta", self.n_theta)
+            Mc = ca.MX.sym("chord", self.r, self.r)
             Xs, Is, x = [], [], x0
             q = n // 4
             for j in range(4):
-                X, I = sub(x, U[:, j * q:(j + 1) * q], mats, th)
+                X, I = sub(x, U[:, j * q:(j + 1) * q], mats, th, Mc)
                 Xs.append(X)
                 Is.append(I)
                 x = X[:, -1]
-            F = ca.Function(f"modal_chunk{n}", [x0, U, mats, th], [ca.horzcat(*Xs), ca.horzcat(*Is)])
+            F = ca.Function(f"modal_chunk{n}", [x0, U, mats, th, Mc], [ca.horzcat(*Xs), ca.horzcat(*Is)])
         self._f[key] = F
         return F
 
@@ -168,13 +171,16 @@ class _Buffered:
         self.buf.set_res(0, memoryview(self.X.reshape(-1)))
         self.buf.set_res(1, memoryview(self.I.reshape(-1)))
 
-    def __call__(self, x0, U, mats, theta):
+    def __call__(self, x0, U, mats, theta, chord=None):
         x0 = np.ascontiguousarray(x0, float)
         U = np.ascontiguousarray(U, float)            # (n, nu) rows = CasADi columns
+        r = self.F.size1_in(4)
+        chord = np.zeros(r * r) if chord is None else np.asarray(chord, float).reshape(-1, order="F")
         self.buf.set_arg(0, memoryview(x0))
         self.buf.set_arg(1, memoryview(U.reshape(-1)))
         self.buf.set_arg(2, memoryview(mats))
         self.buf.set_arg(3, memoryview(theta))
-        self._keep = (x0, U, mats, theta)
+        self.buf.set_arg(4, memoryview(chord))
+        self._keep = (x0, U, mats, theta, chord)
         self.trigger()
         return self.X, self.I

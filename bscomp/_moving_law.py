@@ -86,7 +86,7 @@ class LawSpec:
                 full[:, :, [where[int(c)] for c in cols]] = coef[:, rows, :]
                 vals[f"coef{j}_{k}"] = full
                 vals[f"zab{j}_{k}"] = np.array([jt.z_nodes[e], jt.z_nodes[e + 1]])
-        return np.concatenate([_flat(vals[n]) for n, _ in self.layout])
+        return np.concatenate([_flat(vals[n]) for n, _ in self.layout]) if self.layout else np.zeros(0)
 
     # ---- expressions --------------------------------------------------------------------------------------
     def unpack(self, theta):
@@ -138,7 +138,7 @@ class LawSpec:
             fabs.append(ca.norm_inf(fj))
             ok_el = ok_el * inside_any
         fmax = ca.mmax(ca.vertcat(*fabs)) if fabs else ca.SX(0)
-        return ca.vertcat(*g), fmax, ok_reg, ok_el
+        return (ca.vertcat(*g) if g else ca.SX(0, 1)), fmax, ok_reg, ok_el
 
     def _nearest_is_current(self, el, s, v, P, i):
         """1 if the candidate nearest the law's tangent at (s, v) is the current regime."""

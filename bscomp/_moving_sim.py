@@ -38,10 +38,10 @@ def _chunk_size(n):
         size *= 4
     return size
 
-NEWTON_ACCEPT = 1e-8
+NEWTON_ACCEPT = 1e-2   # last Newton update accepted: this fraction of the interpolation tolerance [force]
 CHUNK = 256           # most sub-steps per compiled chunk
 CHUNK_LEVELS = 2      # chunks run at h, h/4 or h/16
-CHUNK_ITERATIONS = -3  # chunks at the grid step: three fixed-point iterations (a step that needs Newton is redone)
+CHUNK_ITERATIONS = -3  # chunks at the grid step: three chord iterations (a step that needs Newton is redone)
 FINE_ITERATIONS = 3   # finer chunks and batches: three Newton iterations
 FINE_LEVELS = 3       # refinement levels below a failed chunk's level, then single sub-steps
 
@@ -139,6 +139,9 @@ class ModalSimulator:
             if jt.C is not None:
                 blocks.append(((P @ ch.Sv_xd).toarray(), (P @ ch.Sv_x).toarray(), np.zeros((nS, dae.nz)),
                                np.zeros((nS, dae.nu)), np.zeros(nS)))
+        if not blocks:
+            blocks = [(np.zeros((0, dae.nx)), np.zeros((0, dae.nx)), np.zeros((0, dae.nz)), np.zeros((0, dae.nu)),
+                       np.zeros(0))]
         cat = [np.vstack([b[i] for b in blocks]) for i in range(4)] + [np.concatenate([b[4] for b in blocks])]
         return mp.rows(*cat)
 
@@ -224,7 +227,8 @@ class ModalSimulator:
     def _flags(self, info, tol):
         """``(first bad row or len, running scale)`` of a block of step infos."""
         scale = np.maximum.accumulate(np.maximum(info[:, 1], self.scale))
-        bad = (info[:, 0] > tol * scale) | (info[:, 2] < 0.5) | (info[:, 3] < 0.5) | ~(info[:, 4] < NEWTON_ACCEPT)
+        bad = (info[:, 0] > tol * scale) | (info[:, 2] < 0.5) | (info[:, 3] < 0.5) \
+            | ~(info[:, 4] < NEWTON_ACCEPT * tol * scale)
         return (int(np.argmax(bad)) if bad.any() else len(info)), scale
 
     def _chunk(self, st, U, k, n, h, tol, XI, G, level):
@@ -238,9 +242,12 @@ class ModalSimulator:
         Uc = np.repeat(U[k:k + n], per, axis=0)
         if N > len(Uc):
             Uc = np.vstack([Uc, np.repeat(Uc[-1:], N - len(Uc), axis=0)])
-        X, info = run(stp.pack_state(st.xi, st.g[stp.gsel]), Uc, mats, stp.theta)
+        chord = stp.chord(st.xi, st.g[stp.gsel], U[k], h / per) if level == 0 else None
+        X, info = run(stp.pack_state(st.xi, st.g[stp.gsel]), Uc, mats, stp.theta, chord)
         b, scale = self._flags(info[:n * per], tol)
         done = b // per
+        if getattr(self, "log", None) is not None and b < n * per:
+            self.log.append((k + done, level, *info[b]))
         self.counts["chunks"] += 1
         if done:
             self.scale = float(scale[done * per - 1])

@@ -121,6 +121,8 @@ class Stepper:
     def newton(self, y_free, H, g, n_iter):
         """Newton on ``g = law(y_free + H g)``: ``(g, y, last relative update)``."""
         g = np.array(g, float)
+        if not self.r:
+            return g, y_free, 0.0
         upd = np.inf
         for _ in range(n_iter):
             y = y_free + H @ g
@@ -141,12 +143,21 @@ class Stepper:
 
     def step(self, xi0, g0, u, tau, n_newton=12):
         """One compiled step: ``(xi1, g1, err_abs, fmax, ok_regime, ok_element, newton_update)``; ``err_abs``
-        is the largest interpolation error of the forces at the interior points [force units]."""
+        is the largest interpolation error of the forces at the interior points, ``newton_update`` the last
+        Newton update (both in force units)."""
         _, mats = self.data(tau)
-        X, info = self.kernel.runner(1, n_newton)(self.pack_state(xi0, g0), u[None, :], mats, self.theta)
+        X, info = self.kernel.runner(1, n_newton)(self.pack_state(xi0, g0), u[None, :], mats, self.theta, None)
         xi1, g1 = self.unpack_state(X[0])
         err, fmax, okr, oke, upd = info[0]
         return xi1, g1, float(err), float(fmax), bool(okr > 0.5), bool(oke > 0.5), float(upd)
+
+    def chord(self, xi, g, u, tau):
+        """``(I - L H)^{-1}`` with the law's Jacobian ``L`` at the current state and ``H`` of a step ``tau``."""
+        Cxi, Du, Dg, yc = self.rows
+        y = (Cxi @ xi).real + Du @ u + Dg[:, self.gsel] @ g + yc
+        L = self.evaluate(y)[1]
+        H = self.data(tau)[0].end[3]
+        return np.linalg.inv(np.eye(self.r) - L @ H)
 
     def end_values(self, xi0, g0, g1, u, tau):
         """Channel values at the end of a step (numpy)."""
