@@ -249,8 +249,7 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
     params : str
         Parameter set name or path (default the thesis test bed).
     n_elements : int, optional
-        Screw mesh: about this many Timoshenko elements in all, every section's count of Table B.1 scaled
-        (at least one each; 47 by default; 24, 94 and 188 for a mesh-growth study).
+        About this many screw elements, Table B.1's counts scaled (47 by default; for mesh-growth studies).
 
     Returns
     -------
@@ -285,7 +284,7 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
     if has_drive:
         points["coupling"] = x_cp
     # ---- screw (Table B.1, Sec B.1, Eq 3.1, Eq A.6)
-    s.add("screw", thesis_ballscrew(dofs=dofs, points=points, d_root=root_diameter, params=params))
+    s.add("screw", thesis_ballscrew(dofs=dofs, points=points, d_root=root_diameter, params=params, sections=sections))
     src.update({"screw": "Table B.1; Sec B.1 (E, rho, nu); Eq 3.1 (d_e); Eq A.6 (k^s)",
                 "screw.nut": f"nut centre x = {x_nut} m (toml table.nut_position_*, CHOICE)" if has_nut else ""})
     if has_bearings:
@@ -304,8 +303,7 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
                         b1_position=x_b1 if has_bearings else None, b2_position=x_b2 if has_bearings else None,
                         coupling_position=x_cp if has_drive else None, root_diameter=sections[2].d_out,
                         jaw1=jaw1, ksn=ksn, pitch=pitch, viscous=viscous, nut_joint=nut_joint,
-                        drive_input=drive_input if has_drive else None, params=params,
-                        n_elements=sum(sec.n_elements for sec in sections))
+                        drive_input=drive_input if has_drive else None, params=params, n_elements=n_elements)
     return s
 
 

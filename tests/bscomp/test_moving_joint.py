@@ -1,16 +1,17 @@
 """simulate(method="modal"): friction, backlash and the moving screw-nut joint as low-rank corrections of an exact
-modal linear part (bscomp/_moving_*.py). Checked against the model's own residual (the decomposition is exact),
-the joint's closed-form port forces, IDAS at rtol 1e-9 on the same equations, the exact ZOH of a linear model and
-a sampled controller closing the loop. The creeping-nut limit is tests/components/test_moving_nut.py."""
+modal linear part (bscomp/simulation/modal*.py, moving_joints.py). Checked against the model's own residual (the
+decomposition is exact), the joint's closed-form port forces, IDAS at rtol 1e-9 on the same equations, the exact
+ZOH of a linear model and a sampled controller closing the loop. The creeping-nut limit is
+tests/components/test_moving_nut.py."""
 
 import numpy as np
 import pytest
 
 from bscomp import flatten
-from bscomp._moving_linear import Channels, LinearPart, ModalSimulationError
-from bscomp._moving_sim import ModalSimulator
 from bscomp.components import Backlash, CoulombFriction, Fixed
-from bscomp.simulate import SampledController, simulate
+from bscomp.simulation import SampledController, simulate
+from bscomp.simulation.modal_channels import Channels, LinearPart, ModalSimulationError
+from bscomp.simulation.modal_driver import ModalSimulator
 from bscomp.systems import testbed
 
 AMP = 2.125                     # Sec 5.3.1: 4.25 V peak-to-peak square wave
@@ -121,7 +122,7 @@ def test_linear_model_equals_exact_zoh():
     dae = flatten(drive("point", friction=False, backlash=False))
     t = np.arange(0.0, 0.02 + 1e-12, 1e-4)
     outs = ["table.a", "table.s", "rotor.w"]
-    r = simulate(dae, t, inputs={"amp.u": square}, outputs=outs, method="modal", options={"f_keep": None})
+    r = simulate(dae, t, inputs={"amp.u": square}, outputs=outs, method="modal", modal_options={"f_keep": None})
     ref = simulate(dae, t, inputs={"amp.u": square}, outputs=outs, method="lti")
     for o in outs:
         assert _nrmse(r[o], ref[o]) < 1e-8, o
@@ -148,7 +149,7 @@ def test_sampled_position_controller_closes_the_loop(moving):
 def test_bad_input_raises_named_errors(moving):
     t = np.arange(0.0, 1e-3, 1e-4)
     with pytest.raises(ValueError, match="options"):
-        simulate(moving, t, method="modal", options={"tolerance": 1e-3})
+        simulate(moving, t, method="modal", modal_options={"tolerance": 1e-3})
     dae = flatten(drive("point", friction=False, backlash=False, viscous="none"))
     with pytest.raises(ModalSimulationError, match="diagonalisable"):
         simulate(dae, t, method="modal")

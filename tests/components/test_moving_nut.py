@@ -117,7 +117,7 @@ def test_slow_creep_matches_frozen_quasi_static_stretch(method):
     plus the integrator's atol/stretch = 1e-10/2e-6 = 5e-5; measured ~1e-4 (7e-5 at the end).
     The stretch itself changes by ~35 % over the window, so a joint stuck at its start position fails.
     ``method="modal"`` holds the joint frozen at its start in the linear part and moves the contact point in
-    the low-rank correction across the node (bscomp/_moving_joint.py).
+    the low-rank correction across the node (bscomp/simulation/moving_joints.py).
     """
     from bscomp import flatten
     from bscomp.kernel.damping import ModalDamping

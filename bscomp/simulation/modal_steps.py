@@ -1,7 +1,7 @@
 r"""One step of ``simulate(method="modal")``: exact exponential of the modal linear part, the channel forces
 first-order held between the step's ends and solved implicitly, checked at three interior points.
 
-With modal coordinates ``ξ' = λ ξ + B_u u + B_g g + b_c`` (:class:`bscomp._moving_modal.ModalPart`), the input
+With modal coordinates ``ξ' = λ ξ + B_u u + B_g g + b_c`` (:class:`bscomp.simulation.modal_parts.ModalPart`), the input
 held over the step and the channel forces ``g(t) = g_0 + (g_1 - g_0) t/τ``, the step is exact per mode:
 
 .. math::
@@ -20,6 +20,8 @@ bisection on the exact trajectory), by :meth:`Stepper.advance`.
 from __future__ import annotations
 
 import numpy as np
+
+from bscomp.simulation.modal_kernels import pack_step
 
 __all__ = ["phis", "StepData", "Stepper"]
 
@@ -84,7 +86,7 @@ class Stepper:
     gsel : ndarray of int
         Columns of ``Bg`` of the active channel forces (the others are zero).
     law : casadi.Function
-        :meth:`bscomp._moving_law.LawSpec.function`.
+        :meth:`bscomp.simulation.modal_laws.LawSpec.function`.
     theta : ndarray
         Packed numbers of the law.
     """
@@ -98,8 +100,6 @@ class Stepper:
 
     def data(self, tau):
         """``(StepData, packed vector)`` for a sub-step length (cached)."""
-        from ._moving_kernel import pack_step
-
         key = round(tau, 16)
         d = self._data.get(key)
         if d is None:

@@ -1,6 +1,6 @@
 r"""``simulate(method="modal")``: exact modal zero-order hold for the linear part, friction, backlash and moving
-joints as implicit low-rank corrections (:mod:`bscomp._moving_linear`, :mod:`bscomp._moving_modal`,
-:mod:`bscomp._moving_step`, :mod:`bscomp._moving_joint`).
+joints as implicit low-rank corrections (:mod:`~bscomp.simulation.modal_channels`,
+:mod:`~bscomp.simulation.modal_parts`, :mod:`~bscomp.simulation.modal_steps`, :mod:`~bscomp.simulation.moving_joints`).
 
 Regimes and references
 ----------------------
@@ -22,11 +22,11 @@ import time
 
 import numpy as np
 
-from ._moving_kernel import Kernel
-from ._moving_law import LawSpec
-from ._moving_linear import Channels, LinearPart
-from ._moving_modal import ModalPart
-from ._moving_step import THETAS, Stepper
+from bscomp.simulation.modal_channels import Channels, LinearPart
+from bscomp.simulation.modal_kernels import Kernel
+from bscomp.simulation.modal_laws import LawSpec
+from bscomp.simulation.modal_parts import ModalPart
+from bscomp.simulation.modal_steps import THETAS, Stepper
 
 __all__ = ["ModalSimulator"]
 
@@ -194,7 +194,7 @@ class ModalSimulator:
             if brk[k] and sample is not None:
                 sample(k, st)
             if progress is not None and k - last_bar >= 2000:
-                progress(k / (nt - 1), t[k])
+                progress(k)
                 last_bar = k
             if chunks:
                 n = 1
@@ -220,7 +220,7 @@ class ModalSimulator:
             XI[k + 1], G[k + 1] = st.xi, st.g
             k += 1
         if progress is not None:
-            progress(1.0, t[-1])
+            progress(nt - 1)
         self.stats.update(self.counts, force_scale=self.scale)
         return XI, G, segs
 

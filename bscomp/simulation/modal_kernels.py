@@ -2,8 +2,8 @@ r"""The compiled step of ``simulate(method="modal")``: one CasADi SX Function pe
 steps by ``mapaccum`` through zero-copy buffers (no per-step Python inside a regime).
 
 A step's numbers -- the exponentials and the channel rows at the end and at the interior points
-(:class:`bscomp._moving_step.StepData`) -- are one flat input vector, the channel laws' numbers another
-(:meth:`bscomp._moving_law.LawSpec.pack`), so one Function serves every regime, reference, element and step
+(:class:`bscomp.simulation.modal_steps.StepData`) -- are one flat input vector, the channel laws' numbers another
+(:meth:`bscomp.simulation.modal_laws.LawSpec.pack`), so one Function serves every regime, reference, element and step
 length of a shape (modal coordinates ``m``, inputs, channel forces ``r``, channel coordinates ``r_m``). The
 state is ``[Re ξ; Im ξ; g]``; per step the Function returns the next state and
 ``[error, max |f|, regime ok, element ok, last Newton update]`` (error and update in force units).
@@ -20,7 +20,7 @@ INFO = 5
 
 
 def pack_step(sd, n_el_rows) -> np.ndarray:
-    """Flat vector of a :class:`~bscomp._moving_step.StepData` (the layout of :meth:`Kernel._unpack`): the end
+    """Flat vector of a :class:`~bscomp.simulation.modal_steps.StepData` (the layout of :meth:`Kernel._unpack`): the end
     and the midpoint with every channel row, the other interior points with the elements' rows only."""
     parts = [sd.E.real, sd.E.imag, sd.Qu.real, sd.Qu.imag, sd.qc.real, sd.qc.imag, sd.Q0.real, sd.Q0.imag,
              sd.Q1.real, sd.Q1.imag]

@@ -1,4 +1,4 @@
-r"""Modal coordinates of a :class:`bscomp._moving_linear.LinearPart` for ``simulate(method="modal")``.
+r"""Modal coordinates of a :class:`bscomp.simulation.modal_channels.LinearPart` for ``simulate(method="modal")``.
 
 Mechanical models (every coordinate with inertia, no algebraic variables; controller states allowed) use
 the undamped modes: ``K Φ = M Φ Λ`` (symmetric ``eigh``, mass-normalised, Eq A.10), modes up to ``f_keep``
@@ -23,7 +23,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from ._moving_linear import ModalSimulationError, _dense
+from bscomp.simulation.modal_channels import ModalSimulationError, _dense
 
 __all__ = ["ModalPart"]
 

@@ -21,7 +21,7 @@ correction force
 
 is exact and acts only on the potentials of the element that holds ``z`` and of the element that holds
 ``z_r`` (plus the nut): a few of the screw's hundreds of coordinates (:class:`MovingJoint` gives the maps,
-:mod:`bscomp._moving_law` the expressions on a set ``S`` of those potentials, the step's Newton unknowns).
+:mod:`bscomp.simulation.modal_laws` the expressions on a set ``S`` of those potentials, the step's Newton unknowns).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import ModelDefinitionError
+from bscomp.errors import ModelDefinitionError
 
 __all__ = ["MovingJoint", "find_moving_joints"]
 

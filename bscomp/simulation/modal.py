@@ -2,7 +2,7 @@ r"""Driver and results of ``simulate(method="modal")``: sampled controllers, out
 states reconstructed only when asked for.
 
 Outputs that are affine in ``(x', x, z, u)`` (positions, velocities, accelerations, forces of linear parts) are
-rows of the modal coordinates and channel forces (:meth:`bscomp._moving_modal.ModalPart.rows`): one product per
+rows of the modal coordinates and channel forces (:meth:`bscomp.simulation.modal_parts.ModalPart.rows`): one product per
 stretch of the run in one modal part. Others (an element's force, the contact point ``sn.z``) are evaluated by
 the model's own output function on the few state columns they depend on. The full state history ``x``, ``x'``
 (``z``) is rebuilt from the modal trajectory the first time it is read.
@@ -10,41 +10,41 @@ the model's own output function on the few state columns they depend on. The ful
 
 from __future__ import annotations
 
-import sys
 import time
 
 import casadi as ca
 import numpy as np
 
-__all__ = ["simulate_modal"]
+from bscomp.simulation.common import Progress, SampledLoop, evaluate_outputs
+from bscomp.simulation.modal_driver import ModalSimulator
+from bscomp.simulation.result import SimulationResult
 
+__all__ = ["simulate_modal", "ModalResult", "DEFAULTS"]
+
+#: ``options`` of ``simulate(method="modal")`` and their defaults
 DEFAULTS = {"tol": 3e-4, "f_keep": 5e4, "window": 2}
 
 
-def _simulation_result():
-    from .simulate import SimulationResult
+class ModalResult(SimulationResult):
+    """A :class:`~bscomp.simulation.result.SimulationResult` whose state histories ``x``, ``xd``, ``z`` are
+    rebuilt from the modal trajectory the first time one is read (outputs are computed at once)."""
 
-    class ModalResult(SimulationResult):
-        """A :class:`~bscomp.simulate.SimulationResult` whose state histories are rebuilt when first read."""
+    def __init__(self, rebuild, **kw):
+        self._rebuild, self._states = rebuild, None
+        super().__init__(x=None, xd=None, z=None, **kw)
 
-        def __init__(self, rebuild, **kw):
-            self._rebuild, self._states = rebuild, None
-            super().__init__(x=None, xd=None, z=None, **kw)
+    def _get(self, i):
+        if self._states is None:
+            self._states = self._rebuild()
+        return self._states[i]
 
-        def _get(self, i):
-            if self._states is None:
-                self._states = self._rebuild()
-            return self._states[i]
-
-        x = property(lambda self: self._get(0), lambda self, v: None)
-        xd = property(lambda self: self._get(1), lambda self, v: None)
-        z = property(lambda self: self._get(2), lambda self, v: None)
-
-    return ModalResult
+    x = property(lambda self: self._get(0), lambda self, v: None)
+    xd = property(lambda self: self._get(1), lambda self, v: None)
+    z = property(lambda self: self._get(2), lambda self, v: None)
 
 
-def _sample_indices(t, controllers):
-    """Grid indices at which each sampled controller updates (the rule of the other methods)."""
+def sample_indices(t, controllers):
+    """Grid indices at which the sampled controllers update (the rule of :class:`SampledLoop`)."""
     out = []
     nxt = [t[0] for _ in controllers]
     for k in range(len(t) - 1):
@@ -115,8 +115,6 @@ class Outputs:
         return out
 
     def _nonaffine(self, mp, xi, u, g):
-        from .simulate import _evaluate_outputs
-
         sim, dae = self.sim, self.sim.dae
         n = len(xi)
         cd, cx, cz = self.cols
@@ -134,7 +132,7 @@ class Outputs:
             Zx, Zu, Zg, zc = mp.Z
             dx = mp.state(xi, u, g)
             Z[:, cz] = sim.ch.z_a[cz] + dx @ Zx[cz].T + u @ Zu[cz].T + g @ Zg[cz].T + zc[cz]
-        Y = _evaluate_outputs(dae, self.other, XD, X, Z, u, sim.p)
+        Y = evaluate_outputs(dae, self.other, XD, X, Z, u, sim.p)
         return np.column_stack([Y[o] for o in self.other])
 
 
@@ -152,9 +150,8 @@ def _states(sim, XI, G, segs, Uh):
 
 
 def simulator(dae, p, options):
-    """The cached :class:`~bscomp._moving_sim.ModalSimulator` of a Dae, parameter vector and options."""
-    from ._moving_sim import ModalSimulator
-
+    """The cached :class:`~bscomp.simulation.modal_driver.ModalSimulator` of a Dae, parameter vector and
+    options (up to four per Dae: a repeated run skips the set-up)."""
     key = ("modal", p.tobytes(), options["f_keep"], options["window"])
     cache = dae._cache.setdefault("modal_simulators", {})
     if key not in cache:
@@ -164,31 +161,45 @@ def simulator(dae, p, options):
     return cache[key]
 
 
-def simulate_modal(dae, t, U, xs, p, outputs, controllers, substeps, progress, options=None):
-    """Driver of ``simulate(method="modal")`` (arguments as the other methods' drivers; ``U`` is (nu, nt-1))."""
-    from .simulate import _progress_bar
+def simulate_modal(problem, options):
+    """``simulate(method="modal")``: the driver (:class:`~bscomp.simulation.modal_driver.ModalSimulator`).
 
-    opts = dict(DEFAULTS, **(options or {}))
+    Parameters
+    ----------
+    problem : SimulationProblem
+    options : SimulationOptions
+        ``substeps`` (steps per output interval) and ``modal`` (a dict: ``tol``, ``f_keep``, ``window``;
+        :data:`DEFAULTS`).
+
+    Returns
+    -------
+    ModalResult
+        ``stats``: the counters of :class:`ModalSimulator` (modal parts built, chunks, batches, sub-steps,
+        regime switches) and ``wall_s``, ``real_time_factor``.
+    """
+    opts = dict(DEFAULTS, **(options.modal or {}))
     bad = set(opts) - set(DEFAULTS)
     if bad:
         raise ValueError(f"method='modal' options are {sorted(DEFAULTS)}, got {sorted(bad)}")
+    substeps = int(options.substeps)
+    if substeps < 1:
+        raise ValueError(f"substeps must be >= 1, got {substeps}")
+    dae, t, U, xs, p = problem.dae, problem.t, problem.U, problem.x0, problem.p
     t_wall = time.perf_counter()
-    if outputs:
-        dae.output_function(outputs)                 # unknown names fail before integrating
     sim = simulator(dae, p, opts)
-    out = Outputs(sim, outputs)
+    out = Outputs(sim, problem.outputs)
     nt = len(t)
     if substeps > 1:
         ti = np.concatenate([np.linspace(t[k], t[k + 1], substeps + 1)[:-1] for k in range(nt - 1)] + [t[-1:]])
         Ui = np.repeat(U.T, substeps, axis=0)
     else:
-        ti, Ui = t, np.ascontiguousarray(U.T)
-    samples = _sample_indices(ti, controllers) if controllers else []
+        ti, Ui = t, np.array(U.T)
+    controllers = problem.controllers
+    samples = sample_indices(ti, controllers) if controllers else []
     sampler = _Sampler(dae, sim, controllers, ti, Ui) if controllers else None
-    if progress is None:
-        progress = nt > 2000 and sys.stderr.isatty()
-    bar = (lambda frac, tn: _progress_bar(dae.name, frac, tn)) if progress else None
-    XI, G, segs = sim.run(ti, Ui, xs, tol=opts["tol"], breaks=samples, sample=sampler, progress=bar)
+    bar = Progress(dae.name, ti, problem.progress, every=1)
+    XI, G, segs = sim.run(ti, Ui, xs, tol=opts["tol"], breaks=samples, sample=sampler,
+                          progress=(lambda k: bar.update(0, k)) if problem.progress else None)
     keep = np.arange(0, len(ti), substeps)
     if substeps > 1:
         XI = [XI[k] for k in keep]
@@ -199,7 +210,6 @@ def simulate_modal(dae, t, U, xs, p, outputs, controllers, substeps, progress, o
     wall = time.perf_counter() - t_wall
     stats = dict(sim.stats, wall_s=wall, method="modal", step=float(np.min(np.diff(ti))), options=opts,
                  real_time_factor=(t[-1] - t[0]) / wall if wall > 0 else np.inf)
-    ModalResult = _simulation_result()
     return ModalResult(lambda: _states(sim, XI, G, segs, Uh), t=t, u=Uh, x_names=list(dae.x_names),
                        z_names=list(dae.z_names), u_names=list(dae.u_names), outputs=y, stats=stats)
 
@@ -218,24 +228,21 @@ def _thin_segments(segs, every):
 
 
 class _Sampler:
-    """Runs the sampled controllers at their grid indices: measures, calls the laws, holds their outputs."""
+    """Runs the sampled controllers (:class:`~bscomp.simulation.common.SampledLoop`) at their grid indices: the
+    measured outputs from the modal state, the held values written into ``U[k:]``."""
 
     def __init__(self, dae, sim, controllers, t, U):
-        self.dae, self.sim, self.controllers, self.t, self.U = dae, sim, controllers, t, U
-        self.names = [m for c in controllers for m in c.measure]
-        self.out = Outputs(sim, self.names)
-        self.idx = [[dae.u_names.index(a) for a in c.actuate] for c in controllers]
-        self.nxt = [t[0] for _ in controllers]
+        self.t, self.U = t, U
+        self.loop = SampledLoop(dae, controllers, t[0])
+        self.out = Outputs(sim, [m for c in controllers for m in c.measure])
+        self.cols = sorted({c for cols in self.loop.columns for c in cols})
 
     def __call__(self, k, st):
         """Called before the step from grid index k with the running state; updates ``U[k:]`` in place."""
-        y = self.out.evaluate([st.xi], st.g[None, :], [(0, st.mp)], self.U[k:k + 1])
-        off = 0
-        for i, c in enumerate(self.controllers):
-            if self.t[k] + 1e-12 >= self.nxt[i]:
-                meas = np.array([y[n][0] for n in c.measure[:]])
-                val = np.atleast_1d(np.asarray(c.law(self.t[k], meas), float))
-                self.U[k:, self.idx[i]] = val
-                while self.nxt[i] <= self.t[k] + 1e-12:
-                    self.nxt[i] += c.Ts
-            off += len(c.measure)
+        def y_of(u_k):
+            Uk = u_k[None, :]
+            y = self.out.evaluate([st.xi], st.g[None, :], [(0, st.mp)], Uk)
+            return np.array([y[n][0] for n in self.out.names])
+
+        u_k = self.loop.sample(self.t[k], self.U[k].copy(), y_of)
+        self.U[k:, self.cols] = u_k[self.cols]

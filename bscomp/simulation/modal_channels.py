@@ -33,10 +33,15 @@ of Eq 5.16-5.18) and the kept ones, coupled by the (non-proportional) damping, a
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import BscompError
+from bscomp.errors import BscompError
+from bscomp.kernel.dae import _sp
+from bscomp.linear.linearization import explicit_form
+from bscomp.simulation.compiled import _Element, nonlinear_elements
+from bscomp.simulation.moving_joints import MovingJoint, find_moving_joints
 
 __all__ = ["ModalSimulationError", "Channels", "LinearPart"]
 
@@ -60,9 +65,6 @@ class Channels:
     """
 
     def __init__(self, dae, p):
-        from ._moving_joint import MovingJoint, find_moving_joints
-        from .compiled import _Element, nonlinear_elements
-
         if dae.system is None:
             raise ModalSimulationError(f"'{dae.name}' was not flattened from a System: method='modal' needs the "
                                        "components (pass the System, or use method='split')")
@@ -97,8 +99,6 @@ class Channels:
         self.el_rows = None
         if not names:
             return
-        import casadi as ca
-
         y = dae.output_expr(names)
         f = ca.Function("rows", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
                         [y, ca.jacobian(y, dae.xds), ca.jacobian(y, dae.xs), ca.jacobian(y, dae.zs),
@@ -113,14 +113,12 @@ class Channels:
                 D[i, j] = Jx[2 * i, m.q_in_x[j]] if j in m.q_in_x else (Jz[2 * i, m.q_in_z[j]] if j in m.q_in_z else 0)
         self.D = D
         self.rest = []
-        for i, el in enumerate(self.elements):
+        for i in range(len(self.elements)):
             s0, v0 = y0.ravel()[2 * i], y0.ravel()[2 * i + 1]
             self.rest.append((s0, v0) + self.slopes(i, s0, v0))
 
     def slopes(self, i, s, v):
         """``(∂f/∂s, ∂f/∂v)`` of element i's law at ``(s, v)``."""
-        import casadi as ca
-
         el = self.elements[i]
         if not hasattr(el, "_jac"):
             ss, vv = ca.SX.sym("s"), ca.SX.sym("v")
@@ -191,8 +189,6 @@ class LinearPart:
     def explicit(self):
         """``(A, B, E, c, Zx, Zu, Zg, zc)`` of the index-1 explicit form (dense, computed once)."""
         if self._explicit is None:
-            from .linear import explicit_form
-
             dae, nu, ng = self.ch.dae, self.Ju.shape[1], self.ng
             Ju_aug = sp.hstack([self.Ju, sp.csr_matrix(self.G), sp.csr_matrix(self.F0[:, None])]).tocsc()
             A, Baug, Zx, Zaug = explicit_form(dae, self.Jxd, self.Jx, self.Jz, Ju_aug)
@@ -201,14 +197,10 @@ class LinearPart:
         return self._explicit
 
 def ca_dense(v):
-    import casadi as ca
-
     return np.asarray(ca.DM(v).full())
 
 
 def _sp_of(J):
-    from .dae import _sp
-
     return _sp(J)
 
 
