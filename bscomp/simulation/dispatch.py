@@ -114,9 +114,10 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         is exact for an affine model and used then); a chunk that has not converged is redone with
         four times as many and a backtracking line search, then fails with SimulationError.
     jit : bool
-        ``method="fixed"`` / ``"split"``: compile the step to C with the system compiler (cached on disk, see
-        :func:`bscomp.simulation.native.native_function`): ~10x faster on small (reduced) models, ~1 s to
-        compile once.
+        ``method="fixed"`` / ``"split"`` / ``"modal"``: compile the step to C with the system compiler (cached
+        on disk, see :func:`bscomp.simulation.native.native_function`): ~10x faster on small (reduced)
+        models, ~1 s to compile once (modal: 5-20 s once per model shape, its kernels take every number as
+        an input).
     modal_options : dict, optional
         ``method="modal"``: ``tol`` (interpolation error of the nonlinear forces inside a step, relative to the
         largest of them; default 3e-4), ``f_keep`` (highest undamped natural frequency kept dynamically [Hz],

@@ -22,7 +22,7 @@ from bscomp.simulation.result import SimulationResult
 __all__ = ["simulate_modal", "ModalResult", "DEFAULTS"]
 
 #: ``options`` of ``simulate(method="modal")`` and their defaults
-DEFAULTS = {"tol": 3e-4, "f_keep": 5e4, "window": 2}
+DEFAULTS = {"tol": 3e-4, "f_keep": 3e4, "window": 2}
 
 
 class ModalResult(SimulationResult):
@@ -149,15 +149,15 @@ def _states(sim, XI, G, segs, Uh):
     return X + sim.ch.x_a, XD, Z
 
 
-def simulator(dae, p, options):
+def simulator(dae, p, options, jit=False):
     """The cached :class:`~bscomp.simulation.modal_driver.ModalSimulator` of a Dae, parameter vector and
     options (up to four per Dae: a repeated run skips the set-up)."""
-    key = ("modal", p.tobytes(), options["f_keep"], options["window"])
+    key = ("modal", p.tobytes(), options["f_keep"], options["window"], bool(jit))
     cache = dae._cache.setdefault("modal_simulators", {})
     if key not in cache:
         if len(cache) >= 4:
             cache.pop(next(iter(cache)))
-        cache[key] = ModalSimulator(dae, p, f_keep=options["f_keep"], window=options["window"])
+        cache[key] = ModalSimulator(dae, p, f_keep=options["f_keep"], window=options["window"], jit=jit)
     return cache[key]
 
 
@@ -168,8 +168,8 @@ def simulate_modal(problem, options):
     ----------
     problem : SimulationProblem
     options : SimulationOptions
-        ``substeps`` (steps per output interval) and ``modal`` (a dict: ``tol``, ``f_keep``, ``window``;
-        :data:`DEFAULTS`).
+        ``substeps`` (steps per output interval), ``jit`` (the step kernels compiled to C, cached on disk) and
+        ``modal`` (a dict: ``tol``, ``f_keep``, ``window``; :data:`DEFAULTS`).
 
     Returns
     -------
@@ -186,7 +186,7 @@ def simulate_modal(problem, options):
         raise ValueError(f"substeps must be >= 1, got {substeps}")
     dae, t, U, xs, p = problem.dae, problem.t, problem.U, problem.x0, problem.p
     t_wall = time.perf_counter()
-    sim = simulator(dae, p, opts)
+    sim = simulator(dae, p, opts, options.jit)
     out = Outputs(sim, problem.outputs)
     nt = len(t)
     if substeps > 1:

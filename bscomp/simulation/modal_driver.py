@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 
+import casadi as ca
 import numpy as np
 
 from bscomp.simulation.modal_channels import Channels, LinearPart
@@ -57,14 +58,17 @@ class ModalSimulator:
         Highest undamped natural frequency kept dynamically [Hz] (mechanical models).
     window : int
         Elements between the contact point and the reference before the reference moves.
+    jit : bool
+        Compile the step kernels to C (once per shape, cached on disk).
     """
 
-    def __init__(self, dae, p, f_keep=None, window=2):
-        self.dae, self.p, self.f_keep, self.window = dae, p, f_keep, int(window)
+    def __init__(self, dae, p, f_keep=None, window=2, jit=False):
+        self.dae, self.p, self.f_keep, self.window, self.jit = dae, p, f_keep, int(window), bool(jit)
         t0 = time.perf_counter()
         self.ch = ch = Channels(dae, p)
         self.cands = [ch.candidate_regimes(i) for i in range(len(ch.elements))]
         self.parts, self.steppers, self.laws, self.kernels = {}, {}, {}, {}
+        self._slopes = None
         self.stats = {"setup_channels_s": time.perf_counter() - t0, "modal_parts": 0, "modal_part_s": 0.0}
 
     # ---- cached pieces ----------------------------------------------------------------------------------
@@ -113,7 +117,8 @@ class ModalSimulator:
             shape = (mp.lam.size, self.dae.nu, gsel.size, rows[0].shape[0], spec.sizes)
             kern = self.kernels.get(shape)
             if kern is None:
-                kern = self.kernels[shape] = Kernel(*shape[:4], spec.fs, 2 * len(self.ch.elements), THETAS)
+                kern = self.kernels[shape] = Kernel(*shape[:4], spec.fs, 2 * len(self.ch.elements), THETAS,
+                                                    jit=self.jit)
             st = Stepper(mp, rows, gsel, spec.f, theta, kern)
             self.steppers[key] = st
         return st
@@ -147,15 +152,23 @@ class ModalSimulator:
 
     # ---- regimes and positions ----------------------------------------------------------------------------
     def regime_of(self, y):
-        """Index of the candidate regime nearest each element's tangent at channel values ``y``."""
+        """Index of the candidate regime nearest each element's tangent at channel values ``y`` (one call of
+        the elements' slope Function; the distance as in :meth:`bscomp.simulation.modal_laws.LawSpec.expr`)."""
+        n = len(self.ch.elements)
+        if not n:
+            return ()
+        if self._slopes is None:
+            s = ca.SX.sym("s", n)
+            v = ca.SX.sym("v", n)
+            laws = [el.law(s[i], v[i], ca.DM(el.pvec)) for i, el in enumerate(self.ch.elements)]
+            J = ca.vertcat(*[ca.horzcat(ca.jacobian(f, s[i]), ca.jacobian(f, v[i])) for i, f in enumerate(laws)])
+            self._slopes = ca.Function("slopes", [s, v], [J])
+        kd = self._slopes(y[0:2 * n:2], y[1:2 * n:2]).full()
         out = []
-        for i in range(len(self.ch.elements)):
-            k, d = self.ch.slopes(i, y[2 * i], y[2 * i + 1])
-            c = np.array(self.cands[i])
-            ek = 1e-3 * max(np.abs(c[:, 0]).max(), 1e-300)
-            ed = 1e-3 * max(np.abs(c[:, 1]).max(), 1e-300)
-            dist = np.abs(np.log((abs(k) + ek) / (np.abs(c[:, 0]) + ek))) \
-                + np.abs(np.log((abs(d) + ed) / (np.abs(c[:, 1]) + ed)))
+        for i in range(n):
+            c = np.abs(np.array(self.cands[i]))
+            eps = 1e-3 * np.maximum(c.max(axis=0), 1e-300)
+            dist = np.abs(np.log((np.abs(kd[i]) + eps) / (c + eps))).sum(axis=1)
             out.append(int(np.argmin(dist)))
         return tuple(out)
 
@@ -225,11 +238,17 @@ class ModalSimulator:
         return XI, G, segs
 
     def _flags(self, info, tol):
-        """``(first bad row or len, running scale)`` of a block of step infos."""
+        """``(j, switch, scale)`` of a block of step infos: the first ``j`` steps are accepted; ``switch``: the
+        last of them ended in another regime (the linear part is switched there); ``scale`` the running force
+        scale. A step is bad if its interpolation error or last Newton update exceeds the tolerance or its
+        contact point left the element."""
         scale = np.maximum.accumulate(np.maximum(info[:, 1], self.scale))
-        bad = (info[:, 0] > tol * scale) | (info[:, 2] < 0.5) | (info[:, 3] < 0.5) \
-            | ~(info[:, 4] < NEWTON_ACCEPT * tol * scale)
-        return (int(np.argmax(bad)) if bad.any() else len(info)), scale
+        bad = (info[:, 0] > tol * scale) | (info[:, 3] < 0.5) | ~(info[:, 4] < NEWTON_ACCEPT * tol * scale)
+        j = int(np.argmax(bad)) if bad.any() else len(info)
+        new = info[:j, 2] < 0.5
+        if new.any():
+            j = int(np.argmax(new)) + 1
+        return j, bool(new.any()), scale
 
     def _chunk(self, st, U, k, n, h, tol, XI, G, level):
         """Up to ``n`` grid steps (``4^level`` sub-steps each) in one compiled call; returns how many grid steps
@@ -242,10 +261,22 @@ class ModalSimulator:
         Uc = np.repeat(U[k:k + n], per, axis=0)
         if N > len(Uc):
             Uc = np.vstack([Uc, np.repeat(Uc[-1:], N - len(Uc), axis=0)])
-        chord = stp.chord(st.xi, st.g[stp.gsel], U[k], h / per) if level == 0 else None
-        X, info = run(stp.pack_state(st.xi, st.g[stp.gsel]), Uc, mats, stp.theta, chord)
-        b, scale = self._flags(info[:n * per], tol)
+        chord = None
+        if level == 0:
+            chord = stp.chord_cache.get(per)
+            if chord is None:
+                chord = stp.chord_cache[per] = stp.chord(st.xi, st.g[stp.gsel], U[k], h / per)
+        x0 = stp.pack_state(st.xi, st.g[stp.gsel])
+        X, info = run(x0, Uc, mats, stp.theta, chord)
+        b, switch, scale = self._flags(info[:n * per], tol)
+        if level == 0 and b < n * per and not info[b, 4] < NEWTON_ACCEPT * tol * scale[b]:
+            stp.chord_cache.pop(per, None)   # the chord matrix is stale: the next chunk computes it anew
+        if switch and b % per:
+            b -= b % per                      # a switch inside a grid step: that grid step is redone finer
+            switch = False
         done = b // per
+        if getattr(self, "clog", None) is not None:
+            self.clog.append((N, n * per, b, level))
         if getattr(self, "log", None) is not None and b < n * per:
             self.log.append((k + done, level, *info[b]))
         self.counts["chunks"] += 1
@@ -260,12 +291,17 @@ class ModalSimulator:
             G[k + 1:k + 1 + done, stp.gsel] = Xa[:, 2 * m:]
             st.xi, st.g = xs[-1], G[k + done].copy()
             self.counts["chunk_steps"] += done
+            if switch:                        # the last accepted step ended in another regime
+                x_before = X[done * per - 2] if done * per >= 2 else x0
+                xi0, g0 = stp.unpack_state(np.asarray(x_before))
+                uk = U[k + done - 1]
+                st.after(stp.end_values(xi0, g0, Xa[-1, 2 * m:], uk, h / per), uk)
         return done
 
     def _advance(self, st, u, T, n, h, tol, depth):
-        """Advance the state by ``T`` in compiled batches of ``n`` equal sub-steps, refining every flagged
-        sub-step (error, Newton, regime or element change) into 4 one level deeper. At the deepest level a
-        flagged sub-step is accepted and the regime or element it ended in is taken from there on."""
+        """Advance the state by ``T`` in compiled batches of ``n`` equal sub-steps, refining every bad sub-step
+        (interpolation error, Newton, element change) into 4 one level deeper; a sub-step that ends in another
+        regime is accepted and the linear part switched. At the deepest level a bad sub-step is accepted."""
         tau = T / n
         deepest = depth >= FINE_LEVELS
         i = 0
@@ -276,16 +312,16 @@ class ModalSimulator:
             run = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS)
             x0 = stp.pack_state(st.xi, st.g[stp.gsel])
             X, info = run(x0, np.repeat(u[None, :], run.n, axis=0), mats, stp.theta)
-            j, scale = self._flags(info[:left], tol)
+            j, switch, scale = self._flags(info[:left], tol)
             self.counts["batches"] += 1
-            follow = deepest and j < left
-            if follow:
-                j += 1                                # accept the flagged one, then follow it
+            forced = deepest and j < left and not switch
+            if forced:
+                j += 1                                # the finest level: accept the flagged one, follow it
             if j:
                 self.scale = float(scale[j - 1])
-                self._accept(st, stp, X, j, u, tau, x0 if j == 1 else X[j - 2], follow)
+                self._accept(st, stp, X, j, u, tau, x0 if j == 1 else X[j - 2], switch or forced)
                 i += j
-            if i < n and not deepest:
+            if i < n and not (deepest or switch):
                 self._advance(st, u, tau, 4, h, tol, depth + 1)
                 i += 1
 
@@ -301,11 +337,16 @@ class ModalSimulator:
             xi0, g0 = stp.unpack_state(np.asarray(x_before))
             st.after(stp.end_values(xi0, g0, g, u, tau), u)
 
-    def _switch(self, old, new, xi, u, g, cset):
-        """Map the state into another modal part and make the channel forces consistent there."""
+    def _switch(self, old, new, xi, u, g, cset, y):
+        """Map the state into another modal part and make the channel forces consistent there: the elements'
+        total forces are continuous, so ``g`` changes by the change of the slopes times ``(s, v)`` (the start of
+        a short Newton on the new part's static feedthrough)."""
         dx = old.state(xi[None, :], u[None, :], g[None, :])[0]
         xi_new = new.W @ dx
         stp = self.stepper(new, cset)
+        g = g.copy()
+        for i, ((k0, d0), (k1, d1)) in enumerate(zip(old.lin.regime, new.lin.regime, strict=True)):
+            g[i] += (k0 - k1) * y[2 * i] + (d0 - d1) * y[2 * i + 1]
         g_act, y, _ = stp.consistent(xi_new, u, g[stp.gsel])
         g_new = np.zeros(new.lin.ng)
         g_new[stp.gsel] = g_act
@@ -367,7 +408,7 @@ class _State:
             self.z_ref = new_ref
             self.cset = sim.channel_set(self.z, self.z_ref)
             new = sim.part(regime, self.z_ref)
-            self.xi, self.g, y = sim._switch(self.mp, new, self.xi, u, self.g, self.cset)
+            self.xi, self.g, y = sim._switch(self.mp, new, self.xi, u, self.g, self.cset, y)
             self.mp = new
         elif moved:
             stp = sim.stepper(self.mp, self.cset)

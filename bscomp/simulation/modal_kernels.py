@@ -6,17 +6,26 @@ A step's numbers -- the exponentials and the channel rows at the end and at the 
 (:meth:`bscomp.simulation.modal_laws.LawSpec.pack`), so one Function serves every regime, reference, element and step
 length of a shape (modal coordinates ``m``, inputs, channel forces ``r``, channel coordinates ``r_m``). The
 state is ``[Re ξ; Im ξ; g]``; per step the Function returns the next state and
-``[error, max |f|, regime ok, element ok, last Newton update]`` (error and update in force units).
+``[error, max |f|, regime ok at the end, element ok, last Newton update]`` (error and update in force units). A
+regime change inside a step shows in the error (the law is exact in any regime); at the end it only tells the
+driver to switch the linear part.
 """
 
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import casadi as ca
 import numpy as np
+
+from bscomp.simulation.native import native_functions
 
 __all__ = ["pack_step", "Kernel"]
 
 INFO = 5
+_SOURCE_KEY = hashlib.sha1(Path(__file__).read_bytes()).hexdigest()   # a change of this file recompiles
+JIT_SCHEMES = (-3, 3)  # the chunks' chord and the batches' Newton iterations (bscomp.simulation.modal_driver)
 
 
 def pack_step(sd, n_el_rows) -> np.ndarray:
@@ -43,9 +52,9 @@ class Kernel:
         Interior points of the error check.
     """
 
-    def __init__(self, m, nu, r, rm, laws, n_el_rows, thetas, n_newton=3):
+    def __init__(self, m, nu, r, rm, laws, n_el_rows, thetas, n_newton=3, jit=False):
         self.m, self.nu, self.r, self.rm, self.thetas = m, nu, r, rm, tuple(thetas)
-        self.law_newton, self.law_check, self.law_elements = laws
+        self.law_newton, self.law_value, self.law_check, self.law_elements = laws
         self.n_theta = self.law_newton.size1_in(1)
         self.ne = n_el_rows
         self.shapes = [(m, 1)] * 2 + [(m, nu)] * 2 + [(m, 1)] * 2 + [(m, r)] * 4
@@ -57,6 +66,8 @@ class Kernel:
         self._f = {}
         self._runs = {}
         self.n_newton = n_newton
+        self.jit = bool(jit)
+        self._native = None
 
     def _unpack(self, mats):
         out, off = [], 0
@@ -92,7 +103,7 @@ class Kernel:
                 gl, L = self.law_newton(y_free + ca.mtimes(H, g), th)
                 dg = ca.solve(eye - ca.mtimes(L, H), gl - g)
             else:                                       # chord: (I - L0 H)^-1 from the chunk's start
-                dg = ca.mtimes(Mc, self.law_check(y_free + ca.mtimes(H, g), th)[0] - g)
+                dg = ca.mtimes(Mc, self.law_value(y_free + ca.mtimes(H, g), th)[0] - g)
             g = g + dg
             upd = ca.norm_inf(dg)
         _, fmax, okr, oke = self.law_check(y_free + ca.mtimes(H, g), th)
@@ -102,23 +113,23 @@ class Kernel:
             yj = ca.mtimes(Cr, xr) - ca.mtimes(Ci, xi) + ca.mtimes(Yuj, u) + ca.mtimes(Y0j, g0) \
                 + ca.mtimes(Y1j, g) + ycj
             if k == 1:                                  # the midpoint: every channel
-                gj, fj, okrj, okej = self.law_check(yj, th)
+                gj, fj, okej = self.law_value(yj, th)
                 gi = g0 + theta * (g - g0)
             elif ne:                                    # quarter points: the elements (short events)
-                gj, fj, okrj = self.law_elements(yj, th)
+                gj, fj = self.law_elements(yj, th)
                 okej = 1
                 nel = gj.numel()
                 gi = g0[:nel] + theta * (g[:nel] - g0[:nel])
             else:
                 continue
             err = ca.fmax(err, ca.norm_inf(gj - gi))
-            fmax, okr, oke = ca.fmax(fmax, fj), okr * okrj, oke * okej
+            fmax, oke = ca.fmax(fmax, fj), oke * okej
         ur = ca.mtimes(Qur, u) + qcr + ca.mtimes(Q0r, g0) + ca.mtimes(Q1r, g)
         ui = ca.mtimes(Qui, u) + qci + ca.mtimes(Q0i, g0) + ca.mtimes(Q1i, g)
         x1r = Er * xr - Ei * xi + ur
         x1i = Er * xi + Ei * xr + ui
         info = ca.vertcat(err, fmax, okr, oke, upd)
-        f = ca.Function("modal_step", [x, u, mats, th, Mc], [ca.vertcat(x1r, x1i, g), info])
+        f = ca.Function(f"modal_step_{_tag(n_newton)}", [x, u, mats, th, Mc], [ca.vertcat(x1r, x1i, g), info])
         self._f[n_newton] = f
         return f
 
@@ -146,7 +157,8 @@ class Kernel:
                 Xs.append(X)
                 Is.append(I)
                 x = X[:, -1]
-            F = ca.Function(f"modal_chunk{n}", [x0, U, mats, th, Mc], [ca.horzcat(*Xs), ca.horzcat(*Is)])
+            F = ca.Function(f"modal_chunk{n}_{_tag(n_newton)}", [x0, U, mats, th, Mc],
+                            [ca.horzcat(*Xs), ca.horzcat(*Is)])
         self._f[key] = F
         return F
 
@@ -156,8 +168,28 @@ class Kernel:
         key = (n, n_newton)
         run = self._runs.get(key)
         if run is None:
-            run = self._runs[key] = _Buffered(self.chunk(n, n_newton), self.nx, n)
+            F = self.compiled(n, n_newton) if self.jit else self.chunk(n, n_newton)
+            run = self._runs[key] = _Buffered(F, self.nx, n)
         return run
+
+    def compiled(self, n, n_newton):
+        """The chunk compiled to C: every length and iteration scheme the driver uses in one library,
+        compiled once per shape and cached on disk (:func:`~bscomp.simulation.native.native_functions`)."""
+        if self._native is None:
+            wanted = [(k, it) for it in (JIT_SCHEMES) for k in (1, 4, 16, 64, 256)] + [(1, 12)]
+            names = [(f"modal_step_{_tag(it)}" if k == 1 else f"modal_chunk{k}_{_tag(it)}") for k, it in wanted]
+            key = "|".join([_SOURCE_KEY, repr((self.m, self.nu, self.r, self.rm, self.ne, self.thetas))]
+                           + [f.serialize() for f in (self.law_newton, self.law_value, self.law_check,
+                                                      self.law_elements)])
+            funcs = native_functions(lambda: [self.chunk(k, it) for k, it in wanted], key=key, names=names)
+            self._native = dict(zip(wanted, funcs, strict=True))
+        if (n, n_newton) not in self._native:
+            self._native[(n, n_newton)] = native_functions([self.chunk(n, n_newton)])[0]
+        return self._native[(n, n_newton)]
+
+
+def _tag(n_newton):
+    return f"newton{n_newton}" if n_newton > 0 else f"chord{-n_newton}"
 
 
 class _Buffered:

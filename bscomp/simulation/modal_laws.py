@@ -186,16 +186,18 @@ class LawSpec:
         return ca.Function("law", [y, th], [g, ca.jacobian(g, y), fmax, okr, oke])
 
     def functions(self):
-        """The three the compiled step uses: Newton ``(y, θ) -> (g, dg/dy)``, check ``(y, θ) -> (g, fmax,
-        regime_ok, element_ok)`` and the elements' check on their rows ``(y_el, θ) -> (g_el, fmax, regime_ok)``."""
+        """The four the compiled step uses: Newton ``(y, θ) -> (g, dg/dy)``, value ``(y, θ) -> (g, fmax,
+        element_ok)``, check ``(y, θ) -> (g, fmax, regime_ok, element_ok)`` (at a step's end) and the elements'
+        value on their rows ``(y_el, θ) -> (g_el, fmax)``."""
         y = ca.SX.sym("y", self.ny)
         th = ca.SX.sym("theta", self.n_theta)
-        g, _, _, _ = self.expr(y, th, check=False)
+        g, fmax, _, oke = self.expr(y, th, check=False)
         newton = ca.Function("law_newton", [y, th], [g, ca.jacobian(g, y)])
+        value = ca.Function("law_value", [y, th], [g, fmax, oke])
         g, fmax, okr, oke = self.expr(y, th)
         check = ca.Function("law_check", [y, th], [g, fmax, okr, oke])
         ne = 2 * len(self.ch.elements)
         ye = ca.SX.sym("y_el", ne)
-        g, fmax, okr, _ = self.expr(ye, th, joints=False)
-        elements = ca.Function("law_elements", [ye, th], [g if ne else ca.SX(0, 1), fmax, okr])
-        return newton, check, elements
+        g, fmax, _, _ = self.expr(ye, th, check=False, joints=False)
+        elements = ca.Function("law_elements", [ye, th], [g if ne else ca.SX(0, 1), fmax])
+        return newton, value, check, elements

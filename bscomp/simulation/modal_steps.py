@@ -97,6 +97,7 @@ class Stepper:
         self.r = self.gsel.size
         self.m = mp.lam.size
         self._data = {}
+        self.chord_cache = {}
 
     def data(self, tau):
         """``(StepData, packed vector)`` for a sub-step length (cached)."""
@@ -116,7 +117,7 @@ class Stepper:
         """Channel forces consistent with ``xi`` at zero step length (static feedthrough only)."""
         Cxi, Du, Dg, yc = self.rows
         y_free = (Cxi @ xi).real + Du @ u + yc
-        return self.newton(y_free, Dg[:, self.gsel], g, 40)
+        return self.newton(y_free, Dg[:, self.gsel], g, 8)
 
     def newton(self, y_free, H, g, n_iter):
         """Newton on ``g = law(y_free + H g)``: ``(g, y, last relative update)``."""
