@@ -205,14 +205,14 @@ def cutting_force(p, window, mean=-350.0):
 
 # ---------------------------------------------------------------------------------------------------
 # model
-def _with_drive_damping(closed, nut_position, coupling):
+def _with_drive_damping(closed, nut_position, coupling, nut_joint="point"):
     """Flatten ``closed`` and add the test bed's modal damping (DriveModalDamping, toml ``[damping]``).
 
     ``flatten`` applies a system damping only to purely mechanical models (it needs the second-order
     form), so the matrix is computed on the mechanical test bed and added to the closed loop's
     structural C on the same coordinates.
     """
-    mech = testbed_axial_torsional(nut_position=nut_position, coupling=coupling)
+    mech = testbed_axial_torsional(nut_position=nut_position, coupling=coupling, nut_joint=nut_joint)
     damping, mech.damping = mech.damping, None
     so = second_order(flatten(mech), inputs=[], outputs=[])
     C = sp.csc_matrix(damping.matrix(so.M, so.K, coordinates=list(so.coordinates)))
@@ -226,12 +226,14 @@ def _with_drive_damping(closed, nut_position, coupling):
     return dae
 
 
-def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", friction: bool = False):
+def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", friction: bool = False,
+                      nut_joint: str = "point"):
     """The test bed with the analog part of the controller: ``"P-PI"`` adds the PI velocity loop of
     Fig 4.3 (input ``pi.u_s`` [V]), ``"RST"`` only the amplifier (input ``amp.u`` [V], Fig 4.19).
     ``friction=True`` adds the guideway's Coulomb friction of Table 5.2 as a component (Eq 5.7 with the
-    +/- levels, regularised over v_reg = 0.1 mm/s as in examples/nonlinear_scenarios.py)."""
-    s = testbed_axial_torsional(nut_position=nut_position, coupling=coupling)   # amp.u -> amp -> kt -> motor
+    +/- levels, regularised over v_reg = 0.1 mm/s as in examples/nonlinear_scenarios.py). ``nut_joint="moving"``:
+    the screw-nut joint at the nut's current position (Sec 5.2.2.3), ``nut_position`` where it starts."""
+    s = testbed_axial_torsional(nut_position=nut_position, coupling=coupling, nut_joint=nut_joint)
     if friction:
         fb = p["friction_backlash"]
         s.add("guide_ground", Fixed())
@@ -245,7 +247,7 @@ def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", fricti
         s.connect("pi.y", "amp.u")
         s.connect("tacho.flange", "rotor.flange_a")
         s.connect("tacho.v", "pi.u_m")
-    return _with_drive_damping(s, nut_position, coupling)
+    return _with_drive_damping(s, nut_position, coupling, nut_joint)
 
 
 def rst_thesis(p):
@@ -327,7 +329,9 @@ def controller(p, name, reference):
 # ---------------------------------------------------------------------------------------------------
 # solve and post-process
 def run_case(p, name, traj, position, friction="component", t_end=None, cut_window=None, dt=DT, plants=None):
-    """Simulate one controller with the nut frozen at ``position``; returns a dict of signals.
+    """Simulate one controller with the nut frozen at ``position`` or, for ``position="moving"``, travelling
+    with the table (it starts at R: the table axis is the screw's -z, so the L -> R move runs the nut from
+    x = R to x = L); returns a dict of signals.
 
     ``friction``: ``"component"`` (default) -- the Table 5.2 Coulomb friction as a component in the
     model, run by ``simulate(method="split")`` (exact ZOH of the linear part per friction regime, so the
@@ -338,12 +342,14 @@ def run_case(p, name, traj, position, friction="component", t_end=None, cut_wind
     if friction not in ("component", "known", False, None):
         raise ValueError(f"run_case: friction must be 'component', 'known' or False, got {friction!r}")
     real = friction == "component"
+    moving = position == "moving"
+    joint, position = ("moving", "R") if moving else ("point", position)
     t_end = traj.duration + 0.1 if t_end is None else t_end
     t = dt * np.arange(int(round(t_end / dt)) + 1)
     ctrl, kind = controller(p, name, lambda tt: float(traj.position(tt)))
-    key = (kind, position, real)
+    key = (kind, position, real, joint)
     if plants is None or key not in plants:
-        dae = closed_loop_plant(p, kind, position, friction=real)
+        dae = closed_loop_plant(p, kind, position, friction=real, nut_joint=joint)
         if plants is not None:
             plants[key] = dae
     else:
@@ -355,12 +361,14 @@ def run_case(p, name, traj, position, friction="component", t_end=None, cut_wind
         return f_cut(tt) - F_c * np.sign(traj.velocity(tt))
 
     act = ctrl.actuate[0]
-    res = simulate(dae, t, inputs={"Fd.f": f_table}, controllers=[ctrl], method="split" if real else "lti",
-                   outputs=["table.s", "table.v", "table.a", "amp.u"])
+    method = "modal" if moving else ("split" if real else "lti")
+    res = simulate(dae, t, inputs={"Fd.f": f_table}, controllers=[ctrl], method=method, jit=moving,
+                   outputs=["table.s", "table.v", "table.a", "amp.u"] + (["sn.z"] if moving else []))
     r = traj.position(t)
     return {"t": t, "ref": r, "v_ref": traj.velocity(t), "a_ref": traj.acceleration(t), "x": res["table.s"],
             "v": res["table.v"], "a": res["table.a"], "e": r - res["table.s"], "u": res["amp.u"],
-            "u_ctrl": res[act], "F_d": res["Fd.f"], "wall_s": res.stats["wall_s"], "friction": friction}
+            "u_ctrl": res[act], "F_d": res["Fd.f"], "wall_s": res.stats["wall_s"], "friction": friction,
+            "z_nut": res["sn.z"] if moving else None}
 
 
 def amplitude_at(t, y, f):

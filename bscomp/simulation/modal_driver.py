@@ -42,8 +42,8 @@ def _chunk_size(n):
 NEWTON_ACCEPT = 1e-2   # last Newton update accepted: this fraction of the interpolation tolerance [force]
 CHUNK = 256           # most sub-steps per compiled chunk
 CHUNK_LEVELS = 2      # chunks run at h, h/4 or h/16
-CHUNK_ITERATIONS = -3  # chunks at the grid step: three chord iterations (a step that needs Newton is redone)
-FINE_ITERATIONS = 3   # finer chunks and batches: three Newton iterations
+CHUNK_ITERATIONS = -3  # chunks and batches: three chord iterations (a step that needs more is redone finer)
+FINE_ITERATIONS = 3   # the finest level: three Newton iterations
 FINE_LEVELS = 3       # refinement levels below a failed chunk's level, then single sub-steps
 
 
@@ -69,6 +69,7 @@ class ModalSimulator:
         self.cands = [ch.candidate_regimes(i) for i in range(len(ch.elements))]
         self.parts, self.steppers, self.laws, self.kernels = {}, {}, {}, {}
         self._slopes = None
+        self._pads = []
         self.stats = {"setup_channels_s": time.perf_counter() - t0, "modal_parts": 0, "modal_part_s": 0.0}
 
     # ---- cached pieces ----------------------------------------------------------------------------------
@@ -114,7 +115,7 @@ class ModalSimulator:
             theta = spec.pack(mp.regime, self.slopes(mp.regime), mp.z_ref, cset)
             S_list = [S for S, _ in cset]
             rows, gsel = self.rows(mp, S_list), self.gsel(mp, S_list)
-            shape = (mp.lam.size, self.dae.nu, gsel.size, rows[0].shape[0], spec.sizes)
+            shape = (self._padded(mp.lam.size), self.dae.nu, gsel.size, rows[0].shape[0], spec.sizes)
             kern = self.kernels.get(shape)
             if kern is None:
                 kern = self.kernels[shape] = Kernel(*shape[:4], spec.fs, 2 * len(self.ch.elements), THETAS,
@@ -122,6 +123,15 @@ class ModalSimulator:
             st = Stepper(mp, rows, gsel, spec.f, theta, kern)
             self.steppers[key] = st
         return st
+
+    def _padded(self, m):
+        """Kernel size for a part of m modal coordinates: the smallest padded size already used that holds
+        it, else m rounded up to 8 plus 8 (parts of nearby sizes share one kernel and its compiled code)."""
+        fits = [k for k in self._pads if k >= m]
+        if fits:
+            return min(fits)
+        self._pads.append(-(-m // 8) * 8 + 8)
+        return self._pads[-1]
 
     def gsel(self, mp, S_list):
         sel = list(range(len(self.ch.elements)))
@@ -256,35 +266,29 @@ class ModalSimulator:
         stp = self.stepper(st.mp, st.cset)
         per = 4 ** level
         _, mats = stp.data(h / per)
-        run = stp.kernel.runner(_chunk_size(n * per), CHUNK_ITERATIONS if level == 0 else FINE_ITERATIONS)
+        run = stp.kernel.runner(_chunk_size(n * per), CHUNK_ITERATIONS)
         N = run.n
         Uc = np.repeat(U[k:k + n], per, axis=0)
         if N > len(Uc):
             Uc = np.vstack([Uc, np.repeat(Uc[-1:], N - len(Uc), axis=0)])
-        chord = None
-        if level == 0:
-            chord = stp.chord_cache.get(per)
-            if chord is None:
-                chord = stp.chord_cache[per] = stp.chord(st.xi, st.g[stp.gsel], U[k], h / per)
+        chord = stp.chord_cache.get(per)
+        if chord is None:
+            chord = stp.chord_cache[per] = stp.chord(st.xi, st.g[stp.gsel], U[k], h / per)
         x0 = stp.pack_state(st.xi, st.g[stp.gsel])
         X, info = run(x0, Uc, mats, stp.theta, chord)
         b, switch, scale = self._flags(info[:n * per], tol)
-        if level == 0 and b < n * per and not info[b, 4] < NEWTON_ACCEPT * tol * scale[b]:
+        if b < n * per and not info[b, 4] < NEWTON_ACCEPT * tol * scale[b]:
             stp.chord_cache.pop(per, None)   # the chord matrix is stale: the next chunk computes it anew
         if switch and b % per:
             b -= b % per                      # a switch inside a grid step: that grid step is redone finer
             switch = False
         done = b // per
-        if getattr(self, "clog", None) is not None:
-            self.clog.append((N, n * per, b, level))
-        if getattr(self, "log", None) is not None and b < n * per:
-            self.log.append((k + done, level, *info[b]))
         self.counts["chunks"] += 1
         if done:
             self.scale = float(scale[done * per - 1])
-            m = stp.m
+            m, mp_ = stp.m, stp.m_part
             Xa = X[per - 1:done * per:per]
-            xs = Xa[:, :m] + 1j * Xa[:, m:2 * m]
+            xs = Xa[:, :mp_] + 1j * Xa[:, m:m + mp_]
             for i in range(done):
                 XI[k + 1 + i] = xs[i]
             G[k + 1:k + 1 + done] = 0.0
@@ -309,9 +313,13 @@ class ModalSimulator:
             stp = self.stepper(st.mp, st.cset)
             sd, mats = stp.data(tau)
             left = n - i
-            run = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS)
             x0 = stp.pack_state(st.xi, st.g[stp.gsel])
-            X, info = run(x0, np.repeat(u[None, :], run.n, axis=0), mats, stp.theta)
+            if deepest:
+                run, chord = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS), None
+            else:
+                run = stp.kernel.runner(_chunk_size(left), CHUNK_ITERATIONS)
+                chord = stp.chord(st.xi, st.g[stp.gsel], u, tau)
+            X, info = run(x0, np.repeat(u[None, :], run.n, axis=0), mats, stp.theta, chord)
             j, switch, scale = self._flags(info[:left], tol)
             self.counts["batches"] += 1
             forced = deepest and j < left and not switch

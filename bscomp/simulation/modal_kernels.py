@@ -1,5 +1,6 @@
-r"""The compiled step of ``simulate(method="modal")``: one CasADi SX Function per shape, run over chunks of
-steps by ``mapaccum`` through zero-copy buffers (no per-step Python inside a regime).
+r"""The compiled step of ``simulate(method="modal")``: one CasADi Function per shape (MX matrix operations around
+small SX laws), run over chunks of steps through zero-copy buffers (no per-step Python inside a regime), and
+optionally compiled to C.
 
 A step's numbers -- the exponentials and the channel rows at the end and at the interior points
 (:class:`bscomp.simulation.modal_steps.StepData`) -- are one flat input vector, the channel laws' numbers another
@@ -28,14 +29,25 @@ _SOURCE_KEY = hashlib.sha1(Path(__file__).read_bytes()).hexdigest()   # a change
 JIT_SCHEMES = (-3, 3)  # the chunks' chord and the batches' Newton iterations (bscomp.simulation.modal_driver)
 
 
-def pack_step(sd, n_el_rows) -> np.ndarray:
-    """Flat vector of a :class:`~bscomp.simulation.modal_steps.StepData` (the layout of :meth:`Kernel._unpack`): the end
-    and the midpoint with every channel row, the other interior points with the elements' rows only."""
-    parts = [sd.E.real, sd.E.imag, sd.Qu.real, sd.Qu.imag, sd.qc.real, sd.qc.imag, sd.Q0.real, sd.Q0.imag,
-             sd.Q1.real, sd.Q1.imag]
+def pack_step(sd, n_el_rows, m_pad=None) -> np.ndarray:
+    """Flat vector of a :class:`~bscomp.simulation.modal_steps.StepData` (the layout of :meth:`Kernel._unpack`): the
+    end and the midpoint with every channel row, the other interior points with the elements' rows only. With
+    ``m_pad`` the modal coordinates are padded with inert zeros (one kernel serves parts of a few sizes)."""
+    m = sd.E.size
+    pad = 0 if m_pad is None else m_pad - m
+
+    def rows_(A):                       # modal index first: pad rows
+        return np.concatenate([A, np.zeros((pad,) + A.shape[1:], A.dtype)], axis=0) if pad else A
+
+    def cols_(A):                       # modal index last: pad columns
+        return np.concatenate([A, np.zeros((A.shape[0], pad), A.dtype)], axis=1) if pad else A
+
+    E, Qu, qc, Q0, Q1 = (rows_(a) for a in (sd.E, sd.Qu, sd.qc, sd.Q0, sd.Q1))
+    parts = [E.real, E.imag, Qu.real, Qu.imag, qc.real, qc.imag, Q0.real, Q0.imag, Q1.real, Q1.imag]
     for k, (CE, Yu, Y0, Y1, yc) in enumerate([sd.end] + list(sd.samples)):
         rows = slice(None) if k in (0, 2) else slice(0, n_el_rows)
-        parts += [CE[rows].real, CE[rows].imag, Yu[rows], Y0[rows], Y1[rows], yc[rows]]
+        CE = cols_(CE[rows])
+        parts += [CE.real, CE.imag, Yu[rows], Y0[rows], Y1[rows], yc[rows]]
     return np.concatenate([np.asarray(a, float).reshape(-1, order="F") for a in parts])
 
 
@@ -77,18 +89,19 @@ class Kernel:
         return out
 
     def step(self, n_newton):
-        """SX Function ``(x, u, mats, theta, chord) -> (x1, info)``; ``n_newton`` Newton iterations, or when
+        """MX Function ``(x, u, mats, theta, chord) -> (x1, info)``; ``n_newton`` Newton iterations, or when
         negative that many chord iterations with the matrix ``chord = (I - L_0 H)^{-1}`` (the law's Jacobian
         at the chunk's start: no Jacobian per step, for the chunks of calm steps)."""
         f = self._f.get(n_newton)
         if f is not None:
             return f
         m, r = self.m, self.r
-        x = ca.SX.sym("x", self.nx)
-        u = ca.SX.sym("u", self.nu)
-        mats = ca.SX.sym("mats", self.n_mats)
-        th = ca.SX.sym("theta", self.n_theta)
-        Mc = ca.SX.sym("chord", r, r)
+        S = ca.MX          # matrix loops and small SX callees: faster than a flat SX in the VM, compact C
+        x = S.sym("x", self.nx)
+        u = S.sym("u", self.nu)
+        mats = S.sym("mats", self.n_mats)
+        th = S.sym("theta", self.n_theta)
+        Mc = S.sym("chord", r, r)
         xr, xi, g0 = x[:m], x[m:2 * m], x[2 * m:]
         P = self._unpack(mats)
         Er, Ei, Qur, Qui, qcr, qci, Q0r, Q0i, Q1r, Q1i = P[:10]
@@ -96,18 +109,18 @@ class Kernel:
         CEr, CEi, Yu, Y0, H, yc = points[0]
         y_free = ca.mtimes(CEr, xr) - ca.mtimes(CEi, xi) + ca.mtimes(Yu, u) + ca.mtimes(Y0, g0) + yc
         g = g0
-        upd = ca.SX(0)
-        eye = ca.SX.eye(r)
+        upd = S(0)
+        solve = self._solver()
         for _ in range(abs(n_newton) if r else 0):
             if n_newton > 0:                            # Newton
                 gl, L = self.law_newton(y_free + ca.mtimes(H, g), th)
-                dg = ca.solve(eye - ca.mtimes(L, H), gl - g)
+                dg = solve(L, H, gl - g)
             else:                                       # chord: (I - L0 H)^-1 from the chunk's start
                 dg = ca.mtimes(Mc, self.law_value(y_free + ca.mtimes(H, g), th)[0] - g)
             g = g + dg
             upd = ca.norm_inf(dg)
         _, fmax, okr, oke = self.law_check(y_free + ca.mtimes(H, g), th)
-        err = ca.SX(0)
+        err = S(0)
         ne = self.ne
         for k, (theta, (Cr, Ci, Yuj, Y0j, Y1j, ycj)) in enumerate(zip(self.thetas, points[1:], strict=True)):
             yj = ca.mtimes(Cr, xr) - ca.mtimes(Ci, xi) + ca.mtimes(Yuj, u) + ca.mtimes(Y0j, g0) \
@@ -132,6 +145,12 @@ class Kernel:
         f = ca.Function(f"modal_step_{_tag(n_newton)}", [x, u, mats, th, Mc], [ca.vertcat(x1r, x1i, g), info])
         self._f[n_newton] = f
         return f
+
+    def _solver(self):
+        """SX Function ``(L, H, b) -> (I - L H)^{-1} b`` (the Newton update in the channel forces)."""
+        r, rm = self.r, self.rm
+        L, H, b = ca.SX.sym("L", r, rm), ca.SX.sym("H", rm, r), ca.SX.sym("b", r)
+        return ca.Function("newton_update", [L, H, b], [ca.solve(ca.SX.eye(r) - ca.mtimes(L, H), b)])
 
     def chunk(self, n, n_newton):
         """MX Function of ``n`` steps (n a power of 4): four calls of the chunk a quarter as long, so the
@@ -176,7 +195,7 @@ class Kernel:
         """The chunk compiled to C: every length and iteration scheme the driver uses in one library,
         compiled once per shape and cached on disk (:func:`~bscomp.simulation.native.native_functions`)."""
         if self._native is None:
-            wanted = [(k, it) for it in (JIT_SCHEMES) for k in (1, 4, 16, 64, 256)] + [(1, 12)]
+            wanted = [(k, it) for it in JIT_SCHEMES for k in (1, 4, 16, 64, 256)]
             names = [(f"modal_step_{_tag(it)}" if k == 1 else f"modal_chunk{k}_{_tag(it)}") for k, it in wanted]
             key = "|".join([_SOURCE_KEY, repr((self.m, self.nu, self.r, self.rm, self.ne, self.thetas))]
                            + [f.serialize() for f in (self.law_newton, self.law_value, self.law_check,

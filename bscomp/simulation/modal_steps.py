@@ -95,7 +95,8 @@ class Stepper:
         self.mp, self.rows, self.law, self.theta, self.kernel = mp, rows, law, theta, kernel
         self.gsel = np.asarray(gsel, int)
         self.r = self.gsel.size
-        self.m = mp.lam.size
+        self.m = kernel.m                    # modal coordinates of the kernel (>= the part's: padded)
+        self.m_part = mp.lam.size
         self._data = {}
         self.chord_cache = {}
 
@@ -105,7 +106,7 @@ class Stepper:
         d = self._data.get(key)
         if d is None:
             sd = StepData(self.mp, self.rows, self.gsel, tau)
-            d = self._data[key] = (sd, pack_step(sd, self.kernel.ne))
+            d = self._data[key] = (sd, pack_step(sd, self.kernel.ne, self.m))
         return d
 
     def evaluate(self, y):
@@ -136,11 +137,12 @@ class Stepper:
         return g, y_free + H @ g, upd
 
     def pack_state(self, xi, g):
-        return np.concatenate([xi.real, xi.imag, g])
+        pad = np.zeros(self.m - self.m_part)
+        return np.concatenate([xi.real, pad, xi.imag, pad, g])
 
     def unpack_state(self, x):
-        m = self.m
-        return x[:m] + 1j * x[m:2 * m], x[2 * m:].copy()
+        m, n = self.m, self.m_part
+        return x[:n] + 1j * x[m:m + n], x[2 * m:].copy()
 
     def step(self, xi0, g0, u, tau, n_newton=12):
         """One compiled step: ``(xi1, g1, err_abs, fmax, ok_regime, ok_element, newton_update)``; ``err_abs``
