@@ -22,7 +22,7 @@ from bscomp.simulation.result import SimulationResult
 __all__ = ["simulate_modal", "ModalResult", "DEFAULTS"]
 
 #: ``options`` of ``simulate(method="modal")`` and their defaults
-DEFAULTS = {"tol": 3e-4, "f_keep": 3e4, "window": 2}
+DEFAULTS = {"tol": 1e-3, "f_keep": 3e4, "window": 2}
 
 
 class ModalResult(SimulationResult):

@@ -88,6 +88,7 @@ class Channels:
 
         self.Sq_x, self.Sq_z = sel(m.q_in_x, dae.nx), sel(m.q_in_z, dae.nz)
         self.Sv_x, self.Sv_xd = sel(m.v_in_x, dae.nx), sel(m.v_in_xd, dae.nx)
+        self._rest = {}
         self.x_a = np.asarray(dae.x_start, float).copy()
         self.z_a = np.asarray(dae.z_start, float).copy()
         self._element_rows()
@@ -116,6 +117,16 @@ class Channels:
         for i in range(len(self.elements)):
             s0, v0 = y0.ravel()[2 * i], y0.ravel()[2 * i + 1]
             self.rest.append((s0, v0) + self.slopes(i, s0, v0))
+
+    def rest_jacobians(self, p):
+        """``(F, Jxd, Jx, Jz, Ju)`` at rest for parameter vector ``p`` (cached: regimes share them)."""
+        key = p.tobytes()
+        if key not in self._rest:
+            dae = self.dae
+            F, Jxd, Jx, Jz, Ju = dae.jacobians(np.zeros(dae.nx), self.x_a, self.z_a, np.zeros(dae.nu), p)
+            self._rest[key] = (np.asarray(ca_dense(F)).ravel(),
+                               *(sp.csr_matrix(_sp_of(J)) for J in (Jxd, Jx, Jz, Ju)))
+        return self._rest[key]
 
     def slopes(self, i, s, v):
         """``(∂f/∂s, ∂f/∂v)`` of element i's law at ``(s, v)``."""
@@ -157,9 +168,7 @@ class LinearPart:
         for i, z in zip(ch.z0_index, z_ref, strict=True):
             p[i] = z
         self.p_ref = p
-        F, Jxd, Jx, Jz, Ju = ch.dae.jacobians(np.zeros(dae.nx), ch.x_a, ch.z_a, np.zeros(dae.nu), p)
-        F = np.asarray(ca_dense(F)).ravel()
-        Jxd, Jx, Jz, Ju = (sp.csr_matrix(_sp_of(J)) for J in (Jxd, Jx, Jz, Ju))
+        F, Jxd, Jx, Jz, Ju = ch.rest_jacobians(p)
         cols, F_L = [], F.copy()
         if ch.elements:
             _, Rxd, Rx, Rz, _ = ch.el_rows
@@ -167,10 +176,11 @@ class LinearPart:
                 s0, v0, k0, d0 = ch.rest[i]
                 G = np.asarray(ch.Sbal @ ch.D[i]).ravel()
                 dk, dd = k - k0, d - d0
-                Jxd = Jxd + sp.csr_matrix(np.outer(G, dk * Rxd[2 * i] + dd * Rxd[2 * i + 1]))
-                Jx = Jx + sp.csr_matrix(np.outer(G, dk * Rx[2 * i] + dd * Rx[2 * i + 1]))
+                Gs = sp.csr_matrix(G[:, None])
+                Jxd = Jxd + Gs @ sp.csr_matrix(dk * Rxd[2 * i] + dd * Rxd[2 * i + 1])
+                Jx = Jx + Gs @ sp.csr_matrix(dk * Rx[2 * i] + dd * Rx[2 * i + 1])
                 if dae.nz:
-                    Jz = Jz + sp.csr_matrix(np.outer(G, dk * Rz[2 * i] + dd * Rz[2 * i + 1]))
+                    Jz = Jz + Gs @ sp.csr_matrix(dk * Rz[2 * i] + dd * Rz[2 * i + 1])
                 g0 = float(ch.elements[i].law(s0, v0, ch.elements[i].pvec)) - k * s0 - d * v0
                 F_L = F_L - G * g0
                 cols.append(G[:, None])

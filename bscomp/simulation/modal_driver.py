@@ -25,7 +25,7 @@ import numpy as np
 
 from bscomp.simulation.modal_channels import Channels, LinearPart
 from bscomp.simulation.modal_kernels import Kernel
-from bscomp.simulation.modal_laws import LawSpec
+from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec
 from bscomp.simulation.modal_parts import ModalPart
 from bscomp.simulation.modal_steps import THETAS, Stepper
 
@@ -126,11 +126,11 @@ class ModalSimulator:
 
     def _padded(self, m):
         """Kernel size for a part of m modal coordinates: the smallest padded size already used that holds
-        it, else m rounded up to 8 plus 8 (parts of nearby sizes share one kernel and its compiled code)."""
+        it, else m + 2 rounded up to 4 (parts of nearby sizes share one kernel and its compiled code)."""
         fits = [k for k in self._pads if k >= m]
         if fits:
             return min(fits)
-        self._pads.append(-(-m // 8) * 8 + 8)
+        self._pads.append(-(-(m + 2) // 4) * 4)
         return self._pads[-1]
 
     def gsel(self, mp, S_list):
@@ -161,9 +161,10 @@ class ModalSimulator:
         return mp.rows(*cat)
 
     # ---- regimes and positions ----------------------------------------------------------------------------
-    def regime_of(self, y):
+    def regime_of(self, y, current=None):
         """Index of the candidate regime nearest each element's tangent at channel values ``y`` (one call of
-        the elements' slope Function; the distance as in :meth:`bscomp.simulation.modal_laws.LawSpec.expr`)."""
+        the elements' slope Function; the distance and the margin that keeps ``current`` as in
+        :meth:`bscomp.simulation.modal_laws.LawSpec.expr`)."""
         n = len(self.ch.elements)
         if not n:
             return ()
@@ -179,7 +180,9 @@ class ModalSimulator:
             c = np.abs(np.array(self.cands[i]))
             eps = 1e-3 * np.maximum(c.max(axis=0), 1e-300)
             dist = np.abs(np.log((np.abs(kd[i]) + eps) / (c + eps))).sum(axis=1)
-            out.append(int(np.argmin(dist)))
+            best = int(np.argmin(dist))
+            keep = current is not None and dist[current[i]] <= dist[best] + REGIME_MARGIN
+            out.append(current[i] if keep else best)
         return tuple(out)
 
     def positions(self, y, cset):
@@ -271,14 +274,9 @@ class ModalSimulator:
         Uc = np.repeat(U[k:k + n], per, axis=0)
         if N > len(Uc):
             Uc = np.vstack([Uc, np.repeat(Uc[-1:], N - len(Uc), axis=0)])
-        chord = stp.chord_cache.get(per)
-        if chord is None:
-            chord = stp.chord_cache[per] = stp.chord(st.xi, st.g[stp.gsel], U[k], h / per)
         x0 = stp.pack_state(st.xi, st.g[stp.gsel])
-        X, info = run(x0, Uc, mats, stp.theta, chord)
+        X, info = run(x0, Uc, mats, stp.theta)
         b, switch, scale = self._flags(info[:n * per], tol)
-        if b < n * per and not info[b, 4] < NEWTON_ACCEPT * tol * scale[b]:
-            stp.chord_cache.pop(per, None)   # the chord matrix is stale: the next chunk computes it anew
         if switch and b % per:
             b -= b % per                      # a switch inside a grid step: that grid step is redone finer
             switch = False
@@ -314,12 +312,8 @@ class ModalSimulator:
             sd, mats = stp.data(tau)
             left = n - i
             x0 = stp.pack_state(st.xi, st.g[stp.gsel])
-            if deepest:
-                run, chord = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS), None
-            else:
-                run = stp.kernel.runner(_chunk_size(left), CHUNK_ITERATIONS)
-                chord = stp.chord(st.xi, st.g[stp.gsel], u, tau)
-            X, info = run(x0, np.repeat(u[None, :], run.n, axis=0), mats, stp.theta, chord)
+            run = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS if deepest else CHUNK_ITERATIONS)
+            X, info = run(x0, np.repeat(u[None, :], run.n, axis=0), mats, stp.theta)
             j, switch, scale = self._flags(info[:left], tol)
             self.counts["batches"] += 1
             forced = deepest and j < left and not switch
@@ -411,7 +405,7 @@ class _State:
                    for jt, a, r in zip(ch.joints, self.z, self.z_ref, strict=True)):
                 new_ref = list(self.z)
             self.cset = sim.channel_set(self.z, new_ref)
-        regime = sim.regime_of(y)
+        regime = sim.regime_of(y, self.mp.regime)
         if regime != self.mp.regime or new_ref != self.z_ref:
             self.z_ref = new_ref
             self.cset = sim.channel_set(self.z, self.z_ref)

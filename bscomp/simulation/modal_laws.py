@@ -4,7 +4,8 @@ For channel coordinates ``y`` (per element ``s, v``; per moving joint the potent
 damped, ``ḋ_S``) the law returns the correction forces ``g`` (:mod:`bscomp._moving_linear`: element
 ``g = f(s, v) - k_R s - d_R v``; joint ``g = f(d, ḋ) - K_r d - C_r ḋ`` of :mod:`bscomp._moving_joint`), the
 largest force magnitude (the error scale) and two indicators the driver acts on: whether every element is
-still nearest its current regime (the log-distance of its tangent to each candidate slope pair), and whether
+still nearest its current regime (the log-distance of its tangent to each candidate slope pair, with a margin
+against flapping at a branch boundary), and whether
 every contact point is still inside the element(s) the expression covers.
 
 Everything numeric -- law parameters, regime slopes and candidates, the joints' element polynomials on the
@@ -20,6 +21,7 @@ import numpy as np
 __all__ = ["LawSpec"]
 
 _EPS_REGIME = 1e-3   # slopes below this fraction of an element's steepest candidate count as zero
+REGIME_MARGIN = 2.3  # hysteresis: another regime is taken when its slopes are 10x closer (log-distance)
 
 
 def _flat(a) -> np.ndarray:
@@ -155,7 +157,7 @@ class LawSpec:
         best = dist[0]
         for dd in dist[1:]:
             best = ca.fmin(best, dd)
-        return dcur <= best + 1e-12
+        return dcur <= best + REGIME_MARGIN
 
     @staticmethod
     def _joint(jt, dS, ddS, z, P, j, e, za, zb, zlo, zhi):

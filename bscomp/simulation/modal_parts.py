@@ -89,7 +89,13 @@ class ModalPart:
         dae = lin.ch.dae
         mb = _mechanical_blocks(lin)
         M, C, K, Kqi, Rb, Ri, Iq, Iv, Ii = mb
-        lam, phi = sla.eigh(K, M, check_finite=False, driver="gvd")
+        key = (K.tobytes(), M.tobytes())           # regimes that change only damping share the undamped modes
+        cache = lin.ch.__dict__.setdefault("_eigh", {})
+        if key not in cache:
+            if len(cache) > 8:
+                cache.clear()
+            cache[key] = sla.eigh(K, M, check_finite=False, driver="gvd")
+        lam, phi = cache[key]
         rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
         lam = np.where(rigid, 0.0, lam)
         w_keep = np.inf if f_keep is None else (2 * np.pi * f_keep) ** 2

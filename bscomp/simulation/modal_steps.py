@@ -9,12 +9,13 @@ held over the step and the channel forces ``g(t) = g_0 + (g_1 - g_0) t/τ``, the
     φ_1(τ) = \frac{e^{λτ} - 1}{λ}, \quad φ_2(τ) = \frac{e^{λτ} - 1 - λτ}{λ^2 τ},
 
 and the channel coordinates are rows of it, ``y(θ) = Re(C_ξ ξ(θτ)) + D_u u + D_g g(θτ) + y_c``. At the end
-(``θ = 1``) ``y_1 = c + H g_1``, so ``g_1 = law(y_1)`` is a Newton solve in the few channel forces only. The
-linear structure is exact for any step; the force's linear interpolation (trapezoidal: second order,
-A-stable) is checked at ``θ = 1/4, 1/2, 3/4``: the error ``max_j |law(y(θ_j)) - g(θ_j τ)|`` relative to the
-largest channel force must stay below the tolerance, and the elements' regimes and the contact points'
-elements must not change inside the step. Otherwise the step is halved, or cut at the change (located by
-bisection on the exact trajectory), by :meth:`Stepper.advance`.
+(``θ = 1``) ``y_1 = c + H g_1``, so ``g_1 = law(y_1)`` is a Newton (or chord) solve in the few channel forces
+only. The linear structure is exact for any step; the force's linear interpolation (trapezoidal: second order,
+A-stable) is checked at ``θ = 1/4, 1/2, 3/4`` (the elements' rows at the quarter points, every channel at the
+midpoint): the error ``max_j |law(y(θ_j)) - g(θ_j τ)|`` must stay below the tolerance times the largest
+channel force, or the driver redoes the step in four (:mod:`bscomp.simulation.modal_driver`). This module
+computes the matrices of those formulas per sub-step length (:class:`StepData`); the compiled kernel
+(:mod:`bscomp.simulation.modal_kernels`) evaluates them.
 """
 
 from __future__ import annotations
@@ -27,8 +28,6 @@ __all__ = ["phis", "StepData", "Stepper"]
 
 THETAS = (0.25, 0.5, 0.75)
 NEWTON_TOL = 1e-9    # last Newton update relative to 1 + max |g| accepted as converged
-MAX_HALVINGS = 14    # smallest sub-step: step / 2**14
-LOCATE = 12          # bisection steps locating a regime change (2**-12 of the sub-step)
 
 
 def phis(lam, tau):
@@ -62,6 +61,7 @@ class StepData:
         self.Q0, self.Q1 = (p1 - p2)[:, None] * Bg, p2[:, None] * Bg
         self.end = self._at(1.0, lam, tau, Cxi, Du, Dg, yc, mp, Bg)
         self.samples = [self._at(th, lam, tau, Cxi, Du, Dg, yc, mp, Bg) for th in thetas]
+        self.start = self._at(0.0, lam, tau, Cxi, Du, Dg, yc, mp, Bg)     # the channels at the step's start
         self.thetas = tuple(thetas)
 
     @staticmethod
@@ -76,7 +76,8 @@ class StepData:
 
 
 class Stepper:
-    """Steps of one modal part with one channel set in numpy (the compiled chunks do the same in CasADi).
+    """One modal part with one channel set: its step data per sub-step length, its compiled kernel, and the
+    few numpy operations the driver does between kernel calls (consistent forces, channel values).
 
     Parameters
     ----------
@@ -98,7 +99,6 @@ class Stepper:
         self.m = kernel.m                    # modal coordinates of the kernel (>= the part's: padded)
         self.m_part = mp.lam.size
         self._data = {}
-        self.chord_cache = {}
 
     def data(self, tau):
         """``(StepData, packed vector)`` for a sub-step length (cached)."""
@@ -144,54 +144,8 @@ class Stepper:
         m, n = self.m, self.m_part
         return x[:n] + 1j * x[m:m + n], x[2 * m:].copy()
 
-    def step(self, xi0, g0, u, tau, n_newton=12):
-        """One compiled step: ``(xi1, g1, err_abs, fmax, ok_regime, ok_element, newton_update)``; ``err_abs``
-        is the largest interpolation error of the forces at the interior points, ``newton_update`` the last
-        Newton update (both in force units)."""
-        _, mats = self.data(tau)
-        X, info = self.kernel.runner(1, n_newton)(self.pack_state(xi0, g0), u[None, :], mats, self.theta, None)
-        xi1, g1 = self.unpack_state(X[0])
-        err, fmax, okr, oke, upd = info[0]
-        return xi1, g1, float(err), float(fmax), bool(okr > 0.5), bool(oke > 0.5), float(upd)
-
-    def chord(self, xi, g, u, tau):
-        """``(I - L H)^{-1}`` with the law's Jacobian ``L`` at the current state and ``H`` of a step ``tau``."""
-        Cxi, Du, Dg, yc = self.rows
-        y = (Cxi @ xi).real + Du @ u + Dg[:, self.gsel] @ g + yc
-        L = self.evaluate(y)[1]
-        H = self.data(tau)[0].end[3]
-        return np.linalg.inv(np.eye(self.r) - L @ H)
-
     def end_values(self, xi0, g0, g1, u, tau):
         """Channel values at the end of a step (numpy)."""
         sd, _ = self.data(tau)
         CE, Yu, Y0, H, yct = sd.end
         return (CE @ xi0).real + Yu @ u + Y0 @ g0 + H @ g1 + yct
-
-    def ok_at(self, xi0, g0, g1, u, tau, theta):
-        """``(regime_ok, element_ok)`` at fraction ``theta`` of a step with end forces ``g1`` (for bisection)."""
-        CEj, Yuj, Y0j, Y1j, ycj = StepData._at(theta, self.mp.lam, tau, *self._rows_sel(), self.mp,
-                                               self.mp.Bg[:, self.gsel])
-        yj = (CEj @ xi0).real + Yuj @ u + Y0j @ g0 + Y1j @ g1 + ycj
-        return self.evaluate(yj)[3:]
-
-    def _rows_sel(self):
-        Cxi, Du, Dg, yc = self.rows
-        return Cxi, Du, Dg[:, self.gsel], yc
-
-    def locate(self, xi0, g0, g1, u, tau):
-        """Fraction of the step at which a regime or element change first happens (bisection), or None."""
-        ths = (0.0,) + THETAS + (1.0,)
-        ok_prev = 0.0
-        for th in ths[1:]:
-            if not all(self.ok_at(xi0, g0, g1, u, tau, th)):
-                lo, hi = ok_prev, th
-                for _ in range(LOCATE):
-                    mid = 0.5 * (lo + hi)
-                    if all(self.ok_at(xi0, g0, g1, u, tau, mid)):
-                        lo = mid
-                    else:
-                        hi = mid
-                return hi
-            ok_prev = th
-        return None

@@ -79,11 +79,8 @@ class MovingJoint:
         m = dae.mech
         T = sp.csr_matrix(m.T)
         t0 = np.asarray(m.t0, float).ravel()
-        order, rows = [], []
-        for dofs, _ in info["elements"]:
-            for d in dofs:
-                if d not in order:
-                    order.append(d)
+        order = list(dict.fromkeys(d for dofs, _ in info["elements"] for d in dofs))
+        rows = []
         for d in order:
             key = f"{path}.{d}"
             if key not in m.port_coordinates:
@@ -92,8 +89,8 @@ class MovingJoint:
             if t0[c] != 0.0:
                 raise ModelDefinitionError(f"{path}.{d} is offset by a constraint (t0 = {t0[c]:.3g}): the moving joint "
                                            "needs its ports at zero at rest")
-            rows.append(T[c])
-        Pall = sp.vstack(rows).tocsr()
+            rows.append(c)
+        Pall = T[np.asarray(rows, int)].tocsr()
         active = np.flatnonzero(np.diff(Pall.indptr) > 0)
         self.dof_names = [order[i] for i in active]
         self.P = Pall[active]
