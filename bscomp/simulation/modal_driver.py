@@ -42,6 +42,7 @@ def _chunk_size(n):
 NEWTON_ACCEPT = 1e-2   # last Newton update accepted: this fraction of the interpolation tolerance [force]
 CHUNK = 256           # most sub-steps per compiled chunk
 CHUNK_LEVELS = 2      # chunks run at h, h/4 or h/16
+CALM = 1              # clean chunks before the next one tries the coarser level
 CHUNK_ITERATIONS = -3  # chunks and batches: three chord iterations (a step that needs more is redone finer)
 FINE_ITERATIONS = 3   # the finest level: three Newton iterations
 FINE_LEVELS = 3       # refinement levels below a failed chunk's level, then single sub-steps
@@ -232,8 +233,8 @@ class ModalSimulator:
                 if done == n:
                     n_chunk = min(4 * n_chunk, CHUNK)
                     calm += 1
-                    if calm >= 2 and level:
-                        level, calm = level - 1, 0
+                    if calm >= CALM and level:
+                        level, calm, n_chunk = level - 1, 0, 4      # probe the coarser level with a short chunk
                     continue
                 n_chunk, calm = 4, 0
                 if done < 2 and level < CHUNK_LEVELS:
