@@ -26,26 +26,33 @@ run from this start point, building its regimes and Functions, ``warm`` = a repe
 substeps 1 and 2) and ``fixed`` against IDAS at default tolerances, printing wall time, real-time factor and
 max |y - y_idas| / max |y_idas| for table position, table velocity and motor speed; ``--reference`` adds IDAS
 at rtol 1e-8 as the reference (minutes for 1 s).
+``--moving`` runs issue 16's table instead (``moving()``: friction + backlash, nut frozen or moving, 0.6 s, the new
+``method="modal"`` beside IDAS and scikit-sundae's IDA on the same equations, errors against IDAS at rtol 1e-9;
+then 2x/4x the step, the screw mesh 24-188 elements, the 6-DOF test bed and the modally reduced model).
 Run: python benchmarks/bench_simulation.py [T_end] [--no-scipy] [--nonlinear [--reference]]
+     python benchmarks/bench_simulation.py --moving [table steps mesh six reduced] [--reference]
 """
 
 from __future__ import annotations
 
 import os
-import sys
-import tempfile
-import time
 
-import numpy as np
-import scipy.sparse as sp
-from scipy.integrate import solve_ivp
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
 
-import bscomp
-from bscomp import System
-from bscomp.components import SecondOrderBlock
-from bscomp.linear.reduction import reduce_second_order
-from bscomp.simulation.dispatch import simulate
-from bscomp.systems.testbed import testbed_axial_torsional
+import numpy as np  # noqa: E402
+import scipy.sparse as sp  # noqa: E402
+from scipy.integrate import solve_ivp  # noqa: E402
+
+import bscomp  # noqa: E402
+from bscomp import System  # noqa: E402
+from bscomp.components import SecondOrderBlock  # noqa: E402
+from bscomp.linear.reduction import reduce_second_order  # noqa: E402
+from bscomp.simulation.dispatch import simulate  # noqa: E402
+from bscomp.systems.testbed import testbed_axial_torsional  # noqa: E402
 
 K_A, K_T = 6.4898, 0.4769          # Eq 4.1
 U_PP, F_SQ = 4.25, 5.0             # Sec 5.3.1: 4.25 V peak-to-peak, 5 Hz
@@ -193,9 +200,107 @@ def _scipy(so, t):
     return list(Y)
 
 
+def moving(reference_again=False, parts=("table", "steps", "mesh", "six", "reduced")):
+    """Issue 16: friction + backlash with the nut frozen at C or moving, 0.6 s (benchmarks/moving_cases.py).
+
+    ``modal`` runs are ``simulate(method="modal", jit=True)``: *cold* = a fresh Dae-level set-up (modal parts,
+    laws, kernels loaded from the on-disk C cache), *warm* = a repeated run; the one-time compilation of a
+    model shape is reported separately (a fresh cache directory). Errors: NRMSE against IDAS at rtol 1e-9,
+    atol 1e-12 on the same equations (cached in benchmarks/.cache with the time it took)."""
+    import moving_cases as mc
+
+    t = mc.grid()
+    T = t[-1]
+    rows = []
+
+    def row(case, name, res, wall, cpu, ref):
+        errs = {o: mc.nrmse(res[o], ref[o]) for o in mc.OUTS}
+        rows.append((case, name, wall, cpu, errs))
+        print(f"  {case:<8} {name:<34} {wall:8.3f} s wall {cpu:8.3f} s cpu  RTF {T / wall:7.2f}  "
+              + " ".join(f"{o} {e:.1e}" for o, e in errs.items()), flush=True)
+
+    def modal_runs(case, dae, ref, label="modal", **kw):
+        def run():
+            r = simulate(dae, t, inputs={"amp.u": mc.square}, outputs=mc.OUTS, method="modal", jit=True, **kw)
+            return {o: r[o] for o in mc.OUTS}, r.stats
+
+        with tempfile.TemporaryDirectory() as fresh:          # the one-time compilation of this shape
+            os.environ["BSCOMP_CACHE_DIR"] = fresh
+            dae._cache.pop("modal_simulators", None)
+            (_, _), w_first, _ = mc.timed(run)
+            del os.environ["BSCOMP_CACHE_DIR"]
+        dae._cache.pop("modal_simulators", None)
+        run()                                                  # fills the default on-disk cache
+        cold = []
+        for _ in range(3):
+            dae._cache.pop("modal_simulators", None)
+            cold.append(mc.timed(run))
+        (y, stats), w, c = min(cold, key=lambda x: x[1])
+        row(case, f"{label} cold (compiled once: {w_first:.1f} s)", y, w, c, ref)
+        (y, stats), w, c = mc.timed(run, repeat=3)
+        row(case, f"{label} warm", y, w, c, ref)
+        print(f"           modal parts {stats['modal_parts']} ({stats['modal_part_s']:.3f} s), chunks "
+              f"{stats['chunks']}, batches {stats['batches']}, sub-steps {stats['substeps']}, switches "
+              f"{stats['switches']}")
+        return y
+
+    if "table" in parts or "steps" in parts:
+        for case, joint in (("frozen", "point"), ("moving", "moving")):
+            dae = mc.drive(joint)
+            simulate(dae, t[:3], inputs={"amp.u": mc.square}, outputs=mc.OUTS)   # shared Jacobians, outputs
+            ref, w_ref = mc.reference(dae, case, t, reference_again)
+            print(f"  {case}: {dae.nx} states; reference IDAS rtol 1e-9 took {w_ref:.0f} s", flush=True)
+            if "table" in parts:
+                modal_runs(case, dae, ref)
+                (r, w, c) = mc.timed(lambda dae=dae: simulate(dae, t, inputs={"amp.u": mc.square}, outputs=mc.OUTS,
+                                                               max_num_steps=10**7))
+                row(case, "idas rtol 1e-6", r, w, c, ref)
+                sd = mc.sundae(dae, t)
+                if sd is None:
+                    print("           scikit-sundae not installed: its IDA baseline skipped")
+                else:
+                    row(case, "scikit-sundae IDA rtol 1e-6", sd[0], sd[1], sd[1], ref)
+            if "steps" in parts:
+                for mult in (2, 4):
+                    tk = t[::mult]
+                    r = simulate(dae, tk, inputs={"amp.u": mc.square}, outputs=mc.OUTS, method="modal", jit=True)
+                    errs = {o: mc.nrmse(r[o], ref[o][::mult]) for o in mc.OUTS}
+                    print(f"  {case:<8} modal at {mult}x the step ({mult * mc.DT * 1e3:.1f} ms): "
+                          + " ".join(f"{o} {e:.1e}" for o, e in errs.items()), flush=True)
+    if "mesh" in parts:
+        walls = []
+        for n in (24, 47, 94, 188):
+            dae = mc.drive("moving", n_elements=n)
+            def run(dae=dae):
+                return simulate(dae, t, inputs={"amp.u": mc.square}, outputs=mc.OUTS, method="modal", jit=True)
+
+            run()
+            dae._cache.pop("modal_simulators", None)
+            _, w_cold, _ = mc.timed(run)
+            _, w_warm, _ = mc.timed(run, repeat=2)
+            walls.append((n, dae.nx, w_cold / T, w_warm / T))
+            print(f"  mesh {n:4d} elements ({dae.nx} states): {w_cold / T:.3f} s cold, {w_warm / T:.3f} s warm per "
+                  "simulated second", flush=True)
+        n, _, wc, ww = (np.array(c, float) for c in zip(*walls, strict=True))
+        print(f"  growth exponent (wall ~ elements^p, least squares on log-log): cold p = "
+              f"{np.polyfit(np.log(n), np.log(wc), 1)[0]:.2f}, warm p = {np.polyfit(np.log(n), np.log(ww), 1)[0]:.2f}")
+    if "six" in parts:
+        dae = mc.six_dof("moving")
+        ref = modal_runs("6-DOF", dae, {o: np.zeros(len(t)) + 1.0 for o in mc.OUTS}, label="modal")
+        print("           (6-DOF errors above are against 1, not a reference: IDAS on 582 states is not run)")
+    if "reduced" in parts:
+        dae = mc.drive("moving")
+        ref, _ = mc.reference(dae, "moving", t)
+        modal_runs("reduced", dae, ref, label="modal f_keep 2 kHz", modal_options={"f_keep": 2000.0})
+    return rows
+
+
 if __name__ == "__main__":
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
-    if "--nonlinear" in sys.argv:
+    if "--moving" in sys.argv:
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        moving("--reference" in sys.argv, tuple(args) or ("table", "steps", "mesh", "six", "reduced"))
+    elif "--nonlinear" in sys.argv:
         nonlinear(float(args[0]) if args else 1.0, reference="--reference" in sys.argv)
     else:
         main(float(args[0]) if args else 1.0, scipy_baseline="--no-scipy" not in sys.argv)

@@ -109,5 +109,21 @@ class MovingNutJoint(Component):
             eqs += [getattr(p, fl) for _, fl in _OTHER]
         return eqs
 
+    def moving_interface(self, value):
+        """The joint as a position-dependent interface ``e = E(z) d`` (for ``simulate(method="modal")``):
+        hat functions over each element's two nodes (w, θz) and the nut, see
+        :meth:`MovingScrewNut.moving_interface <components.moving_screw_nut.MovingScrewNut.moving_interface>`."""
+        K = np.array([[value("k_w"), value("k_wt")], [value("k_wt"), value("k_t")]], float)
+        C = np.diag([value("c_w"), value("c_t")]).astype(float)
+        elements = []
+        for e in range(len(self.z_nodes) - 1):
+            dofs = [f"n{e}.w", f"n{e}.tz", f"n{e + 1}.w", f"n{e + 1}.tz", "nut.w", "nut.tz"]
+            coef = np.zeros((4, 2, 6))
+            coef[0] = [[1, 0, 0, 0, -1, 0], [0, 1, 0, 0, 0, -1]]
+            coef[1] = [[-1, 0, 1, 0, 0, 0], [0, -1, 0, 1, 0, 0]]
+            elements.append((dofs, coef))
+        return {"z_nodes": self.z_nodes, "slow": "nut.w", "z0": float(value("z0")), "K": K,
+                "C": C if np.any(C) else None, "elements": elements}
+
     def observables(self):
         return {"z": self.position()}

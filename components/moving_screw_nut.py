@@ -188,5 +188,23 @@ class MovingScrewNut(Component):
         C = None if self.C is None else scatter(self.C)
         return LinearStructure(dofs=dofs, K=K, C=C)
 
+    def moving_interface(self, value):
+        """The joint as a position-dependent interface ``e = E(z) d`` (for ``simulate(method="modal")``).
+
+        ``value(name)`` returns a parameter's value in the run. Returns a dict: ``z_nodes``; ``slow`` (the
+        port potential that moves P, ``z = z0 + nut.w``); ``z0``; ``K``, ``C`` (12x12, on ``e``); and per
+        element ``(dofs, coef)`` with ``E_e(ξ) = Σ_k ξ^k coef[k]`` over the element's two nodes and the nut
+        (Eq 3.27 / A.7; the ``N_e(ξ)`` of :func:`element_polynomials`).
+        """
+        elements = []
+        for e in range(len(self.z_nodes) - 1):
+            dofs = [f"n{n}.{d}" for n in (e, e + 1) for d in DOF_NAMES] + [f"nut.{d}" for d in DOF_NAMES]
+            coef = np.zeros((4, 12, 18))
+            coef[:, :6, :12] = self.poly[e]
+            coef[0, 6:, 12:] = np.eye(6)
+            elements.append((dofs, coef))
+        return {"z_nodes": self.z_nodes, "slow": "nut.w", "z0": float(value("z0")), "K": self.K, "C": self.C,
+                "elements": elements}
+
     def observables(self):
         return {"z": self.position()}

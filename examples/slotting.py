@@ -2,7 +2,8 @@
 under the three controllers of Chapter 4, each run as a sampled-data controller at T_s = 200 µs.
 
 Run: python examples/slotting.py OUT_DIR [POSITIONS] [FRICTION]
-     (default out/slotting, positions "L,C,R", friction "component"; "known" for the older known-force run)
+     (default out/slotting, positions "L,C,R,moving", friction "component"; "known" for the older known-force
+     run; "moving" is the nut travelling with the table, Sec 5.2.2.3)
 
 Model (section: model)
     ``testbed_axial_torsional`` with the bellows coupling (the notch and the RST of Sec 4.4-4.5 were
@@ -18,11 +19,12 @@ Solve
     force implicit (bscomp.simulation.split). IDAS on the same model took 37 s for 20 ms of motion here
     (per-sample restarts), i.e. ~35 min per controller for this 1.2 s operation. Limits:
 
-    * **Nut position frozen.** The nut is fixed at one position per run (L, C, R, toml
-      ``table.nut_position_*``); the move L -> R is run on each frozen model, which brackets the
-      position-dependent dynamics of Sec 5.2.2.3 instead of sweeping them (``MovingNutJoint`` makes the
-      screw coupling depend on the nut position: every screw coordinate then enters nonlinearly, which
-      leaves IDAS as the only integrator, at ~35 min per case).
+    * **Nut frozen or moving.** ``L``, ``C``, ``R`` fix the nut at one position per run (toml
+      ``table.nut_position_*``) and run the move on each frozen model, which brackets the position-dependent
+      dynamics of Sec 5.2.2.3. ``moving`` runs the thesis's own model: the screw-nut joint
+      (:class:`MovingScrewNut`) at the nut's current position, the nut travelling with the table from x = R
+      to x = L, by ``simulate(method="modal", jit=True)`` (the joint's position-dependent part a low-rank
+      correction of an exact modal linear part; bscomp/simulation/modal.py), a few seconds per case.
     * With ``FRICTION=known`` the friction is the known force ``-F_c sign(v_ref(t))`` on the linear model
       (``method="lti"``): exact while the table slides forward, wrong at stand-still (the table is pushed
       back before the drive force exceeds F_c). The viscous part B is the motor's B (applied once).
@@ -63,6 +65,8 @@ SLOT_LENGTH = 0.200
 #: The first 10 ms are reported apart: with known-force friction it acts there on a table still at rest.
 T_START = 0.010
 DT = 25e-6  # output grid [s]: 24 points per tooth-passing period (600 µs)
+#: Where the moving nut is during the L -> R move (the table axis is the screw's -z): it starts at R.
+MOVING_PATH = ("R", "C", "L")
 THESIS = {  # Sec 5.3.3 text; the figures themselves are missing from the extracted thesis
     "P-PI": "max 5.6 mm in the rapids (Fig 5.19(e))",
     "P-PI + notch": "max 5.6 mm in the rapids (Fig 5.20(e))",
@@ -205,14 +209,14 @@ def cutting_force(p, window, mean=-350.0):
 
 # ---------------------------------------------------------------------------------------------------
 # model
-def _with_drive_damping(closed, nut_position, coupling):
+def _with_drive_damping(closed, nut_position, coupling, nut_joint="point"):
     """Flatten ``closed`` and add the test bed's modal damping (DriveModalDamping, toml ``[damping]``).
 
     ``flatten`` applies a system damping only to purely mechanical models (it needs the second-order
     form), so the matrix is computed on the mechanical test bed and added to the closed loop's
     structural C on the same coordinates.
     """
-    mech = testbed_axial_torsional(nut_position=nut_position, coupling=coupling)
+    mech = testbed_axial_torsional(nut_position=nut_position, coupling=coupling, nut_joint=nut_joint)
     damping, mech.damping = mech.damping, None
     so = second_order(flatten(mech), inputs=[], outputs=[])
     C = sp.csc_matrix(damping.matrix(so.M, so.K, coordinates=list(so.coordinates)))
@@ -226,12 +230,14 @@ def _with_drive_damping(closed, nut_position, coupling):
     return dae
 
 
-def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", friction: bool = False):
+def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", friction: bool = False,
+                      nut_joint: str = "point"):
     """The test bed with the analog part of the controller: ``"P-PI"`` adds the PI velocity loop of
     Fig 4.3 (input ``pi.u_s`` [V]), ``"RST"`` only the amplifier (input ``amp.u`` [V], Fig 4.19).
     ``friction=True`` adds the guideway's Coulomb friction of Table 5.2 as a component (Eq 5.7 with the
-    +/- levels, regularised over v_reg = 0.1 mm/s as in examples/nonlinear_scenarios.py)."""
-    s = testbed_axial_torsional(nut_position=nut_position, coupling=coupling)   # amp.u -> amp -> kt -> motor
+    +/- levels, regularised over v_reg = 0.1 mm/s as in examples/nonlinear_scenarios.py). ``nut_joint="moving"``:
+    the screw-nut joint at the nut's current position (Sec 5.2.2.3), ``nut_position`` where it starts."""
+    s = testbed_axial_torsional(nut_position=nut_position, coupling=coupling, nut_joint=nut_joint)
     if friction:
         fb = p["friction_backlash"]
         s.add("guide_ground", Fixed())
@@ -245,7 +251,7 @@ def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", fricti
         s.connect("pi.y", "amp.u")
         s.connect("tacho.flange", "rotor.flange_a")
         s.connect("tacho.v", "pi.u_m")
-    return _with_drive_damping(s, nut_position, coupling)
+    return _with_drive_damping(s, nut_position, coupling, nut_joint)
 
 
 def rst_thesis(p):
@@ -327,7 +333,9 @@ def controller(p, name, reference):
 # ---------------------------------------------------------------------------------------------------
 # solve and post-process
 def run_case(p, name, traj, position, friction="component", t_end=None, cut_window=None, dt=DT, plants=None):
-    """Simulate one controller with the nut frozen at ``position``; returns a dict of signals.
+    """Simulate one controller with the nut frozen at ``position`` or, for ``position="moving"``, travelling
+    with the table (it starts at R: the table axis is the screw's -z, so the L -> R move runs the nut from
+    x = R to x = L); returns a dict of signals.
 
     ``friction``: ``"component"`` (default) -- the Table 5.2 Coulomb friction as a component in the
     model, run by ``simulate(method="split")`` (exact ZOH of the linear part per friction regime, so the
@@ -338,12 +346,14 @@ def run_case(p, name, traj, position, friction="component", t_end=None, cut_wind
     if friction not in ("component", "known", False, None):
         raise ValueError(f"run_case: friction must be 'component', 'known' or False, got {friction!r}")
     real = friction == "component"
+    moving = position == "moving"
+    joint, position = ("moving", "R") if moving else ("point", position)
     t_end = traj.duration + 0.1 if t_end is None else t_end
     t = dt * np.arange(int(round(t_end / dt)) + 1)
     ctrl, kind = controller(p, name, lambda tt: float(traj.position(tt)))
-    key = (kind, position, real)
+    key = (kind, position, real, joint)
     if plants is None or key not in plants:
-        dae = closed_loop_plant(p, kind, position, friction=real)
+        dae = closed_loop_plant(p, kind, position, friction=real, nut_joint=joint)
         if plants is not None:
             plants[key] = dae
     else:
@@ -355,12 +365,14 @@ def run_case(p, name, traj, position, friction="component", t_end=None, cut_wind
         return f_cut(tt) - F_c * np.sign(traj.velocity(tt))
 
     act = ctrl.actuate[0]
-    res = simulate(dae, t, inputs={"Fd.f": f_table}, controllers=[ctrl], method="split" if real else "lti",
-                   outputs=["table.s", "table.v", "table.a", "amp.u"])
+    method = "modal" if moving else ("split" if real else "lti")
+    res = simulate(dae, t, inputs={"Fd.f": f_table}, controllers=[ctrl], method=method, jit=moving,
+                   outputs=["table.s", "table.v", "table.a", "amp.u"] + (["sn.z"] if moving else []))
     r = traj.position(t)
     return {"t": t, "ref": r, "v_ref": traj.velocity(t), "a_ref": traj.acceleration(t), "x": res["table.s"],
             "v": res["table.v"], "a": res["table.a"], "e": r - res["table.s"], "u": res["amp.u"],
-            "u_ctrl": res[act], "F_d": res["Fd.f"], "wall_s": res.stats["wall_s"], "friction": friction}
+            "u_ctrl": res[act], "F_d": res["Fd.f"], "wall_s": res.stats["wall_s"], "friction": friction,
+            "z_nut": res["sn.z"] if moving else None}
 
 
 def amplitude_at(t, y, f):
@@ -399,7 +411,8 @@ def plot_case(results, traj, name, path):
     plt = _plt()
     fig, ax = plt.subplots(4, 1, sharex=True, figsize=(9, 10))
     for pos, r in results.items():
-        ax[0].plot(r["t"], r["v"] * 60, lw=0.8, label=f"nut frozen at {pos}")
+        label = "nut moving R -> L" if pos == "moving" else f"nut frozen at {pos}"
+        ax[0].plot(r["t"], r["v"] * 60, lw=0.8, label=label)
         ax[1].plot(r["t"], 1e3 * r["e"], lw=0.8, label=pos)
         ax[2].plot(r["t"], r["a"] / 9.80665, lw=0.5, label=pos)
         ax[3].plot(r["t"], r["u"], lw=0.6, label=pos)
@@ -439,7 +452,7 @@ def plot_cut_zoom(all_res, traj, position, path):
     plt.close(fig)
 
 
-def main(out_dir="out/slotting", positions="L,C,R", friction="component"):
+def main(out_dir="out/slotting", positions="L,C,R,moving", friction="component"):
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     p = load_parameters()
@@ -457,9 +470,13 @@ def main(out_dir="out/slotting", positions="L,C,R", friction="component"):
         all_res[name] = {}
         for pos in positions:
             blocks, act, kind = controller_blocks(p, name)
-            if (kind, pos, False) not in plants:                   # stability: the linear plant
-                plants[(kind, pos, False)] = closed_loop_plant(p, kind, pos)
-            rho = spectral_radius(plants[(kind, pos, False)], blocks, act)
+            rho = 0.0
+            for at in (MOVING_PATH if pos == "moving" else (pos,)):     # the moving nut passes R, C, L
+                if (kind, at, False) not in plants:                   # stability: the linear plant
+                    plants[(kind, at, False)] = closed_loop_plant(p, kind, at)
+                rho = max(rho, spectral_radius(plants[(kind, at, False)], blocks, act))
+                if pos == "moving" and rho >= 1.0:
+                    break                                              # unstable where it starts or passes
             if rho >= 1.0:
                 rows.append((name, pos, rho, None))
                 print(f"  {name:<17} nut at {pos}: closed loop UNSTABLE (max |z| = {rho:.4f}), not simulated")

@@ -72,6 +72,7 @@ is fixed when the screw's point ports are made), a dotted key a parameter overri
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -189,7 +190,7 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
             coupling_position: float | None = None, root_diameter: float | None = None,
             jaw1: str = "motor", ksn: str = "full", pitch: float | None = None, damping: bool = True,
             viscous: str = "motor", nut_joint: str = "point", drive_input: str = "voltage",
-            params: str = "fadal_vmc2216_x") -> System:
+            params: str = "fadal_vmc2216_x", n_elements: int | None = None) -> System:
     """Build the test bed (or one of its verification steps) as a :class:`bscomp.System`.
 
     Parameters
@@ -247,6 +248,8 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
         or the motor torque ``motor.tau`` [N m] (the Ch 4 plant the design equations are written for).
     params : str
         Parameter set name or path (default the thesis test bed).
+    n_elements : int, optional
+        About this many screw elements, Table B.1's counts scaled (47 by default; for mesh-growth studies).
 
     Returns
     -------
@@ -264,7 +267,7 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
     if dofs is None:
         dofs = ("w", "tz") if variant in ("axial_torsional", "submodel1") else ("u", "v", "w", "tx", "ty", "tz")
     dofs = tuple(dofs)
-    sections = thesis_sections(d_root=root_diameter, params=params)
+    sections = _scaled_mesh(thesis_sections(d_root=root_diameter, params=params), n_elements)
     x_b1, x_b2, x_cp = _support_positions(v, motor_end, sum(s.length for s in sections), b1_position,
                                           b2_position, coupling_position)
     has_nut = variant not in ("free_screw", "submodel1")
@@ -281,7 +284,7 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
     if has_drive:
         points["coupling"] = x_cp
     # ---- screw (Table B.1, Sec B.1, Eq 3.1, Eq A.6)
-    s.add("screw", thesis_ballscrew(dofs=dofs, points=points, d_root=root_diameter, params=params))
+    s.add("screw", thesis_ballscrew(dofs=dofs, points=points, d_root=root_diameter, params=params, sections=sections))
     src.update({"screw": "Table B.1; Sec B.1 (E, rho, nu); Eq 3.1 (d_e); Eq A.6 (k^s)",
                 "screw.nut": f"nut centre x = {x_nut} m (toml table.nut_position_*, CHOICE)" if has_nut else ""})
     if has_bearings:
@@ -300,8 +303,19 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
                         b1_position=x_b1 if has_bearings else None, b2_position=x_b2 if has_bearings else None,
                         coupling_position=x_cp if has_drive else None, root_diameter=sections[2].d_out,
                         jaw1=jaw1, ksn=ksn, pitch=pitch, viscous=viscous, nut_joint=nut_joint,
-                        drive_input=drive_input if has_drive else None, params=params)
+                        drive_input=drive_input if has_drive else None, params=params, n_elements=n_elements)
     return s
+
+
+def _scaled_mesh(sections, n_elements):
+    """Table B.1's sections with every element count scaled to about ``n_elements`` in all (at least one)."""
+    if n_elements is None:
+        return sections
+    if int(n_elements) < len(sections):
+        raise ModelDefinitionError(f"testbed: n_elements = {n_elements} is below one element per section "
+                                   f"({len(sections)})")
+    scale = int(n_elements) / sum(sec.n_elements for sec in sections)
+    return [dataclasses.replace(sec, n_elements=max(1, round(sec.n_elements * scale))) for sec in sections]
 
 
 _NAMES = {"full": "testbed", "free_screw": "testbed_free_screw", "screw_nut": "testbed_screw_nut",

@@ -91,19 +91,20 @@ def thesis_sections(d_root: float | None = None, d_equiv: float | None = None, n
 
 def thesis_ballscrew(dofs=_ALL_DOFS, points: dict | None = None, d_root: float | None = None,
                       d_equiv: float | None = None, reverse: bool = False, params: str = "fadal_vmc2216_x",
-                      **overrides) -> Ballscrew:
+                      sections: list | None = None, **overrides) -> Ballscrew:
     """The test-bed screw: :func:`thesis_sections` with the steel of App B.1 (E, rho, nu) and the shear
     factor of Eq A.6 from the toml group ``[screw.material]``.
 
-    ``dofs`` and ``points`` are those of :class:`~bscomp.components.Ballscrew`; ``overrides`` replace
-    parameters (``E=...``).
+    ``dofs`` and ``points`` are those of :class:`~bscomp.components.Ballscrew`; ``sections`` replace
+    :func:`thesis_sections` (another mesh of them); ``overrides`` replace parameters (``E=...``).
     """
     p = thesis_parameters(params)
     g = "screw.material"
     material = {"E": get_value(p, f"{g}.youngs_modulus"), "rho": get_value(p, f"{g}.density"),
                 "nu": get_value(p, f"{g}.poissons_ratio"), "kappa": get_value(p, f"{g}.shear_factor")}
     material.update(overrides)
-    sections = thesis_sections(d_root=d_root, d_equiv=d_equiv, reverse=reverse, params=params)
+    if sections is None:
+        sections = thesis_sections(d_root=d_root, d_equiv=d_equiv, reverse=reverse, params=params)
     return Ballscrew(sections, dofs=dofs, points=points, **material)
 
 

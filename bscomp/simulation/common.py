@@ -70,6 +70,7 @@ class SimulationOptions:
     substeps: int = 1
     newton_iter: int = 2
     jit: bool = False
+    modal: dict | None = None
 
     def fixed_steps(self) -> tuple[int, int]:
         """``(substeps, newton_iter)`` of the fixed-step methods, both at least 1."""

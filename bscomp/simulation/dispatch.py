@@ -12,6 +12,8 @@ idas      :mod:`bscomp.simulation.idas`          variable-step BDF (IDAS), error
 fixed     :mod:`bscomp.simulation.fixed_step`    fixed-step L-stable SDIRK3, compiled chunks
 lti       :mod:`bscomp.simulation.zoh`           exact zero-order hold of the linearized model
 split     :mod:`bscomp.simulation.split`         exact ZOH of the linear part + implicit laws
+modal     :mod:`bscomp.simulation.modal`         exact modal ZOH + low-rank implicit corrections
+                                                 (friction, backlash, moving screw-nut joint)
 ========  =====================================  ==============================================
 
 A new method is one more entry in :data:`METHODS`.
@@ -23,6 +25,7 @@ from bscomp.errors import UsageError, check_number
 from bscomp.simulation.common import SimulationOptions, prepare
 from bscomp.simulation.fixed_step import simulate_fixed
 from bscomp.simulation.idas import simulate_idas
+from bscomp.simulation.modal import simulate_modal
 from bscomp.simulation.result import SimulationError, SimulationResult
 from bscomp.simulation.sampled import SampledController
 from bscomp.simulation.split import simulate_split
@@ -36,14 +39,15 @@ METHODS = {
     "fixed": simulate_fixed,
     "lti": simulate_zoh,
     "split": simulate_split,
+    "modal": simulate_modal,
 }
 
 
 def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, params: dict | None = None,
              outputs=None, controllers=None, rtol: float = 1e-6, atol: float = 1e-9, max_order: int = 2,
              progress: bool | None = None, max_num_steps: int = 100000, method: str = "idas", substeps: int = 1,
-             newton_iter: int = 2, jit: bool = False) -> SimulationResult:
-    """Integrate a model over the time grid ``t`` (IDAS, fixed-step SDIRK3, exact ZOH or split).
+             newton_iter: int = 2, jit: bool = False, modal_options: dict | None = None) -> SimulationResult:
+    """Integrate a model over the time grid ``t`` (IDAS, fixed-step SDIRK3, exact ZOH, split or modal).
 
     Parameters
     ----------
@@ -73,7 +77,7 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         a terminal).
     max_num_steps : int
         IDAS: most internal steps per integrator call.
-    method : {"idas", "fixed", "lti", "split"}
+    method : {"idas", "fixed", "lti", "split", "modal"}
         ``"idas"``: the nonlinear DAE with IDAS (variable step, error controlled by rtol/atol).
         ``"fixed"``: the nonlinear DAE with a fixed-step, L-stable, 3rd-order SDIRK method
         (:mod:`bscomp.simulation.fixed_step`), ``substeps`` steps per output interval, exact Newton on the
@@ -97,17 +101,29 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         tolerances: 4.6e-4, 8e-5, 1.1e-4); 1 s of it in ~1.5 s wall for the first run from a start
         point, ~0.9 s for a repeated one (the set-up is cached on the Dae). Its accuracy is not error
         controlled; check it with ``substeps``.
+        ``"modal"`` (:mod:`bscomp.simulation.modal`): the linear part exactly in modal coordinates (zero-order
+        hold, any step), friction, backlash and **moving joints** (the nut travelling along the screw,
+        :class:`~components.moving_screw_nut.MovingScrewNut`, Sec 5.2.2.3) as low-rank implicit corrections,
+        their forces first-order held with the interpolation error checked inside every step
+        (``modal_options["tol"]``) and regime changes (gap/contact, stick/slide) refined. Needs a model
+        flattened from a System. Measured against IDAS at rtol 1e-9 and for speed in ``docs/nonlinear.md``.
     substeps : int
-        ``method="fixed"`` / ``"split"``: integration steps per output interval.
+        ``method="fixed"`` / ``"split"`` / ``"modal"``: integration steps per output interval.
     newton_iter : int
         ``method="split"``: Newton iterations always done per step (up to 4x more while unconverged).
         ``method="fixed"``: Newton iterations per stage when the model has nonlinear equations (one
         is exact for an affine model and used then); a chunk that has not converged is redone with
         four times as many and a backtracking line search, then fails with SimulationError.
     jit : bool
-        ``method="fixed"`` / ``"split"``: compile the step to C with the system compiler (cached on disk, see
-        :func:`bscomp.simulation.native.native_function`): ~10x faster on small (reduced) models, ~1 s to
-        compile once.
+        ``method="fixed"`` / ``"split"`` / ``"modal"``: compile the step to C with the system compiler (cached
+        on disk, see :func:`bscomp.simulation.native.native_function`): ~10x faster on small (reduced)
+        models, ~1 s to compile once (modal: 5-20 s once per model shape, its kernels take every number as
+        an input).
+    modal_options : dict, optional
+        ``method="modal"``: ``tol`` (interpolation error of the nonlinear forces inside a step, relative to the
+        largest of them; default 1e-3), ``f_keep`` (highest undamped natural frequency kept dynamically [Hz],
+        the others static; default 5e4, None keeps all), ``window`` (elements between the moving contact
+        point and the reference position of the linear part before the reference follows it; default 2).
 
     Returns
     -------
@@ -135,5 +151,5 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
     check_number("newton_iter", newton_iter, integer=True, minimum=1)
     problem = prepare(model, t, inputs, x0, params, outputs, controllers, progress)
     options = SimulationOptions(rtol=rtol, atol=atol, max_order=max_order, max_num_steps=max_num_steps,
-                                substeps=substeps, newton_iter=newton_iter, jit=jit)
+                                substeps=substeps, newton_iter=newton_iter, jit=jit, modal=modal_options)
     return run(problem, options)

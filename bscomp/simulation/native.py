@@ -20,7 +20,7 @@ import casadi as ca
 
 from bscomp.errors import BscompError
 
-__all__ = ["quiet_native_stderr", "native_function"]
+__all__ = ["quiet_native_stderr", "native_function", "native_functions"]
 
 
 @contextlib.contextmanager
@@ -53,24 +53,42 @@ def native_function(f, cache_dir=None):
     The cache directory is ``$BSCOMP_CACHE_DIR`` or ``~/.cache/bscomp``; a model compiled once loads in
     milliseconds in later runs and in worker processes.
     """
+    return native_functions([f], cache_dir)[0]
+
+
+def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
+    """Several Functions in one C library (one compiler run; shared callees generated once), loaded.
+
+    ``functions`` may be a callable that builds them: with a ``key`` (any string that identifies them) and
+    their ``names``, a library already in the cache is loaded without building or generating anything.
+    """
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
     if not cc:
         raise BscompError("jit=True needs a C compiler (cc or gcc on PATH, or $CC)")
-    cg = ca.CodeGenerator(f.name() + ".c", {"with_header": False})
-    cg.add(f)
-    src = cg.dump()
-    key = hashlib.sha1(src.encode()).hexdigest()[:16]
     root = Path(cache_dir or os.environ.get("BSCOMP_CACHE_DIR") or Path.home() / ".cache" / "bscomp") / "jit"
     root.mkdir(parents=True, exist_ok=True)
-    so = root / f"{f.name()}_{key}.so"
+    if key is not None:
+        digest = hashlib.sha1(f"{key}|{ca.__version__}".encode()).hexdigest()[:16]
+        so = root / f"{names[0]}_k{digest}.so"
+        if so.exists():
+            return [ca.external(n, str(so)) for n in names]
+    if callable(functions):
+        functions = functions()
+    name = functions[0].name()
+    cg = ca.CodeGenerator(name + ".c", {"with_header": False})
+    for f in functions:
+        cg.add(f)
+    src = cg.dump()
+    if key is None:
+        so = root / f"{name}_{hashlib.sha1(src.encode()).hexdigest()[:16]}.so"
     if not so.exists():
         with tempfile.TemporaryDirectory(dir=root) as tmp:
-            c = Path(tmp) / f"{f.name()}.c"
+            c = Path(tmp) / f"{name}.c"
             c.write_text(src)
             out = Path(tmp) / so.name
             run = subprocess.run([cc, "-O2", "-shared", "-fPIC", str(c), "-o", str(out)], capture_output=True,
                                  text=True)
             if run.returncode:
-                raise BscompError(f"compiling {f.name()} failed: {run.stderr[-500:]}")
+                raise BscompError(f"compiling {name} failed: {run.stderr[-500:]}")
             os.replace(out, so)  # atomic: concurrent workers never load a half-written file
-    return ca.external(f.name(), str(so))
+    return [ca.external(f.name(), str(so)) for f in functions]

@@ -1,0 +1,216 @@
+r"""The linear part of ``simulate(method="modal")`` and the force channels that correct it, from one flattened
+model (no re-flattening): Jacobian surgery at rest, the index-1 explicit form, and its modal coordinates.
+
+Channels
+--------
+The nonlinear two-flange elements (friction, backlash: components with ``force_law`` and
+``linear_equivalent``, Eq 5.6-5.9) and the position-dependent joints (:mod:`bscomp._moving_joint`) are the
+model's only nonlinear parts. An element's force ``f(s, v)`` acts on its flange coordinates through
+``D^T f`` (``s = s_rel = D q + s_0``, virtual work); a joint's port forces through ``P^T f``. In a *regime*
+the element's slopes ``(k_R, d_R)`` are put into the linear part, the joint's tangent at rest at the
+reference position ``z_r`` too, so that with ``v = (x', x, z, u)``
+
+.. math:: F(v) = F_L(v) + \sum_{el} G_{el}\, g_{el}(s, v) + \sum_{j} G_j\, g_j(d, \dot d), \qquad
+          g_{el} = f - k_R s - d_R v, \quad g_j = f_j - K_r d - C_r \dot d
+
+holds *exactly* for the affine ``F_L`` (the Jacobian at rest with each element's tangent at rest swapped for
+its regime slopes and the joint's ``z_0`` set to ``z_r``; ``G`` place the channel forces in the balance
+rows). The index-1 explicit form of ``F_L`` gives
+
+.. math:: \dot x = A\,\Delta x + B u + E g + c, \qquad z = z_a + Z_x \Delta x + Z_u u + Z_g g + z_c,
+
+and every channel coordinate (``s``, ``v`` of the elements; ``d``, ``ḋ`` of the joints) and every affine
+output is a row ``y = C_x \Delta x + D_u u + D_g g + y_c``.
+
+Modal coordinates
+-----------------
+``A = V \Lambda V^{-1}`` (complex, one coordinate per real eigenvalue and per conjugate pair:
+``\Delta x = \mathrm{Re}(V_2 \xi)`` with ``V_2`` the eigenvectors times 1 or 2) for models with internal
+states; for purely mechanical ones the undamped modes of ``(K, M)`` come first (Eq A.10; a symmetric
+``eigh``), the modes above ``f_keep`` enter statically (residual flexibility, the modal-acceleration idea
+of Eq 5.16-5.18) and the kept ones, coupled by the (non-proportional) damping, are diagonalised as above.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import scipy.sparse as sp
+
+from bscomp.errors import BscompError
+from bscomp.kernel.dae import _sp
+from bscomp.linear.linearization import explicit_form
+from bscomp.simulation.compiled import _Element, nonlinear_elements
+from bscomp.simulation.moving_joints import MovingJoint, find_moving_joints
+
+__all__ = ["ModalSimulationError", "Channels", "LinearPart"]
+
+
+class ModalSimulationError(BscompError):
+    """The model cannot be simulated by ``method="modal"``: what is unsupported and what to use instead."""
+
+
+def _dense(A):
+    return np.asarray(A.toarray() if sp.issparse(A) else A, float)
+
+
+class Channels:
+    """The nonlinear force channels of a flattened model: cut elements and moving joints.
+
+    Parameters
+    ----------
+    dae : Dae
+    p : ndarray
+        Parameter vector of the run.
+    """
+
+    def __init__(self, dae, p):
+        if dae.system is None:
+            raise ModalSimulationError(f"'{dae.name}' was not flattened from a System: method='modal' needs the "
+                                       "components (pass the System, or use method='split')")
+        self.dae, self.p = dae, p
+        self.elements = [_Element(path, c) for path, c in nonlinear_elements(dae.system)]
+        for el in self.elements:          # the run's parameter values, not the component's defaults
+            el.values = {n: float(p[dae.p_names.index(f"{el.path}.{n}")]) if f"{el.path}.{n}" in dae.p_names
+                         else el.values[n] for n in el.pnames}
+            el.pvec = np.array([el.values[n] for n in el.pnames], float)
+        joints = [MovingJoint(dae, path, c, p) for path, c in find_moving_joints(dae.system)]
+        self.joints = [j for j in joints if not j.is_linear]
+        self.z0_index = [dae.p_names.index(f"{j.path}.z0") for j in self.joints]
+        m = dae.mech
+        self.nr = len(m.coordinate_names)
+        nF = dae.F_sx.numel()
+        self.Sbal = sp.csr_matrix((np.ones(self.nr), (m.balance_rows, np.arange(self.nr))), shape=(nF, self.nr))
+
+        def sel(where, n):
+            keys = list(where)
+            return sp.csr_matrix((np.ones(len(keys)), (keys, [where[k] for k in keys])), shape=(self.nr, n))
+
+        self.Sq_x, self.Sq_z = sel(m.q_in_x, dae.nx), sel(m.q_in_z, dae.nz)
+        self.Sv_x, self.Sv_xd = sel(m.v_in_x, dae.nx), sel(m.v_in_xd, dae.nx)
+        self._rest = {}
+        self.x_a = np.asarray(dae.x_start, float).copy()
+        self.z_a = np.asarray(dae.z_start, float).copy()
+        self._element_rows()
+
+    def _element_rows(self):
+        """Rows of every element's ``s_rel``, ``v_rel`` at rest, its coordinate row ``D`` and rest slopes."""
+        dae = self.dae
+        names = [f"{el.path}.{q}" for el in self.elements for q in ("s_rel", "v_rel")]
+        self.el_rows = None
+        if not names:
+            return
+        y = dae.output_expr(names)
+        f = ca.Function("rows", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
+                        [y, ca.jacobian(y, dae.xds), ca.jacobian(y, dae.xs), ca.jacobian(y, dae.zs),
+                         ca.jacobian(y, dae.us)])
+        y0, Jxd, Jx, Jz, Ju = (_dense(np.asarray(ca.DM(v))) for v in
+                               f(np.zeros(dae.nx), self.x_a, self.z_a, np.zeros(dae.nu), self.p))
+        self.el_rows = (y0.ravel(), Jxd, Jx, Jz, Ju)
+        m = dae.mech
+        D = np.zeros((len(self.elements), self.nr))
+        for i in range(len(self.elements)):
+            for j in range(self.nr):
+                D[i, j] = Jx[2 * i, m.q_in_x[j]] if j in m.q_in_x else (Jz[2 * i, m.q_in_z[j]] if j in m.q_in_z else 0)
+        self.D = D
+        self.rest = []
+        for i in range(len(self.elements)):
+            s0, v0 = y0.ravel()[2 * i], y0.ravel()[2 * i + 1]
+            self.rest.append((s0, v0) + self.slopes(i, s0, v0))
+
+    def rest_jacobians(self, p):
+        """``(F, Jxd, Jx, Jz, Ju)`` at rest for parameter vector ``p`` (cached: regimes share them)."""
+        key = p.tobytes()
+        if key not in self._rest:
+            dae = self.dae
+            F, Jxd, Jx, Jz, Ju = dae.jacobians(np.zeros(dae.nx), self.x_a, self.z_a, np.zeros(dae.nu), p)
+            self._rest[key] = (np.asarray(ca_dense(F)).ravel(),
+                               *(sp.csr_matrix(_sp_of(J)) for J in (Jxd, Jx, Jz, Ju)))
+        return self._rest[key]
+
+    def slopes(self, i, s, v):
+        """``(∂f/∂s, ∂f/∂v)`` of element i's law at ``(s, v)``."""
+        el = self.elements[i]
+        if not hasattr(el, "_jac"):
+            ss, vv = ca.SX.sym("s"), ca.SX.sym("v")
+            pp = ca.SX.sym("p", len(el.pnames))
+            law = el.law(ss, vv, pp)
+            el._jac = ca.Function("dlaw", [ss, vv, pp], [ca.jacobian(law, ss), ca.jacobian(law, vv)])
+        ks, kv = el._jac(s, v, el.pvec)
+        return float(ks), float(kv)
+
+    def candidate_regimes(self, i):
+        """Slopes ``(k, d)`` element i takes: its tangent at rest and on its outer branches (far points)."""
+        s0, v0 = self.rest[i][:2]
+        out = [tuple(self.rest[i][2:])]
+        for ds, dv in ((1e6, 1e6), (-1e6, -1e6), (1e6, 0.0), (0.0, 1e6)):
+            k = self.slopes(i, s0 + ds, v0 + dv)
+            if not any(np.allclose(k, o, rtol=1e-6, atol=1e-12) for o in out):
+                out.append(k)
+        return out
+
+
+class LinearPart:
+    """``ẋ = A Δx + B u + E g + c`` of the model in one regime and joint reference (module docstring).
+
+    Parameters
+    ----------
+    ch : Channels
+    regime : tuple of (k, d)
+        The slopes put into the linear part, one pair per element.
+    z_ref : tuple of float
+        Reference position of each moving joint.
+    """
+
+    def __init__(self, ch: Channels, regime, z_ref):
+        dae, p = ch.dae, ch.p.copy()
+        self.ch, self.regime, self.z_ref = ch, tuple(regime), tuple(z_ref)
+        for i, z in zip(ch.z0_index, z_ref, strict=True):
+            p[i] = z
+        self.p_ref = p
+        F, Jxd, Jx, Jz, Ju = ch.rest_jacobians(p)
+        cols, F_L = [], F.copy()
+        if ch.elements:
+            _, Rxd, Rx, Rz, _ = ch.el_rows
+            for i, (k, d) in enumerate(regime):
+                s0, v0, k0, d0 = ch.rest[i]
+                G = np.asarray(ch.Sbal @ ch.D[i]).ravel()
+                dk, dd = k - k0, d - d0
+                Gs = sp.csr_matrix(G[:, None])
+                Jxd = Jxd + Gs @ sp.csr_matrix(dk * Rxd[2 * i] + dd * Rxd[2 * i + 1])
+                Jx = Jx + Gs @ sp.csr_matrix(dk * Rx[2 * i] + dd * Rx[2 * i + 1])
+                if dae.nz:
+                    Jz = Jz + Gs @ sp.csr_matrix(dk * Rz[2 * i] + dd * Rz[2 * i + 1])
+                g0 = float(ch.elements[i].law(s0, v0, ch.elements[i].pvec)) - k * s0 - d * v0
+                F_L = F_L - G * g0
+                cols.append(G[:, None])
+        self.n_el = len(ch.elements)
+        self.joint_cols = []
+        for j in ch.joints:
+            Gj = _dense(ch.Sbal @ j.P.T)
+            self.joint_cols.append((sum(c.shape[1] for c in cols), Gj.shape[1]))
+            cols.append(Gj)
+        self.G = np.hstack(cols) if cols else np.zeros((F.size, 0))
+        self.F0 = F_L
+        self.Jxd, self.Jx, self.Jz, self.Ju = Jxd.tocsc(), Jx.tocsc(), Jz.tocsc(), Ju.tocsc()
+        self.ng = self.G.shape[1]
+        self._explicit = None
+
+    def explicit(self):
+        """``(A, B, E, c, Zx, Zu, Zg, zc)`` of the index-1 explicit form (dense, computed once)."""
+        if self._explicit is None:
+            dae, nu, ng = self.ch.dae, self.Ju.shape[1], self.ng
+            Ju_aug = sp.hstack([self.Ju, sp.csr_matrix(self.G), sp.csr_matrix(self.F0[:, None])]).tocsc()
+            A, Baug, Zx, Zaug = explicit_form(dae, self.Jxd, self.Jx, self.Jz, Ju_aug)
+            self._explicit = (A, Baug[:, :nu], Baug[:, nu:nu + ng], Baug[:, -1], Zx, Zaug[:, :nu],
+                              Zaug[:, nu:nu + ng], Zaug[:, -1])
+        return self._explicit
+
+def ca_dense(v):
+    return np.asarray(ca.DM(v).full())
+
+
+def _sp_of(J):
+    return _sp(J)
+
+

@@ -1,0 +1,420 @@
+r"""``simulate(method="modal")``: exact modal zero-order hold for the linear part, friction, backlash and moving
+joints as implicit low-rank corrections (:mod:`~bscomp.simulation.modal_channels`,
+:mod:`~bscomp.simulation.modal_parts`, :mod:`~bscomp.simulation.modal_steps`, :mod:`~bscomp.simulation.moving_joints`).
+
+Regimes and references
+----------------------
+The linear part holds each element in a *regime* -- the slopes of its law on one of its branches (backlash:
+gap ``0`` or contact ``c``; friction: sticking ``F_c / v_reg`` or sliding ``0``; the element's tangent at rest
+and on its outer branches) -- and each moving joint frozen at a reference position ``z_r``. After every step
+the regime nearest to the elements' current tangents is taken (a state is mapped into the new modal
+coordinates by projection), so inside a regime the correction is nearly constant (exact for piecewise-linear
+laws) and steps are long; the correction is exact in any regime, so the choice affects the step count, not
+the equations. The joint's correction touches the potentials of the element holding the contact point and of
+the one holding ``z_r``: crossing a node changes only which rows and columns of the modal matrices are used.
+When the contact point is more than ``window`` elements from ``z_r``, the reference moves to it (one new modal
+part). Every combination of regimes and references is built once and cached.
+"""
+
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+
+from bscomp.simulation.modal_channels import Channels, LinearPart
+from bscomp.simulation.modal_kernels import Kernel
+from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec
+from bscomp.simulation.modal_parts import ModalPart
+from bscomp.simulation.modal_steps import THETAS, Stepper
+
+__all__ = ["ModalSimulator"]
+
+
+def _chunk_size(n):
+    """Compiled chunk lengths are powers of 4 (1, 4, 16, 64, 256): the smallest one holding n steps."""
+    size = 1
+    while size < n:
+        size *= 4
+    return size
+
+NEWTON_ACCEPT = 1e-2   # last Newton update accepted: this fraction of the interpolation tolerance [force]
+CHUNK = 256           # most sub-steps per compiled chunk
+CHUNK_LEVELS = 2      # chunks run at h, h/4 or h/16
+CALM = 1              # clean chunks before the next one tries the coarser level
+CHUNK_ITERATIONS = -3  # chunks and batches: three chord iterations (a step that needs more is redone finer)
+FINE_ITERATIONS = 3   # the finest level: three Newton iterations
+FINE_LEVELS = 3       # refinement levels below a failed chunk's level, then single sub-steps
+
+
+class ModalSimulator:
+    """Set-up shared by the runs of one model and parameter vector (cached on the Dae).
+
+    Parameters
+    ----------
+    dae : Dae
+    p : ndarray
+    f_keep : float or None
+        Highest undamped natural frequency kept dynamically [Hz] (mechanical models).
+    window : int
+        Elements between the contact point and the reference before the reference moves.
+    jit : bool
+        Compile the step kernels to C (once per shape, cached on disk).
+    """
+
+    def __init__(self, dae, p, f_keep=None, window=2, jit=False):
+        self.dae, self.p, self.f_keep, self.window, self.jit = dae, p, f_keep, int(window), bool(jit)
+        t0 = time.perf_counter()
+        self.ch = ch = Channels(dae, p)
+        self.cands = [ch.candidate_regimes(i) for i in range(len(ch.elements))]
+        self.parts, self.steppers, self.laws, self.kernels = {}, {}, {}, {}
+        self._slopes = None
+        self._pads = []
+        self.stats = {"setup_channels_s": time.perf_counter() - t0, "modal_parts": 0, "modal_part_s": 0.0}
+
+    # ---- cached pieces ----------------------------------------------------------------------------------
+    def part(self, regime, z_ref):
+        """The modal part for a regime (indices into the candidates) and joint references."""
+        key = (tuple(regime), tuple(round(z, 12) for z in z_ref))
+        mp = self.parts.get(key)
+        if mp is None:
+            t0 = time.perf_counter()
+            mp = ModalPart(LinearPart(self.ch, self.slopes(regime), z_ref), self.f_keep)
+            mp.regime, mp.z_ref = tuple(regime), tuple(z_ref)
+            self.parts[key] = mp
+            self.stats["modal_parts"] += 1
+            self.stats["modal_part_s"] += time.perf_counter() - t0
+        return mp
+
+    def slopes(self, regime):
+        return [self.cands[i][r] for i, r in enumerate(regime)]
+
+    def channel_set(self, z, z_ref):
+        """Per joint ``(S, elements)``: the potentials the correction touches with the contact point at ``z``."""
+        out = []
+        for jt, zj, zr in zip(self.ch.joints, z, z_ref, strict=True):
+            e = jt.element_of(zj)
+            out.append((jt.dofs_for([e], zr), (e,)))
+        return tuple(out)
+
+    def law(self, cset):
+        sizes = tuple((len(S), len(el)) for S, el in cset)
+        spec = self.laws.get(sizes)
+        if spec is None:
+            spec = LawSpec(self.ch, sizes, self.cands)
+            spec.f = spec.function()
+            spec.fs = spec.functions()
+            self.laws[sizes] = spec
+        return spec
+
+    def stepper(self, mp, cset):
+        key = (id(mp), tuple((tuple(S), el) for S, el in cset))
+        st = self.steppers.get(key)
+        if st is None:
+            spec = self.law(cset)
+            theta = spec.pack(mp.regime, self.slopes(mp.regime), mp.z_ref, cset)
+            S_list = [S for S, _ in cset]
+            rows, gsel = self.rows(mp, S_list), self.gsel(mp, S_list)
+            shape = (self._padded(mp.lam.size), self.dae.nu, gsel.size, rows[0].shape[0], spec.sizes)
+            kern = self.kernels.get(shape)
+            if kern is None:
+                kern = self.kernels[shape] = Kernel(*shape[:4], spec.fs, 2 * len(self.ch.elements), THETAS,
+                                                    jit=self.jit)
+            st = Stepper(mp, rows, gsel, spec.f, theta, kern)
+            self.steppers[key] = st
+        return st
+
+    def _padded(self, m):
+        """Kernel size for a part of m modal coordinates: the smallest padded size already used that holds
+        it, else m + 2 rounded up to 4 (parts of nearby sizes share one kernel and its compiled code)."""
+        fits = [k for k in self._pads if k >= m]
+        if fits:
+            return min(fits)
+        self._pads.append(-(-(m + 2) // 4) * 4)
+        return self._pads[-1]
+
+    def gsel(self, mp, S_list):
+        sel = list(range(len(self.ch.elements)))
+        for (off, _), S in zip(mp.lin.joint_cols, S_list, strict=True):
+            sel += [off + int(i) for i in S]
+        return np.array(sel, int)
+
+    def rows(self, mp, S_list):
+        """Modal rows of the measured channel coordinates (elements' s, v; joints' d (, ḋ) on S)."""
+        ch, dae = self.ch, self.dae
+        blocks = []
+        if ch.elements:
+            y0, Jxd, Jx, Jz, Ju = ch.el_rows
+            blocks.append((Jxd, Jx, Jz, Ju, y0))
+        for jt, S in zip(ch.joints, S_list, strict=True):
+            P = jt.P[S]
+            nS = len(S)
+            blocks.append((np.zeros((nS, dae.nx)), (P @ ch.Sq_x).toarray(), (P @ ch.Sq_z).toarray(),
+                           np.zeros((nS, dae.nu)), np.zeros(nS)))
+            if jt.C is not None:
+                blocks.append(((P @ ch.Sv_xd).toarray(), (P @ ch.Sv_x).toarray(), np.zeros((nS, dae.nz)),
+                               np.zeros((nS, dae.nu)), np.zeros(nS)))
+        if not blocks:
+            blocks = [(np.zeros((0, dae.nx)), np.zeros((0, dae.nx)), np.zeros((0, dae.nz)), np.zeros((0, dae.nu)),
+                       np.zeros(0))]
+        cat = [np.vstack([b[i] for b in blocks]) for i in range(4)] + [np.concatenate([b[4] for b in blocks])]
+        return mp.rows(*cat)
+
+    # ---- regimes and positions ----------------------------------------------------------------------------
+    def regime_of(self, y, current=None):
+        """Index of the candidate regime nearest each element's tangent at channel values ``y`` (one call of
+        the elements' slope Function; the distance and the margin that keeps ``current`` as in
+        :meth:`bscomp.simulation.modal_laws.LawSpec.expr`)."""
+        n = len(self.ch.elements)
+        if not n:
+            return ()
+        if self._slopes is None:
+            s = ca.SX.sym("s", n)
+            v = ca.SX.sym("v", n)
+            laws = [el.law(s[i], v[i], ca.DM(el.pvec)) for i, el in enumerate(self.ch.elements)]
+            J = ca.vertcat(*[ca.horzcat(ca.jacobian(f, s[i]), ca.jacobian(f, v[i])) for i, f in enumerate(laws)])
+            self._slopes = ca.Function("slopes", [s, v], [J])
+        kd = self._slopes(y[0:2 * n:2], y[1:2 * n:2]).full()
+        out = []
+        for i in range(n):
+            c = np.abs(np.array(self.cands[i]))
+            eps = 1e-3 * np.maximum(c.max(axis=0), 1e-300)
+            dist = np.abs(np.log((np.abs(kd[i]) + eps) / (c + eps))).sum(axis=1)
+            best = int(np.argmin(dist))
+            keep = current is not None and dist[current[i]] <= dist[best] + REGIME_MARGIN
+            out.append(current[i] if keep else best)
+        return tuple(out)
+
+    def positions(self, y, cset):
+        """Contact-point positions from channel values ``y`` (the slow potential is last in each S)."""
+        z, off = [], 2 * len(self.ch.elements)
+        for jt, (S, _) in zip(self.ch.joints, cset, strict=True):
+            z.append(jt.position(y[off + len(S) - 1]))
+            off += len(S) * (2 if jt.C is not None else 1)
+        return z
+
+    # ---- the run ----------------------------------------------------------------------------------------
+    def run(self, t, U, xs, tol=1e-3, chunks=True, breaks=(), sample=None, progress=None):
+        """Integrate over the grid ``t`` with inputs ``U`` (nt-1, nu) from the state ``xs``.
+
+        Chunks of compiled steps run at a *level* ``L`` (``4^L`` equal sub-steps per grid step, ``L <= 2``):
+        a chunk that fails within its first two grid steps sends the level up, two clean chunks bring it
+        down. A grid step that fails is redone from its start by :meth:`_advance` one level finer.
+        ``sample(k, state)`` is called before the step from each grid index in ``breaks`` (sampled
+        controllers: it may change ``U[k:]``); chunks end there.
+        """
+        nt = len(t)
+        st = _State(self, xs, U[0])
+        XI = [None] * nt
+        G = np.zeros((nt, st.mp.lin.ng))
+        XI[0], G[0] = st.xi, st.g
+        segs = [(0, st.mp)]
+        self.scale = 1.0
+        h_all = np.diff(t)
+        k, n_chunk, level, calm = 0, 16, 0, 0
+        brk = np.zeros(nt + 1, bool)
+        brk[np.asarray(list(breaks), int)] = True
+        last_bar = 0
+        while k < nt - 1:
+            h = h_all[k]
+            if brk[k] and sample is not None:
+                sample(k, st)
+            if progress is not None and k - last_bar >= 2000:
+                progress(k)
+                last_bar = k
+            if chunks:
+                n = 1
+                cap = min(n_chunk, CHUNK // 4 ** level)
+                while n < cap and k + n < nt - 1 and abs(h_all[k + n] - h) <= 1e-9 * h and not brk[k + n]:
+                    n += 1
+                done = self._chunk(st, U, k, n, h, tol, XI, G, level)
+                k += done
+                if done == n:
+                    n_chunk = min(4 * n_chunk, CHUNK)
+                    calm += 1
+                    if calm >= CALM and level:
+                        level, calm, n_chunk = level - 1, 0, 4      # probe the coarser level with a short chunk
+                    continue
+                n_chunk, calm = 4, 0
+                if done < 2 and level < CHUNK_LEVELS:
+                    level += 1
+                if k >= nt - 1:
+                    break
+            self._advance(st, U[k], h, 4 ** (level + 1), h, tol, 0)
+            if st.mp is not segs[-1][1]:
+                segs.append((k + 1, st.mp))
+            XI[k + 1], G[k + 1] = st.xi, st.g
+            k += 1
+        if progress is not None:
+            progress(nt - 1)
+        self.stats.update(self.counts, force_scale=self.scale)
+        return XI, G, segs
+
+    def _flags(self, info, tol):
+        """``(j, switch, scale)`` of a block of step infos: the first ``j`` steps are accepted; ``switch``: the
+        last of them ended in another regime (the linear part is switched there); ``scale`` the running force
+        scale. A step is bad if its interpolation error or last Newton update exceeds the tolerance or its
+        contact point left the element."""
+        scale = np.maximum.accumulate(np.maximum(info[:, 1], self.scale))
+        bad = (info[:, 0] > tol * scale) | (info[:, 3] < 0.5) | ~(info[:, 4] < NEWTON_ACCEPT * tol * scale)
+        j = int(np.argmax(bad)) if bad.any() else len(info)
+        new = info[:j, 2] < 0.5
+        if new.any():
+            j = int(np.argmax(new)) + 1
+        return j, bool(new.any()), scale
+
+    def _chunk(self, st, U, k, n, h, tol, XI, G, level):
+        """Up to ``n`` grid steps (``4^level`` sub-steps each) in one compiled call; returns how many grid steps
+        were accepted (stored in XI, G)."""
+        stp = self.stepper(st.mp, st.cset)
+        per = 4 ** level
+        _, mats = stp.data(h / per)
+        run = stp.kernel.runner(_chunk_size(n * per), CHUNK_ITERATIONS)
+        N = run.n
+        Uc = np.repeat(U[k:k + n], per, axis=0)
+        if N > len(Uc):
+            Uc = np.vstack([Uc, np.repeat(Uc[-1:], N - len(Uc), axis=0)])
+        x0 = stp.pack_state(st.xi, st.g[stp.gsel])
+        X, info = run(x0, Uc, mats, stp.theta)
+        b, switch, scale = self._flags(info[:n * per], tol)
+        if switch and b % per:
+            b -= b % per                      # a switch inside a grid step: that grid step is redone finer
+            switch = False
+        done = b // per
+        self.counts["chunks"] += 1
+        if done:
+            self.scale = float(scale[done * per - 1])
+            m, mp_ = stp.m, stp.m_part
+            Xa = X[per - 1:done * per:per]
+            xs = Xa[:, :mp_] + 1j * Xa[:, m:m + mp_]
+            for i in range(done):
+                XI[k + 1 + i] = xs[i]
+            G[k + 1:k + 1 + done] = 0.0
+            G[k + 1:k + 1 + done, stp.gsel] = Xa[:, 2 * m:]
+            st.xi, st.g = xs[-1], G[k + done].copy()
+            self.counts["chunk_steps"] += done
+            if switch:                        # the last accepted step ended in another regime
+                x_before = X[done * per - 2] if done * per >= 2 else x0
+                xi0, g0 = stp.unpack_state(np.asarray(x_before))
+                uk = U[k + done - 1]
+                st.after(stp.end_values(xi0, g0, Xa[-1, 2 * m:], uk, h / per), uk)
+        return done
+
+    def _advance(self, st, u, T, n, h, tol, depth):
+        """Advance the state by ``T`` in compiled batches of ``n`` equal sub-steps, refining every bad sub-step
+        (interpolation error, Newton, element change) into 4 one level deeper; a sub-step that ends in another
+        regime is accepted and the linear part switched. At the deepest level a bad sub-step is accepted."""
+        tau = T / n
+        deepest = depth >= FINE_LEVELS
+        i = 0
+        while i < n:
+            stp = self.stepper(st.mp, st.cset)
+            sd, mats = stp.data(tau)
+            left = n - i
+            x0 = stp.pack_state(st.xi, st.g[stp.gsel])
+            run = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS if deepest else CHUNK_ITERATIONS)
+            X, info = run(x0, np.repeat(u[None, :], run.n, axis=0), mats, stp.theta)
+            j, switch, scale = self._flags(info[:left], tol)
+            self.counts["batches"] += 1
+            forced = deepest and j < left and not switch
+            if forced:
+                j += 1                                # the finest level: accept the flagged one, follow it
+            if j:
+                self.scale = float(scale[j - 1])
+                self._accept(st, stp, X, j, u, tau, x0 if j == 1 else X[j - 2], switch or forced)
+                i += j
+            if i < n and not (deepest or switch):
+                self._advance(st, u, tau, 4, h, tol, depth + 1)
+                i += 1
+
+    def _accept(self, st, stp, X, j, u, tau, x_before, follow):
+        """Take the first j sub-steps of a batch; if the last was flagged, follow the regime or contact point
+        it ended in (the others stayed in the current ones)."""
+        xi, g = stp.unpack_state(X[j - 1])
+        st.xi = xi
+        st.g = np.zeros_like(st.g)
+        st.g[stp.gsel] = g
+        self.counts["substeps"] += j
+        if follow:
+            xi0, g0 = stp.unpack_state(np.asarray(x_before))
+            st.after(stp.end_values(xi0, g0, g, u, tau), u)
+
+    def _switch(self, old, new, xi, u, g, cset, y):
+        """Map the state into another modal part and make the channel forces consistent there: the elements'
+        total forces are continuous, so ``g`` changes by the change of the slopes times ``(s, v)`` (the start of
+        a short Newton on the new part's static feedthrough)."""
+        dx = old.state(xi[None, :], u[None, :], g[None, :])[0]
+        xi_new = new.W @ dx
+        stp = self.stepper(new, cset)
+        g = g.copy()
+        for i, ((k0, d0), (k1, d1)) in enumerate(zip(old.lin.regime, new.lin.regime, strict=True)):
+            g[i] += (k0 - k1) * y[2 * i] + (d0 - d1) * y[2 * i + 1]
+        g_act, y, _ = stp.consistent(xi_new, u, g[stp.gsel])
+        g_new = np.zeros(new.lin.ng)
+        g_new[stp.gsel] = g_act
+        self.counts["switches"] += 1
+        return xi_new, g_new, y
+
+    def trajectories(self, XI, G, segs, Uh):
+        """``(ΔX, Ẋ)`` at the grid points from the modal trajectory (piecewise per modal part)."""
+        nt = len(XI)
+        dae = self.dae
+        X = np.zeros((nt, dae.nx))
+        XD = np.zeros((nt, dae.nx))
+        bounds = [s for s, _ in segs] + [nt]
+        for (k0, mp), k1 in zip(segs, bounds[1:], strict=True):
+            if k1 <= k0:
+                continue
+            xi = np.array(XI[k0:k1])
+            u, g = Uh[k0:k1], G[k0:k1]
+            X[k0:k1] = mp.state(xi, u, g)
+            Vr, Vrd = mp.rate_rows()
+            rate = xi * mp.lam + u @ mp.Bu.T + g @ mp.Bg.T + mp.bc
+            XD[k0:k1] = (xi @ Vr.T + rate @ Vrd.T).real
+        return X, XD
+
+
+class _State:
+    """The running state of a simulation: modal part, coordinates, channel forces, regimes, positions."""
+
+    def __init__(self, sim, xs, u0):
+        self.sim = sim
+        ch = sim.ch
+        self.z_ref = [jt.z0 for jt in ch.joints]
+        self.z = list(self.z_ref)
+        self.cset = sim.channel_set(self.z, self.z_ref)
+        mp = sim.part(tuple(0 for _ in ch.elements), self.z_ref)
+        self.mp = mp
+        self.xi = mp.W @ (np.asarray(xs, float) - ch.x_a)
+        g, y, _ = sim.stepper(mp, self.cset).consistent(self.xi, u0, np.zeros(len(sim.stepper(mp, self.cset).gsel)))
+        self.g = np.zeros(mp.lin.ng)
+        self.g[sim.stepper(mp, self.cset).gsel] = g
+        sim.counts = dict(substeps=0, rejected=0, events=0, switches=0, chunks=0, chunk_steps=0, batches=0)
+        self.after(y, u0)
+
+    def after(self, y, u):
+        """After an accepted step ending at channel values ``y``: follow the contact points and regimes."""
+        sim = self.sim
+        ch = sim.ch
+        z_new = sim.positions(y, self.cset)
+        moved = any(jt.element_of(a) != jt.element_of(b) for jt, a, b in zip(ch.joints, z_new, self.z, strict=True))
+        self.z = z_new
+        new_ref = list(self.z_ref)
+        if moved:
+            if any(abs(jt.element_of(a) - jt.element_of(r)) > sim.window
+                   for jt, a, r in zip(ch.joints, self.z, self.z_ref, strict=True)):
+                new_ref = list(self.z)
+            self.cset = sim.channel_set(self.z, new_ref)
+        regime = sim.regime_of(y, self.mp.regime)
+        if regime != self.mp.regime or new_ref != self.z_ref:
+            self.z_ref = new_ref
+            self.cset = sim.channel_set(self.z, self.z_ref)
+            new = sim.part(regime, self.z_ref)
+            self.xi, self.g, y = sim._switch(self.mp, new, self.xi, u, self.g, self.cset, y)
+            self.mp = new
+        elif moved:
+            stp = sim.stepper(self.mp, self.cset)
+            g = np.zeros_like(self.g)
+            g[stp.gsel] = self.g[stp.gsel]
+            self.g = g

@@ -1,0 +1,274 @@
+r"""The compiled step of ``simulate(method="modal")``: one CasADi Function per shape (MX matrix operations around
+small SX laws), run over chunks of steps through zero-copy buffers (no per-step Python inside a regime), and
+optionally compiled to C.
+
+A step's numbers -- the exponentials and the channel rows at the end and at the interior points
+(:class:`bscomp.simulation.modal_steps.StepData`) -- are one flat input vector, the channel laws' numbers another
+(:meth:`bscomp.simulation.modal_laws.LawSpec.pack`), so one Function serves every regime, reference, element and step
+length of a shape (modal coordinates ``m``, inputs, channel forces ``r``, channel coordinates ``r_m``). The
+state is ``[Re ξ; Im ξ; g]``; per step the Function returns the next state and
+``[error, max |f|, regime ok at the end, element ok, last Newton update]`` (error and update in force units). A
+regime change inside a step shows in the error (the law is exact in any regime); at the end it only tells the
+driver to switch the linear part.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from bscomp.simulation.native import native_functions
+
+__all__ = ["pack_step", "Kernel"]
+
+INFO = 5
+_SOURCE_KEY = hashlib.sha1(Path(__file__).read_bytes()).hexdigest()   # a change of this file recompiles
+JIT_SCHEMES = (-3, 3)  # the chunks' chord and the batches' Newton iterations (bscomp.simulation.modal_driver)
+
+
+def pack_step(sd, n_el_rows, m_pad=None) -> np.ndarray:
+    """Flat vector of a :class:`~bscomp.simulation.modal_steps.StepData` (the layout of :meth:`Kernel._unpack`): the
+    end and the midpoint with every channel row, the other interior points with the elements' rows only. With
+    ``m_pad`` the modal coordinates are padded with inert zeros (one kernel serves parts of a few sizes)."""
+    m = sd.E.size
+    pad = 0 if m_pad is None else m_pad - m
+
+    def rows_(A):                       # modal index first: pad rows
+        return np.concatenate([A, np.zeros((pad,) + A.shape[1:], A.dtype)], axis=0) if pad else A
+
+    def cols_(A):                       # modal index last: pad columns
+        return np.concatenate([A, np.zeros((A.shape[0], pad), A.dtype)], axis=1) if pad else A
+
+    E, Qu, qc, Q0, Q1 = (rows_(a) for a in (sd.E, sd.Qu, sd.qc, sd.Q0, sd.Q1))
+    parts = [E.real, E.imag, Qu.real, Qu.imag, qc.real, qc.imag, Q0.real, Q0.imag, Q1.real, Q1.imag]
+    for k, (CE, Yu, Y0, Y1, yc) in enumerate([sd.end] + list(sd.samples) + [sd.start]):
+        rows = slice(None) if k in (0, 2, 4) else slice(0, n_el_rows)
+        CE = cols_(CE[rows])
+        parts += [CE.real, CE.imag, Yu[rows], Y0[rows], Y1[rows], yc[rows]]
+    return np.concatenate([np.asarray(a, float).reshape(-1, order="F") for a in parts])
+
+
+class Kernel:
+    """Step Functions of one shape (see the module docstring).
+
+    Parameters
+    ----------
+    m, nu, r, rm : int
+        Modal coordinates, inputs, channel forces, channel coordinates.
+    law : casadi.Function
+        ``(y, theta) -> (g, dg/dy, fmax, regime_ok, element_ok)``.
+    thetas : tuple of float
+        Interior points of the error check.
+    """
+
+    def __init__(self, m, nu, r, rm, laws, n_el_rows, thetas, n_newton=3, jit=False):
+        self.m, self.nu, self.r, self.rm, self.thetas = m, nu, r, rm, tuple(thetas)
+        self.law_newton, self.law_value, self.law_check, self.law_elements = laws
+        self.n_theta = self.law_newton.size1_in(1)
+        self.ne = n_el_rows
+        self.shapes = [(m, 1)] * 2 + [(m, nu)] * 2 + [(m, 1)] * 2 + [(m, r)] * 4
+        for k in range(2 + len(self.thetas)):         # the end, the interior points, the start
+            n = rm if k in (0, 2, 4) else n_el_rows
+            self.shapes += [(n, m), (n, m), (n, nu), (n, r), (n, r), (n, 1)]
+        self.n_mats = sum(a * b for a, b in self.shapes)
+        self.nx = 2 * m + r
+        self._f = {}
+        self._runs = {}
+        self.n_newton = n_newton
+        self.jit = bool(jit)
+        self._native = None
+
+    def _matrix_symbols(self):
+        """One MX symbol per step matrix (separate inputs: a call passes pointers, nothing is copied)."""
+        return [ca.MX.sym(f"M{i}", a, b) for i, (a, b) in enumerate(self.shapes)]
+
+    def offsets(self):
+        """``(start, end)`` of each step matrix in the packed vector of :func:`pack_step`."""
+        out, off = [], 0
+        for a, b in self.shapes:
+            out.append((off, off + a * b))
+            off += a * b
+        return out
+
+    def step(self, n_newton):
+        """MX Function ``(x, u, *matrices, theta, chord) -> (x1, info)``; ``n_newton`` Newton iterations, or when
+        negative that many chord iterations with the matrix ``chord = (I - L_0 H)^{-1}`` (the law's Jacobian
+        at the chunk's start: no Jacobian per step, for the chunks of calm steps)."""
+        f = self._f.get(n_newton)
+        if f is not None:
+            return f
+        m, r = self.m, self.r
+        S = ca.MX          # matrix loops and small SX callees: faster than a flat SX in the VM, compact C
+        x = S.sym("x", self.nx)
+        u = S.sym("u", self.nu)
+        P = self._matrix_symbols()
+        th = S.sym("theta", self.n_theta)
+        Mc = S.sym("chord", r, r)
+        xr, xi, g0 = x[:m], x[m:2 * m], x[2 * m:]
+        Er, Ei, Qur, Qui, qcr, qci, Q0r, Q0i, Q1r, Q1i = P[:10]
+        points = [P[10 + 6 * k:16 + 6 * k] for k in range(1 + len(self.thetas))]   # the start is the chunk's
+        CEr, CEi, Yu, Y0, H, yc = points[0]
+        y_free = ca.mtimes(CEr, xr) - ca.mtimes(CEi, xi) + ca.mtimes(Yu, u) + ca.mtimes(Y0, g0) + yc
+        g = g0
+        upd = S(0)
+        solve = self._solver()
+        for _ in range(abs(n_newton) if r else 0):
+            if n_newton > 0:                            # Newton
+                gl, L = self.law_newton(y_free + ca.mtimes(H, g), th)
+                dg = solve(L, H, gl - g)
+            else:                                       # chord: (I - L0 H)^-1 from the chunk's start
+                dg = ca.mtimes(Mc, self.law_value(y_free + ca.mtimes(H, g), th)[0] - g)
+            g = g + dg
+            upd = ca.norm_inf(dg)
+        _, fmax, okr, oke = self.law_check(y_free + ca.mtimes(H, g), th)
+        err = S(0)
+        ne = self.ne
+        for k, (theta, (Cr, Ci, Yuj, Y0j, Y1j, ycj)) in enumerate(zip(self.thetas, points[1:], strict=True)):
+            yj = ca.mtimes(Cr, xr) - ca.mtimes(Ci, xi) + ca.mtimes(Yuj, u) + ca.mtimes(Y0j, g0) \
+                + ca.mtimes(Y1j, g) + ycj
+            if k == 1:                                  # the midpoint: every channel
+                gj, fj, okej = self.law_value(yj, th)
+                gi = g0 + theta * (g - g0)
+            elif ne:                                    # quarter points: the elements (short events)
+                gj, fj = self.law_elements(yj, th)
+                okej = 1
+                nel = gj.numel()
+                gi = g0[:nel] + theta * (g[:nel] - g0[:nel])
+            else:
+                continue
+            err = ca.fmax(err, ca.norm_inf(gj - gi))
+            fmax, oke = ca.fmax(fmax, fj), oke * okej
+        ur = ca.mtimes(Qur, u) + qcr + ca.mtimes(Q0r, g0) + ca.mtimes(Q1r, g)
+        ui = ca.mtimes(Qui, u) + qci + ca.mtimes(Q0i, g0) + ca.mtimes(Q1i, g)
+        x1r = Er * xr - Ei * xi + ur
+        x1i = Er * xi + Ei * xr + ui
+        info = ca.vertcat(err, fmax, okr, oke, upd)
+        f = ca.Function(f"modal_step_{_tag(n_newton)}", [x, u, *P, th, Mc], [ca.vertcat(x1r, x1i, g), info])
+        self._f[n_newton] = f
+        return f
+
+    def _solver(self):
+        """SX Function ``(L, H, b) -> (I - L H)^{-1} b`` (the Newton update in the channel forces)."""
+        r, rm = self.r, self.rm
+        L, H, b = ca.SX.sym("L", r, rm), ca.SX.sym("H", rm, r), ca.SX.sym("b", r)
+        return ca.Function("newton_update", [L, H, b], [ca.solve(ca.SX.eye(r) - ca.mtimes(L, H), b)])
+
+    def _inner(self, n, n_newton):
+        """``n`` steps (a power of 4) taking the step matrices as separate arguments: four calls of the
+        one a quarter as long."""
+        key = ("inner", n, n_newton)
+        F = self._f.get(key)
+        if F is not None:
+            return F
+        if n == 1:
+            F = self.step(n_newton)
+        else:
+            sub = self._inner(n // 4, n_newton)
+            x0 = ca.MX.sym("x", self.nx)
+            U = ca.MX.sym("U", self.nu, n)
+            P = self._matrix_symbols()
+            th = ca.MX.sym("theta", self.n_theta)
+            Mc = ca.MX.sym("chord", self.r, self.r)
+            Xs, Is, x = [], [], x0
+            q = n // 4
+            for j in range(4):
+                X, I = sub(x, U[:, j * q:(j + 1) * q], *P, th, Mc)
+                Xs.append(X)
+                Is.append(I)
+                x = X[:, -1]
+            F = ca.Function(f"modal_inner{n}_{_tag(n_newton)}", [x0, U, *P, th, Mc],
+                            [ca.horzcat(*Xs), ca.horzcat(*Is)])
+        self._f[key] = F
+        return F
+
+    def chunk(self, n, n_newton):
+        """MX Function of ``n`` steps (n a power of 4), ``(x0, U, mats, theta) -> (X, INFO)`` with ``U``
+        (nu, n), ``mats`` the packed step matrices (:func:`pack_step`; split once per call, passed on by
+        reference), ``X`` (nx, n) the states after each step and ``INFO`` (5, n). Chord iterations use the
+        laws' Jacobian at the chunk's start (computed here, once per call)."""
+        key = ("chunk", n, n_newton)
+        F = self._f.get(key)
+        if F is not None:
+            return F
+        x0 = ca.MX.sym("x", self.nx)
+        U = ca.MX.sym("U", self.nu, n)
+        mats = ca.MX.sym("mats", self.n_mats)
+        th = ca.MX.sym("theta", self.n_theta)
+        P = [ca.reshape(mats[a:b], *shape) for (a, b), shape in zip(self.offsets(), self.shapes, strict=True)]
+        Mc = self._chord(x0, U[:, 0], P, th) if n_newton < 0 else ca.MX.zeros(self.r, self.r)
+        X, I = self._inner(n, n_newton)(x0, U, *P, th, Mc)
+        F = ca.Function(f"modal_chunk{n}_{_tag(n_newton)}", [x0, U, mats, th], [X, I])
+        self._f[key] = F
+        return F
+
+    def _chord(self, x0, u0, P, th):
+        """``(I - L_0 H)^{-1}``, ``L_0`` the laws' Jacobian at the chunk's start state (the chord iterations')."""
+        m, r = self.m, self.r
+        CEr, CEi, Du, Dg, _, yc = P[10 + 6 * (1 + len(self.thetas)):]
+        H = P[10 + 4]
+        if not r:
+            return ca.MX.zeros(0, 0)
+        y0 = ca.mtimes(CEr, x0[:m]) - ca.mtimes(CEi, x0[m:2 * m]) + ca.mtimes(Du, u0) + ca.mtimes(Dg, x0[2 * m:]) + yc
+        L = self.law_newton(y0, th)[1]
+        cols = [self._solver()(L, H, ca.MX(ca.DM.eye(r)[:, j])) for j in range(r)]
+        return ca.horzcat(*cols)
+
+    def runner(self, n, n_newton=None):
+        """A buffered caller of ``n`` steps (a power of 4): ``call(x0, U (n, nu), mats, theta) -> (X, INFO)``."""
+        n_newton = self.n_newton if n_newton is None else n_newton
+        key = (n, n_newton)
+        run = self._runs.get(key)
+        if run is None:
+            F = self.compiled(n, n_newton) if self.jit else self.chunk(n, n_newton)
+            run = self._runs[key] = _Buffered(F, self.nx, n)
+        return run
+
+    def compiled(self, n, n_newton):
+        """The chunk compiled to C: every length and iteration scheme the driver uses in one library,
+        compiled once per shape and cached on disk (:func:`~bscomp.simulation.native.native_functions`)."""
+        if self._native is None:
+            wanted = [(k, it) for it in JIT_SCHEMES for k in (1, 4, 16, 64, 256)]
+            names = [f"modal_chunk{k}_{_tag(it)}" for k, it in wanted]
+            key = "|".join([_SOURCE_KEY, repr((self.m, self.nu, self.r, self.rm, self.ne, self.thetas))]
+                           + [f.serialize() for f in (self.law_newton, self.law_value, self.law_check,
+                                                      self.law_elements)])
+            funcs = native_functions(lambda: [self.chunk(k, it) for k, it in wanted], key=key, names=names)
+            self._native = dict(zip(wanted, funcs, strict=True))
+        if (n, n_newton) not in self._native:
+            self._native[(n, n_newton)] = native_functions([self.chunk(n, n_newton)])[0]
+        return self._native[(n, n_newton)]
+
+
+def _tag(n_newton):
+    return f"newton{n_newton}" if n_newton > 0 else f"chord{-n_newton}"
+
+
+class _Buffered:
+    """Calls a Function through its zero-copy buffer (arguments and results numpy, column-major)."""
+
+    def __init__(self, F, nx, n):
+        self.F, self.n = F, n
+        self._mats = self._theta = None
+        self.buf, self.trigger = F.buffer()
+        self.X = np.zeros((n, nx))           # row k: state after step k (C-order rows = CasADi columns)
+        self.I = np.zeros((n, INFO))
+        self.buf.set_res(0, memoryview(self.X.reshape(-1)))
+        self.buf.set_res(1, memoryview(self.I.reshape(-1)))
+
+    def __call__(self, x0, U, mats, theta):
+        x0 = np.ascontiguousarray(x0, float)
+        U = np.ascontiguousarray(U, float)            # (n, nu) rows = CasADi columns
+        self.buf.set_arg(0, memoryview(x0))
+        self.buf.set_arg(1, memoryview(U.reshape(-1)))
+        if self._mats is not mats:
+            self.buf.set_arg(2, memoryview(mats))
+            self._mats = mats
+        if self._theta is not theta:
+            self.buf.set_arg(3, memoryview(theta))
+            self._theta = theta
+        self._keep = (x0, U)
+        self.trigger()
+        return self.X, self.I

@@ -1,0 +1,239 @@
+r"""Modal coordinates of a :class:`bscomp.simulation.modal_channels.LinearPart` for ``simulate(method="modal")``.
+
+Mechanical models (every coordinate with inertia, no algebraic variables; controller states allowed) use
+the undamped modes: ``K Φ = M Φ Λ`` (symmetric ``eigh``, mass-normalised, Eq A.10), modes up to ``f_keep``
+kept, the others static (residual flexibility ``R_t = Φ_t Λ_t^{-1} Φ_t^T``, Eq 5.16-5.18: exact at low
+frequency). With ``r = [η; η'; x_i]`` (kept modes and internal states such as a PI controller's)
+
+.. math::
+    η'' + C_{kk} η' + Λ_k η = -Φ_k^T (K_{qi} x_i + f), \qquad q = Φ_k η - R_t (K_{qi} x_i + f),
+
+``f`` the forces of the inputs, channels and the constant term of the balance rows, and the internal rows
+solved for ``x_i'``. The reduced matrix (size ``2 n_k + n_i``, coupled by non-proportional damping) is
+diagonalised: ``r = Y ξ``. Other models use the eigenvectors of the full explicit form (``Δx = V ξ``).
+
+Either way ``Δx = Re(V_x ξ) + X_u u + X_g g + x_c`` and ``ẋ = Re(V_d (λ ξ + B_u u + B_g g + b_c))`` (the rate of
+the static part is neglected), one complex coordinate per real eigenvalue and per conjugate pair (``V``
+carries the factor 2 of a pair).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+
+from bscomp.simulation.modal_channels import ModalSimulationError, _dense
+
+__all__ = ["ModalPart"]
+
+COND_MAX = 1e10
+
+
+class ModalPart:
+    """A linear part in complex modal coordinates (see the module docstring).
+
+    Parameters
+    ----------
+    lin : LinearPart
+    f_keep : float or None
+        Highest undamped natural frequency [Hz] kept dynamically (mechanical models); None keeps all.
+
+    Attributes
+    ----------
+    lam : ndarray (m,) complex
+    Vx, Vd : ndarray (nx, m) complex
+    W : ndarray (m, nx) complex
+        ``ξ = W Δx``: the kept part of a state.
+    Bu, Bg, bc : ndarray
+        Modal inputs.
+    Xu, Xg, xc : ndarray
+        Static part of the state.
+    route : str
+        ``"second-order"`` or ``"first-order"``.
+    """
+
+    def __init__(self, lin, f_keep: float | None = None):
+        self.lin = lin
+        dae = lin.ch.dae
+        m = dae.mech
+        if dae.nz == 0 and not m.damped and not m.static and _mechanical_blocks(lin) is not None:
+            self._second_order(lin, f_keep)
+            self.route = "second-order"
+        else:
+            self._first_order(lin)
+            self.route = "first-order"
+
+    # ---- construction -------------------------------------------------------------------------------
+    def _first_order(self, lin):
+        A, B, E, c, Zx, Zu, Zg, zc = lin.explicit()
+        lam, V = sla.eig(A, check_finite=False)
+        W = _inverse(V, lin.ch.dae.name)
+        self._take(lam, V, W, B, E, c)
+        self.Vd = self.Vx
+        nx = A.shape[0]
+        self.Xu, self.Xg, self.xc = np.zeros((nx, B.shape[1])), np.zeros((nx, E.shape[1])), np.zeros(nx)
+        self.Z = (Zx, Zu, Zg, zc)
+        self.n_kept = lam.size
+
+    def _take(self, lam, V, W, B, E, c):
+        """Keep one coordinate per real eigenvalue and per conjugate pair."""
+        keep = np.flatnonzero(lam.imag >= -1e-9 * np.maximum(np.abs(lam), 1.0))
+        pair = np.abs(lam[keep].imag) > 1e-9 * np.maximum(np.abs(lam[keep]), 1.0)
+        self.lam = lam[keep]
+        self.Vx = V[:, keep] * np.where(pair, 2.0, 1.0)
+        self.W = W[keep]
+        self.Bu, self.Bg, self.bc = self.W @ B, self.W @ E, self.W @ c
+
+    def _second_order(self, lin, f_keep):
+        dae = lin.ch.dae
+        mb = _mechanical_blocks(lin)
+        M, C, K, Kqi, Rb, Ri, Iq, Iv, Ii = mb
+        key = (K.tobytes(), M.tobytes())           # regimes that change only damping share the undamped modes
+        cache = lin.ch.__dict__.setdefault("_eigh", {})
+        if key not in cache:
+            if len(cache) > 8:
+                cache.clear()
+            cache[key] = sla.eigh(K, M, check_finite=False, driver="gvd")
+        lam, phi = cache[key]
+        rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
+        lam = np.where(rigid, 0.0, lam)
+        w_keep = np.inf if f_keep is None else (2 * np.pi * f_keep) ** 2
+        keep = np.flatnonzero((lam <= w_keep) | rigid)
+        trunc = np.setdiff1d(np.arange(lam.size), keep)
+        pk, lk, pt = phi[:, keep], lam[keep], phi[:, trunc]
+        Rt = (pt / lam[trunc]) @ pt.T if trunc.size else np.zeros_like(K)
+        nk, ni, nx = keep.size, len(Ii), dae.nx
+        # forces on the balance rows: inputs, channels, constant
+        Fb = np.hstack([_dense(lin.Ju[Rb]), lin.G[Rb], lin.F0[Rb][:, None]])
+        Fi = np.hstack([_dense(lin.Ju[Ri]), lin.G[Ri], lin.F0[Ri][:, None]]) if ni else np.zeros((0, Fb.shape[1]))
+        n = 2 * nk + ni
+        Ared = np.zeros((n, n))
+        Bred = np.zeros((n, Fb.shape[1]))
+        Ared[:nk, nk:2 * nk] = np.eye(nk)
+        Ared[nk:2 * nk, :nk] = -np.diag(lk)
+        Ared[nk:2 * nk, nk:2 * nk] = -(pk.T @ C @ pk)
+        Bred[nk:2 * nk] = -pk.T @ Fb
+        # q = pk eta + qs, qs = -Rt (Kqi x_i + Fb col)
+        if ni:
+            Ared[nk:2 * nk, 2 * nk:] = -pk.T @ Kqi
+            Jxd, Jx = lin.Jxd, lin.Jx
+            Eii = _dense(Jxd[Ri][:, Ii])
+            Aiq, Aiv, Aii = _dense(Jx[Ri][:, Iq]), _dense(Jx[Ri][:, Iv]), _dense(Jx[Ri][:, Ii])
+            Einv = np.linalg.inv(Eii)
+            Ared[2 * nk:, :nk] = -Einv @ Aiq @ pk
+            Ared[2 * nk:, nk:2 * nk] = -Einv @ Aiv @ pk
+            Ared[2 * nk:, 2 * nk:] = -Einv @ (Aii - Aiq @ Rt @ Kqi)
+            Bred[2 * nk:] = -Einv @ (Fi - Aiq @ Rt @ Fb)
+        mu, Y = sla.eig(Ared, check_finite=False)
+        Yi = _inverse(Y, dae.name)
+        nu, ng = lin.Ju.shape[1], lin.ng
+        # r -> Δx and r' -> ẋ in the Dae's state order
+        Tr = np.zeros((nx, n))
+        Td = np.zeros((nx, n))
+        Tdd = np.zeros((nx, n))
+        Tr[Iq, :nk], Tr[Iv, nk:2 * nk] = pk, pk
+        Td[Iq, nk:2 * nk] = pk                   # rate of a position: the velocity (in r)
+        Tdd[Iv, nk:2 * nk] = pk                  # rate of a velocity: the acceleration (in r')
+        if ni:
+            Tr[Iq, 2 * nk:] = -Rt @ Kqi
+            Tr[Ii, 2 * nk:] = np.eye(ni)
+            Tdd[Ii, 2 * nk:] = np.eye(ni)
+        keepc = np.flatnonzero(mu.imag >= -1e-9 * np.maximum(np.abs(mu), 1.0))
+        pair = np.abs(mu[keepc].imag) > 1e-9 * np.maximum(np.abs(mu[keepc]), 1.0)
+        wgt = np.where(pair, 2.0, 1.0)
+        self.lam = mu[keepc]
+        Yk = Y[:, keepc] * wgt
+        self.Vx = Tr @ Yk
+        # ẋ = Td r + Tdd r' : the positions' rates are velocities (r), the velocities' rates accelerations (r')
+        self._Vd_r, self._Vd_rd = Td @ Yk, Tdd @ Yk
+        Wr = np.zeros((n, nx))
+        Mp = M @ pk
+        Wr[:nk][:, Iq] = Mp.T
+        Wr[nk:2 * nk][:, Iv] = Mp.T
+        if ni:
+            Wr[2 * nk:][:, Ii] = np.eye(ni)
+        self.W = Yi[keepc] @ Wr
+        Bm = Yi[keepc] @ Bred
+        self.Bu, self.Bg, self.bc = Bm[:, :nu], Bm[:, nu:nu + ng], Bm[:, -1]
+        Xs = np.zeros((nx, Fb.shape[1]))
+        Xs[Iq] = -Rt @ Fb
+        self.Xu, self.Xg, self.xc = Xs[:, :nu], Xs[:, nu:nu + ng], Xs[:, -1]
+        self.Z = None
+        self.n_kept = nk
+        self.Vd = None
+
+    # ---- use ------------------------------------------------------------------------------------------
+    def state(self, xi, u, g):
+        """``Δx`` at modal coordinates ``xi`` (rows: time points allowed), input ``u`` and forces ``g``."""
+        return (xi @ self.Vx.T).real + u @ self.Xu.T + g @ self.Xg.T + self.xc
+
+    def rate_rows(self):
+        """``(Vr, Vrd)``: ``ẋ = Re(Vr ξ + Vrd ξ')`` (first-order route: ``Vr = 0``, ``Vrd = V``)."""
+        if self.Vd is not None:
+            return np.zeros_like(self.Vd), self.Vd
+        return self._Vd_r, self._Vd_rd
+
+    def rows(self, Cxd, Cx, Cz, Cu, y0):
+        """A linear function ``y = y0 + Cxd ẋ + Cx Δx + Cz Δz + Cu u`` as ``(Cξ, Du, Dg, yc)``:
+        ``y = Re(Cξ ξ) + Du u + Dg g + yc``."""
+        Cxd, Cx, Cz, Cu = (_dense(A) for A in (Cxd, Cx, Cz, Cu))
+        Vr, Vrd = self.rate_rows()
+        CdR, CdD = Cxd @ Vr, Cxd @ Vrd
+        Cxi = Cx @ self.Vx + CdR + CdD * self.lam[None, :]
+        Du = Cu + Cx @ self.Xu + (CdD @ self.Bu).real
+        Dg = Cx @ self.Xg + (CdD @ self.Bg).real
+        yc = np.asarray(y0, float).ravel() + Cx @ self.xc + (CdD @ self.bc).real
+        if self.Z is not None and Cz.shape[1]:
+            Zx, Zu, Zg, zc = self.Z
+            Cxi = Cxi + Cz @ Zx @ self.Vx
+            Du = Du + Cz @ (Zx @ self.Xu + Zu)
+            Dg = Dg + Cz @ (Zx @ self.Xg + Zg)
+            yc = yc + Cz @ (Zx @ self.xc + zc)
+        return Cxi, Du, Dg, yc
+
+
+def _mechanical_blocks(lin):
+    """``(M, C, K, K_qi, rows, ...)`` of a model whose balance rows see positions, velocities, accelerations and
+    internal states only (else None: the first-order route is used)."""
+    dae = lin.ch.dae
+    m = dae.mech
+    nr = len(m.coordinate_names)
+    Iq = np.array([m.q_in_x[j] for j in range(nr)], int)
+    Iv = np.array([m.v_in_x[j] for j in range(nr)], int)
+    Ia = np.array([m.a_in_xd[j] for j in range(nr)], int)
+    if not np.array_equal(Ia, Iv):
+        return None
+    Rb = np.asarray(m.balance_rows, int)
+    ni_rows = np.arange(len(m.inertial), len(m.inertial) + nr)
+    if not np.array_equal(np.sort(Rb), ni_rows):
+        return None
+    Ii = np.setdiff1d(np.arange(dae.nx), np.r_[Iq, Iv])
+    Ri = np.setdiff1d(np.arange(lin.Jx.shape[0]), np.r_[np.arange(len(m.inertial)), Rb])
+    if Ii.size != Ri.size:
+        return None
+    Jxd, Jx = sp.csr_matrix(lin.Jxd), sp.csr_matrix(lin.Jx)
+    M = _dense(Jxd[Rb][:, Iv])
+    K = _dense(Jx[Rb][:, Iq])
+    C = _dense(Jx[Rb][:, Iv])
+    if Ii.size:
+        if abs(Jxd[Rb][:, Ii]).sum() or abs(Jxd[Ri][:, Iv]).sum():
+            return None                       # rates of internal states in the balances, or accelerations fed back
+    other = Jxd[Rb][:, Iq]
+    if other.nnz and abs(other).max() > 0:
+        return None
+    sym = max(np.abs(K - K.T).max(), np.abs(M - M.T).max())
+    if sym > 1e-9 * max(np.abs(K).max(), 1e-300):
+        return None
+    Kqi = _dense(Jx[Rb][:, Ii]) if Ii.size else np.zeros((nr, 0))
+    return M, C, 0.5 * (K + K.T), Kqi, Rb, Ri, Iq, Iv, Ii
+
+
+def _inverse(V, name):
+    cond = np.linalg.cond(V)
+    if not np.isfinite(cond) or cond > COND_MAX:
+        raise ModalSimulationError(
+            f"'{name}': the linear part is not diagonalisable (eigenvector condition {cond:.2g}: a Jordan block, e.g. "
+            "an undamped rigid-body mode): give the rigid-body motion some damping (viscous guide or motor "
+            "damping), or use method='split' / 'idas'")
+    return np.linalg.inv(V)

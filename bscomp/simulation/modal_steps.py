@@ -1,0 +1,151 @@
+r"""One step of ``simulate(method="modal")``: exact exponential of the modal linear part, the channel forces
+first-order held between the step's ends and solved implicitly, checked at three interior points.
+
+With modal coordinates ``ξ' = λ ξ + B_u u + B_g g + b_c`` (:class:`bscomp.simulation.modal_parts.ModalPart`), the input
+held over the step and the channel forces ``g(t) = g_0 + (g_1 - g_0) t/τ``, the step is exact per mode:
+
+.. math::
+    ξ(θτ) = e^{λθτ} ξ_0 + φ_1(θτ)\,(B_u u + b_c + B_g g_0) + θ\,φ_2(θτ)\,B_g (g_1 - g_0), \qquad
+    φ_1(τ) = \frac{e^{λτ} - 1}{λ}, \quad φ_2(τ) = \frac{e^{λτ} - 1 - λτ}{λ^2 τ},
+
+and the channel coordinates are rows of it, ``y(θ) = Re(C_ξ ξ(θτ)) + D_u u + D_g g(θτ) + y_c``. At the end
+(``θ = 1``) ``y_1 = c + H g_1``, so ``g_1 = law(y_1)`` is a Newton (or chord) solve in the few channel forces
+only. The linear structure is exact for any step; the force's linear interpolation (trapezoidal: second order,
+A-stable) is checked at ``θ = 1/4, 1/2, 3/4`` (the elements' rows at the quarter points, every channel at the
+midpoint): the error ``max_j |law(y(θ_j)) - g(θ_j τ)|`` must stay below the tolerance times the largest
+channel force, or the driver redoes the step in four (:mod:`bscomp.simulation.modal_driver`). This module
+computes the matrices of those formulas per sub-step length (:class:`StepData`); the compiled kernel
+(:mod:`bscomp.simulation.modal_kernels`) evaluates them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bscomp.simulation.modal_kernels import pack_step
+
+__all__ = ["phis", "StepData", "Stepper"]
+
+THETAS = (0.25, 0.5, 0.75)
+NEWTON_TOL = 1e-9    # last Newton update relative to 1 + max |g| accepted as converged
+
+
+def phis(lam, tau):
+    """``(e^{λτ}, φ_1, φ_2)`` per mode (series near ``λτ = 0``: rigid-body modes)."""
+    x = lam * tau
+    E = np.exp(x)
+    small = np.abs(x) < 1e-4
+    safe = np.where(small, 1.0, lam)
+    xs = np.where(small, 1.0, x)
+    phi1 = np.where(small, tau * (1 + x / 2 + x * x / 6), (E - 1) / safe)
+    phi2 = np.where(small, tau * (0.5 + x / 6 + x * x / 24), (E - 1 - x) / (safe * xs))
+    return E, phi1, phi2
+
+
+class StepData:
+    """The matrices of one step length for one modal part and channel set (module docstring).
+
+    ``ξ_1 = E ξ_0 + Q_u u + q_c + Q_0 g_0 + Q_1 g_1``; at ``θ`` (1 = the end)
+    ``y(θ) = Re(C_E(θ) ξ_0) + Y_u(θ) u + Y_0(θ) g_0 + Y_1(θ) g_1 + y_c(θ)``.
+    """
+
+    def __init__(self, mp, rows, gsel, tau, thetas=THETAS):
+        Cxi, Du, Dg, yc = rows
+        Bg = mp.Bg[:, gsel]
+        Dg = Dg[:, gsel]
+        lam = mp.lam
+        E, p1, p2 = phis(lam, tau)
+        self.tau = tau
+        self.E = E
+        self.Qu, self.qc = p1[:, None] * mp.Bu, p1 * mp.bc
+        self.Q0, self.Q1 = (p1 - p2)[:, None] * Bg, p2[:, None] * Bg
+        self.end = self._at(1.0, lam, tau, Cxi, Du, Dg, yc, mp, Bg)
+        self.samples = [self._at(th, lam, tau, Cxi, Du, Dg, yc, mp, Bg) for th in thetas]
+        self.start = self._at(0.0, lam, tau, Cxi, Du, Dg, yc, mp, Bg)     # the channels at the step's start
+        self.thetas = tuple(thetas)
+
+    @staticmethod
+    def _at(theta, lam, tau, Cxi, Du, Dg, yc, mp, Bg):
+        E, p1, p2 = phis(lam, theta * tau)
+        CE = Cxi * E[None, :]
+        Yu = (Cxi @ (p1[:, None] * mp.Bu)).real + Du
+        Y0 = (Cxi @ ((p1 - theta * p2)[:, None] * Bg)).real + (1 - theta) * Dg
+        Y1 = (Cxi @ ((theta * p2)[:, None] * Bg)).real + theta * Dg
+        yct = (Cxi @ (p1 * mp.bc)).real + yc
+        return CE, Yu, Y0, Y1, yct
+
+
+class Stepper:
+    """One modal part with one channel set: its step data per sub-step length, its compiled kernel, and the
+    few numpy operations the driver does between kernel calls (consistent forces, channel values).
+
+    Parameters
+    ----------
+    mp : ModalPart
+    rows : tuple
+        ``(Cxi, Du, Dg, yc)`` of the measured channel coordinates.
+    gsel : ndarray of int
+        Columns of ``Bg`` of the active channel forces (the others are zero).
+    law : casadi.Function
+        :meth:`bscomp.simulation.modal_laws.LawSpec.function`.
+    theta : ndarray
+        Packed numbers of the law.
+    """
+
+    def __init__(self, mp, rows, gsel, law, theta, kernel):
+        self.mp, self.rows, self.law, self.theta, self.kernel = mp, rows, law, theta, kernel
+        self.gsel = np.asarray(gsel, int)
+        self.r = self.gsel.size
+        self.m = kernel.m                    # modal coordinates of the kernel (>= the part's: padded)
+        self.m_part = mp.lam.size
+        self._data = {}
+
+    def data(self, tau):
+        """``(StepData, packed vector)`` for a sub-step length (cached)."""
+        key = round(tau, 16)
+        d = self._data.get(key)
+        if d is None:
+            sd = StepData(self.mp, self.rows, self.gsel, tau)
+            d = self._data[key] = (sd, pack_step(sd, self.kernel.ne, self.m))
+        return d
+
+    def evaluate(self, y):
+        """``(g, dg/dy, fmax, regime_ok, element_ok)`` at channel values ``y``."""
+        g, L, fmax, okr, oke = self.law(y, self.theta)
+        return g.full().ravel(), L.full(), float(fmax), bool(float(okr)), bool(float(oke))
+
+    def consistent(self, xi, u, g):
+        """Channel forces consistent with ``xi`` at zero step length (static feedthrough only)."""
+        Cxi, Du, Dg, yc = self.rows
+        y_free = (Cxi @ xi).real + Du @ u + yc
+        return self.newton(y_free, Dg[:, self.gsel], g, 8)
+
+    def newton(self, y_free, H, g, n_iter):
+        """Newton on ``g = law(y_free + H g)``: ``(g, y, last relative update)``."""
+        g = np.array(g, float)
+        if not self.r:
+            return g, y_free, 0.0
+        upd = np.inf
+        for _ in range(n_iter):
+            y = y_free + H @ g
+            gl, L, *_ = self.evaluate(y)
+            dg = np.linalg.solve(np.eye(self.r) - L @ H, gl - g)
+            g += dg
+            upd = np.max(np.abs(dg)) / (1.0 + np.max(np.abs(g)))
+            if upd < NEWTON_TOL:
+                break
+        return g, y_free + H @ g, upd
+
+    def pack_state(self, xi, g):
+        pad = np.zeros(self.m - self.m_part)
+        return np.concatenate([xi.real, pad, xi.imag, pad, g])
+
+    def unpack_state(self, x):
+        m, n = self.m, self.m_part
+        return x[:n] + 1j * x[m:m + n], x[2 * m:].copy()
+
+    def end_values(self, xi0, g0, g1, u, tau):
+        """Channel values at the end of a step (numpy)."""
+        sd, _ = self.data(tau)
+        CE, Yu, Y0, H, yct = sd.end
+        return (CE @ xi0).real + Yu @ u + Y0 @ g0 + H @ g1 + yct

@@ -1,0 +1,155 @@
+"""simulate(method="modal"): friction, backlash and the moving screw-nut joint as low-rank corrections of an exact
+modal linear part (bscomp/simulation/modal*.py, moving_joints.py). Checked against the model's own residual (the
+decomposition is exact), the joint's closed-form port forces, IDAS at rtol 1e-9 on the same equations, the exact
+ZOH of a linear model and a sampled controller closing the loop. The creeping-nut limit is
+tests/components/test_moving_nut.py."""
+
+import numpy as np
+import pytest
+
+from bscomp import flatten
+from bscomp.components import Backlash, CoulombFriction, Fixed
+from bscomp.simulation import SampledController, simulate
+from bscomp.simulation.modal_channels import Channels, LinearPart, ModalSimulationError
+from bscomp.simulation.modal_driver import ModalSimulator
+from bscomp.systems import testbed
+
+AMP = 2.125                     # Sec 5.3.1: 4.25 V peak-to-peak square wave
+F_C, B_GAP = 2066.0, 0.001885 * 0.010 / (2 * np.pi)   # Table 5.2: Coulomb force, backlash L r_g = 3.0 um
+
+
+def square(t):
+    return AMP if (t * 5.0) % 1.0 < 0.5 else -AMP
+
+
+def drive(nut_joint="moving", n_elements=12, friction=True, backlash=True, **kw):
+    """The Ch 5 test bed (coarse screw mesh) with Table 5.2 friction and backlash (examples/nonlinear_scenarios.py).
+
+    With 12 elements (15 with one per short section; section C in 78 mm elements) a node sits at 432.5 mm:
+    the nut starts 0.1 mm above it and crosses it once the table moves forward (the nut runs towards -z)."""
+    kw.setdefault("nut_position", 0.4326)
+    s = testbed.testbed_axial_torsional(nut_joint=nut_joint, n_elements=n_elements, **kw)
+    if friction:
+        s.add("guide_ground", Fixed())
+        s.add("friction", CoulombFriction(F_c=F_C, v_reg=1e-4))
+        s.connect("friction.flange_a", "guide_ground.flange")
+        s.connect("friction.flange_b", "table.flange_b")
+    if backlash:
+        s.insert("backlash", Backlash(b=B_GAP, c=1.7e10), between=("table_joint.flange", "table.flange_a"))
+    return s
+
+
+@pytest.fixture(scope="module")
+def moving():
+    return flatten(drive())
+
+
+def _nrmse(a, b):
+    return float(np.sqrt(np.mean((np.asarray(a) - b) ** 2)) / np.sqrt(np.mean(np.asarray(b) ** 2)))
+
+
+def test_decomposition_into_linear_part_and_channels_is_exact(moving):
+    """F(v) = F_L(v) + sum G g(v) at random states, in two regimes and a shifted joint reference (the method's
+    equations are the model's equations; the joint's correction on its active potentials is the closed form)."""
+    dae, rng = moving, np.random.default_rng(3)
+    ch = Channels(dae, dae.p0)
+    assert [e.path for e in ch.elements] == ["friction", "backlash"] and [j.path for j in ch.joints] == ["sn"]
+    cands = [ch.candidate_regimes(i) for i in range(2)]
+    jt = ch.joints[0]
+    for regime, z_ref in (((0, 0), jt.z0), ((1, 1), jt.z0 - 0.004)):
+        lin = LinearPart(ch, [cands[i][r] for i, r in enumerate(regime)], (z_ref,))
+        A, B, E, c, *_ = lin.explicit()
+        dx = rng.normal(size=dae.nx) * 1e-6
+        dx[dae.x_names.index("sn.nut.w")] = -2.5e-3             # the nut 2.5 mm from its start: another element
+        u = rng.normal(size=dae.nu)
+        y0, _, Jx, _, _ = ch.el_rows
+        g = np.zeros(lin.ng)
+        for i, el in enumerate(ch.elements):
+            s, v = y0[2 * i] + Jx[2 * i] @ dx, y0[2 * i + 1] + Jx[2 * i + 1] @ dx
+            k, d = lin.regime[i]
+            g[i] = float(el.law(s, v, el.pvec)) - k * s - d * v
+        d = jt.P @ (ch.Sq_x @ dx)
+        off, n = lin.joint_cols[0]
+        g[off:off + n] = jt.force(d) - jt.tangent(z_ref)[0] @ d
+        assert jt.element_of(jt.position(d[jt.slow])) != jt.element_of(z_ref) or z_ref != jt.z0
+        xd = A @ dx + B @ u + E @ g + c
+        F = np.asarray(dae.F(xd, ch.x_a + dx, np.zeros(0), u, dae.p0)).ravel()
+        scale = np.abs(lin.Jx @ dx).max()
+        assert np.abs(F).max() < 1e-9 * scale, (regime, np.abs(F).max(), scale)
+
+
+def test_compiled_law_equals_the_joint_force(moving):
+    """The CasADi correction on a channel set S equals f(d) - K_r d of MovingJoint (Eq 3.35 through N(z))."""
+    sim = ModalSimulator(moving, moving.p0)
+    jt = sim.ch.joints[0]
+    rng = np.random.default_rng(5)
+    for dz in (-1e-3, 2.5e-3):
+        z = jt.z0 + dz
+        z_ref = jt.z0 - 0.01
+        cset = sim.channel_set([z], [z_ref])
+        S = cset[0][0]
+        spec = sim.law(cset)
+        mp_regime = (0, 1)
+        theta = spec.pack(mp_regime, sim.slopes(mp_regime), [z_ref], cset)
+        d = np.zeros(jt.n)
+        d[S] = rng.normal(size=S.size) * 1e-6
+        d[jt.slow] = dz
+        y = np.concatenate([[0.0, 0.0, 0.0, 0.0], d[S]])
+        g = np.asarray(spec.f(y, theta)[0]).ravel()[2:]
+        ref = jt.force(d) - jt.tangent(z_ref)[0] @ d
+        np.testing.assert_allclose(g, ref[S], rtol=1e-9, atol=1e-9 * np.abs(ref).max())
+        assert np.abs(np.delete(ref, S)).max() <= 1e-12 * np.abs(ref).max()   # nothing outside S
+
+
+def test_moving_nut_with_friction_and_backlash_matches_idas_at_rtol_1e9(moving):
+    """0.03 s from rest: the nut crosses its gap, hits the table (backlash), the table breaks away against
+    Table 5.2 friction and the nut leaves its start node. Table acceleration, velocity, motor angle and the
+    nut-table (backlash) force against IDAS at rtol 1e-9, atol 1e-12 on the same equations."""
+    t = np.arange(0.0, 0.03 + 1e-12, 1e-4)
+    outs = ["table.a", "table.v", "rotor.phi", "backlash.f", "sn.z"]
+    r = simulate(moving, t, inputs={"amp.u": square}, outputs=outs, method="modal")
+    ref = simulate(moving, t, inputs={"amp.u": square}, outputs=outs, rtol=1e-9, atol=1e-12, max_num_steps=10**7)
+    assert ref["sn.z"][-1] < 0.4325 - 1e-4                      # the contact point moved into the next element
+    assert np.abs(ref["backlash.f"]).max() > 1e3 and np.abs(ref["table.v"]).max() > 1e-2
+    errs = {o: _nrmse(r[o], ref[o]) for o in outs}
+    assert errs["table.a"] < 1e-3 and errs["backlash.f"] < 1e-3, errs
+    assert errs["table.v"] < 1e-4 and errs["rotor.phi"] < 1e-5 and errs["sn.z"] < 1e-8, errs
+    assert r.stats["switches"] >= 2                              # gap -> contact, stick -> slide
+
+
+def test_linear_model_equals_exact_zoh():
+    """Without friction, backlash or a moving nut the method is the exact zero-order hold (method='lti')."""
+    dae = flatten(drive("point", friction=False, backlash=False))
+    t = np.arange(0.0, 0.02 + 1e-12, 1e-4)
+    outs = ["table.a", "table.s", "rotor.w"]
+    r = simulate(dae, t, inputs={"amp.u": square}, outputs=outs, method="modal", modal_options={"f_keep": None})
+    ref = simulate(dae, t, inputs={"amp.u": square}, outputs=outs, method="lti")
+    for o in outs:
+        assert _nrmse(r[o], ref[o]) < 1e-8, o
+    np.testing.assert_allclose(r.x, ref.x, atol=1e-9 * np.abs(ref.x).max())     # states rebuilt on request
+
+
+@pytest.mark.slow
+def test_sampled_position_controller_closes_the_loop(moving):
+    """A 5 kHz proportional position loop on the moving-nut drive with friction and backlash: the same
+    closed loop as IDAS (the controller is sampled and held identically; IDAS restarts at every sample, ~20 s)."""
+    def law(t, y):
+        return [min(max(4000.0 * (1e-3 - y[0]), -5.0), 5.0)]
+
+    ctrl = SampledController(law=law, measure=["table.s"], actuate=["amp.u"], Ts=2e-4)
+    t = np.arange(0.0, 0.012 + 1e-12, 1e-4)
+    r = simulate(moving, t, outputs=["table.s", "table.v"], controllers=[ctrl], method="modal")
+    ref = simulate(moving, t, outputs=["table.s", "table.v"], controllers=[ctrl], rtol=1e-8, atol=1e-12,
+                   max_num_steps=10**7)
+    assert ref["table.s"][-1] > 5e-5 and np.ptp(ref["amp.u"]) > 1.0
+    assert _nrmse(r["table.s"], ref["table.s"]) < 1e-4
+    assert _nrmse(r["table.v"], ref["table.v"]) < 1e-3
+
+
+def test_bad_input_raises_named_errors(moving):
+    t = np.arange(0.0, 1e-3, 1e-4)
+    with pytest.raises(ValueError, match="options"):
+        simulate(moving, t, method="modal", modal_options={"tolerance": 1e-3})
+    dae = flatten(drive("point", friction=False, backlash=False, viscous="none"))
+    with pytest.raises(ModalSimulationError, match="diagonalisable"):
+        simulate(dae, t, method="modal")
