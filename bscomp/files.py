@@ -16,7 +16,7 @@ from pathlib import Path
 
 from bscomp.errors import OutputFileError
 
-__all__ = ["atomic_write", "atomic_path", "atomic_dir", "staged", "writable_path"]
+__all__ = ["atomic_write", "atomic_path", "atomic_dir", "staged", "writable_path", "json_default"]
 
 
 def writable_path(path, what: str = "output file", suffixes=None) -> Path:
@@ -167,3 +167,15 @@ def atomic_dir(path):
     os.replace(tmp, p)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def json_default(o):
+    """``json.dumps(..., default=json_default)``: numpy scalars and arrays as numbers and lists, tuples as
+    lists, anything else by its ``str`` (so a result object never fails to serialise)."""
+    if hasattr(o, "item") and getattr(o, "ndim", None) == 0:
+        return o.item()
+    if hasattr(o, "tolist"):
+        return o.tolist()
+    if isinstance(o, tuple):
+        return list(o)
+    return str(o)

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from bscomp.files import atomic_write
+from bscomp.files import atomic_write, json_default
 from bscomp.kernel.interface import interface_of
 from bscomp.kernel.system import System
 from bscomp.plotting.validate import calibration_plot
@@ -253,7 +253,7 @@ class Calibration:
 
     def to_json(self, path=None) -> str:
         """JSON text of :meth:`to_dict`; written to ``path`` if given."""
-        text = json.dumps(self.to_dict(), indent=2, default=_json_default)
+        text = json.dumps(self.to_dict(), indent=2, default=json_default)
         if path is not None:
             with atomic_write(path) as fh:
                 fh.write(text)
@@ -269,15 +269,6 @@ class Calibration:
                                 [r["after"] for r in self.channels], path=path,
                                 title=f"{self.system.name}: re-calibration")
 
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, tuple):
-        return list(o)
-    return str(o)
 
 
 # ---- the fit ---------------------------------------------------------------------------------------------------

@@ -5,9 +5,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from bscomp.files import atomic_write
+from bscomp.files import atomic_write, json_default
 from bscomp.plotting.validate import plot_diagnosis
 
 __all__ = ["EffectFit", "Diagnosis", "Skipped"]
@@ -224,7 +222,7 @@ class Diagnosis:
                 "code": self.code(), "stats": self.stats}
 
     def to_json(self, path=None) -> str:
-        text = json.dumps(self.to_dict(), indent=2, default=_json_default)
+        text = json.dumps(self.to_dict(), indent=2, default=json_default)
         if path is not None:
             with atomic_write(path) as fh:
                 fh.write(text)
@@ -234,12 +232,3 @@ class Diagnosis:
         """Write ``error_staircase.png`` and ``candidates.png`` to ``directory``; returns the paths."""
         return plot_diagnosis(self, directory)
 
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, tuple):
-        return list(o)
-    return str(o)
