@@ -71,6 +71,7 @@ class ModalSimulator:
         self.parts, self.steppers, self.laws, self.kernels = {}, {}, {}, {}
         self._slopes = None
         self._pads = []
+        self.outputs = {}     # names -> modal.Outputs (rows per modal part)
         self.stats = {"setup_channels_s": time.perf_counter() - t0, "modal_parts": 0, "modal_part_s": 0.0}
 
     # ---- cached pieces ----------------------------------------------------------------------------------
@@ -215,6 +216,10 @@ class ModalSimulator:
         k, n_chunk, level, calm = 0, 16, 0, 0
         brk = np.zeros(nt + 1, bool)
         brk[np.asarray(list(breaks), int)] = True
+        # a chunk ends before a break or a change of the grid step: the next such index after each k
+        cut = brk[1:nt].copy()
+        cut[:-1] |= np.abs(h_all[1:] - h_all[:-1]) > 1e-9 * h_all[1:]
+        stops = np.r_[np.flatnonzero(cut) + 1, nt - 1]
         last_bar = 0
         while k < nt - 1:
             h = h_all[k]
@@ -224,10 +229,8 @@ class ModalSimulator:
                 progress(k)
                 last_bar = k
             if chunks:
-                n = 1
                 cap = min(n_chunk, CHUNK // 4 ** level)
-                while n < cap and k + n < nt - 1 and abs(h_all[k + n] - h) <= 1e-9 * h and not brk[k + n]:
-                    n += 1
+                n = max(1, min(cap, int(stops[np.searchsorted(stops, k, side="right")]) - k))
                 done = self._chunk(st, U, k, n, h, tol, XI, G, level)
                 k += done
                 if done == n:
