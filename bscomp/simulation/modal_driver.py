@@ -233,6 +233,8 @@ class ModalSimulator:
                 n = max(1, min(cap, int(stops[np.searchsorted(stops, k, side="right")]) - k))
                 done = self._chunk(st, U, k, n, h, tol, XI, G, level)
                 k += done
+                if st.mp is not segs[-1][1]:          # the chunk's last step switched the linear part:
+                    segs.append((k + 1, st.mp))       # grid point k is stored in the old coordinates
                 if done == n:
                     n_chunk = min(4 * n_chunk, CHUNK)
                     calm += 1
