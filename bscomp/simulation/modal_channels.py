@@ -206,6 +206,32 @@ class LinearPart:
                               Zaug[:, nu:nu + ng], Zaug[:, -1])
         return self._explicit
 
+    def mismatch(self, dx, u):
+        """``(max |F - F_L - G g|, scale, row)`` at the state ``x_a + dx`` (``x' = 0``, ``z = z_a``) and input
+        ``u``: zero (round-off) when every nonlinearity of the model is a channel (the decomposition of the
+        module docstring holds at any point); ``row`` the worst equation."""
+        ch, dae = self.ch, self.ch.dae
+        g = np.zeros(self.ng)
+        if ch.elements:
+            y0, _, Jx, _, _ = ch.el_rows
+            for i, el in enumerate(ch.elements):
+                s, v = y0[2 * i] + Jx[2 * i] @ dx, y0[2 * i + 1] + Jx[2 * i + 1] @ dx
+                k, d = self.regime[i]
+                g[i] = float(el.law(s, v, el.pvec)) - k * s - d * v
+        for (off, n), jt, zr in zip(self.joint_cols, ch.joints, self.z_ref, strict=True):
+            d, dd = jt.P @ (ch.Sq_x @ dx), jt.P @ (ch.Sv_x @ dx)
+            Kr, Cr = jt.tangent(zr)
+            g[off:off + n] = jt.force(d, dd) - Kr @ d - (Cr @ dd if Cr is not None else 0.0)
+        F = np.asarray(dae.F(np.zeros(dae.nx), ch.x_a + dx, ch.z_a, u, ch.p)).ravel()
+        Gg = self.G @ g
+        model = self.F0 + self.Jx @ dx + self.Ju @ u + Gg
+        scale = max(np.abs(self.Jx @ dx).max(initial=0.0), np.abs(self.Ju @ u).max(initial=0.0),
+                    np.abs(Gg).max(initial=0.0), np.abs(self.F0).max(initial=0.0), 1e-300)
+        diff = np.abs(F - model)
+        row = int(np.argmax(diff)) if diff.size else 0
+        return float(diff.max(initial=0.0)), scale, row
+
+
 def ca_dense(v):
     return np.asarray(ca.DM(v).full())
 

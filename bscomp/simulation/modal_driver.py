@@ -23,7 +23,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from bscomp.simulation.modal_channels import Channels, LinearPart
+from bscomp.simulation.modal_channels import Channels, LinearPart, ModalSimulationError
 from bscomp.simulation.modal_kernels import Kernel
 from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec
 from bscomp.simulation.modal_parts import ModalPart
@@ -72,6 +72,7 @@ class ModalSimulator:
         self._slopes = None
         self._pads = []
         self.outputs = {}     # names -> modal.Outputs (rows per modal part)
+        self._checked = set()
         self.stats = {"setup_channels_s": time.perf_counter() - t0, "modal_parts": 0, "modal_part_s": 0.0}
 
     # ---- cached pieces ----------------------------------------------------------------------------------
@@ -206,6 +207,7 @@ class ModalSimulator:
         controllers: it may change ``U[k:]``); chunks end there.
         """
         nt = len(t)
+        self.check(U)
         st = _State(self, xs, U[0])
         XI = [None] * nt
         G = np.zeros((nt, st.mp.lin.ng))
@@ -255,6 +257,26 @@ class ModalSimulator:
             progress(nt - 1)
         self.stats.update(self.counts, force_scale=self.scale)
         return XI, G, segs
+
+    def check(self, U):
+        """The decomposition is exact at the run's extreme inputs and at a random state (else a nonlinearity
+        outside the channels -- an amplifier's current limit, a nonlinear spring -- would be linearized
+        silently): ModalSimulationError naming the equation."""
+        key = (U.min(axis=0).tobytes(), U.max(axis=0).tobytes())
+        if key in self._checked:
+            return
+        lin = self.part(tuple(0 for _ in self.ch.elements), [jt.z0 for jt in self.ch.joints]).lin
+        rng = np.random.default_rng(0)
+        dx = rng.normal(size=self.dae.nx) * 1e-6
+        for dxi, u in ((0.0 * dx, U.min(axis=0)), (0.0 * dx, U.max(axis=0)), (dx, U[0])):
+            err, scale, row = lin.mismatch(dxi, u)
+            if err > 1e-7 * scale:
+                origin = self.dae.eq_origin[row] if row < len(self.dae.eq_origin) else f"row {row}"
+                raise ModalSimulationError(
+                    f"'{self.dae.name}': equation '{origin}' is nonlinear outside the friction/backlash elements and "
+                    f"moving joints method='modal' corrects (residual {err:.2g} of {scale:.2g} at the run's input "
+                    "extremes; e.g. an amplifier current limit): use method='idas' or 'split'")
+        self._checked.add(key)
 
     def _flags(self, info, tol):
         """``(j, switch, scale)`` of a block of step infos: the first ``j`` steps are accepted; ``switch``: the
