@@ -21,16 +21,13 @@ import scipy.sparse as sp
 from bscomp.errors import UnknownNameError
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system_damping import system_damping_matrix
-from bscomp.linear.frf_engine import modal_frf
+from bscomp.linear.frf_engine import dense, modal_frf
 from bscomp.linear.linearization import second_order
 
 __all__ = ["ModesEvaluator"]
 
 _MATS = ("M", "K", "Cs", "B", "Cq", "Cv", "Ca", "D")
 
-
-def _dense(A):
-    return np.asarray(A.toarray() if hasattr(A, "toarray") else A, float)
 
 
 class ModesEvaluator:
@@ -66,8 +63,8 @@ class ModesEvaluator:
         so = second_order(dae, refresh_damping=False, params=params or None, inputs=self.inputs,
                           outputs=self.outputs)
         Cs = so.C - sp.csr_matrix(dae.system_damping_basis[2]) if self.damping is not None else so.C
-        return {"M": _dense(so.M), "K": _dense(so.K), "Cs": _dense(Cs), "B": _dense(so.B), "Cq": _dense(so.Cq),
-                "Cv": _dense(so.Cv), "Ca": _dense(so.Ca), "D": _dense(so.D)}
+        mats = {"M": so.M, "K": so.K, "Cs": Cs, "B": so.B, "Cq": so.Cq, "Cv": so.Cv, "Ca": so.Ca, "D": so.D}
+        return {k: dense(v, float) for k, v in mats.items()}
 
     def _at(self, params):
         """The matrices at ``params``: the Dae's Jacobians, or a re-flattening for build keywords and
@@ -112,7 +109,7 @@ class ModesEvaluator:
         if np.any(np.asarray(m.t0)[rows] != 0.0):
             return False
         self.tangent = {"name": name, "comp": comp, "pname": pname, "P": sp.csr_matrix(m.T)[rows],
-                        "K0": _dense(t0.K), "C0": None if t0.C is None else _dense(t0.C)}
+                        "K0": dense(t0.K, float), "C0": None if t0.C is None else dense(t0.C, float)}
         return True
 
     def _tangent_at(self, x):
@@ -143,10 +140,10 @@ class ModesEvaluator:
         if t is not None and t["name"] in values:
             tt = self._tangent_at(values[t["name"]])
             P = t["P"]
-            dKt = _dense(tt.K) - t["K0"]
+            dKt = dense(tt.K, float) - t["K0"]
             X["K"] += np.asarray(P.T @ dKt @ P)
             if tt.C is not None or t["C0"] is not None:
-                dC = (_dense(tt.C) if tt.C is not None else 0.0) - (t["C0"] if t["C0"] is not None else 0.0)
+                dC = (dense(tt.C, float) if tt.C is not None else 0.0) - (t["C0"] if t["C0"] is not None else 0.0)
                 X["Cs"] += np.asarray(P.T @ dC @ P)
         return self._modes(X, (values, dKt)) + (X,)
 
@@ -173,8 +170,8 @@ class ModesEvaluator:
             C_extra = X["Cs"]
         else:                                                                       # Rayleigh, or none
             c_sys = np.zeros(lam.size)
-            C_extra = X["Cs"] + (_dense(system_damping_matrix(self.damping, sp.csr_matrix(X["M"]),
-                                                              sp.csr_matrix(X["K"]), self.coords))
+            C_extra = X["Cs"] + (dense(system_damping_matrix(self.damping, sp.csr_matrix(X["M"]),
+                                                              sp.csr_matrix(X["K"]), self.coords), float)
                                  if self.damping is not None else 0.0)
         diag = np.sum(phi * (C_extra @ phi), axis=0) if np.any(C_extra) else 0.0
         zeta = (c_sys + diag) / np.where(om > 0, 2 * om, np.inf)

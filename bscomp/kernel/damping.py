@@ -32,6 +32,8 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
+from bscomp.errors import ParameterError
+
 __all__ = [
     "modal_damping_matrix",
     "rayleigh_damping_matrix",
@@ -45,27 +47,30 @@ __all__ = [
 _SYM_RTOL = 1e-9
 
 
-def _as_dense_square(A: Any, name: str) -> np.ndarray:
-    """Return ``A`` as a dense float array after checking it is a finite, square, symmetric matrix."""
+def as_dense_symmetric(A: Any, name: str, n: int | None = None) -> np.ndarray:
+    """``A`` as a dense float array after checking it is a finite, square, symmetric matrix (``n x n`` if
+    ``n`` is given); raises :class:`~bscomp.errors.ParameterError` naming ``name`` otherwise."""
     if sp.issparse(A):
         A = A.toarray()
     try:
-        A = np.asarray(A, dtype=float)
+        A = np.array(A, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a real numeric matrix") from exc
+        raise ParameterError(f"{name} must be a real numeric matrix") from exc
     if A.ndim != 2 or A.shape[0] != A.shape[1] or A.shape[0] == 0:
-        raise ValueError(f"{name} must be a non-empty square 2-D matrix, got shape {A.shape}")
+        raise ParameterError(f"{name} must be a non-empty square 2-D matrix, got shape {A.shape}")
+    if n is not None and A.shape[0] != n:
+        raise ParameterError(f"{name} must be {n} x {n} like M, got {A.shape}")
     if not np.all(np.isfinite(A)):
-        raise ValueError(f"{name} contains non-finite entries")
+        raise ParameterError(f"{name} contains non-finite entries")
     scale = np.max(np.abs(A))
     if scale > 0 and np.max(np.abs(A - A.T)) > _SYM_RTOL * scale:
-        raise ValueError(f"{name} must be symmetric")
+        raise ParameterError(f"{name} must be symmetric")
     return 0.5 * (A + A.T)
 
 
 def _check_pair(M: Any, K: Any) -> tuple[np.ndarray, np.ndarray]:
-    Md = _as_dense_square(M, "M")
-    Kd = _as_dense_square(K, "K")
+    Md = as_dense_symmetric(M, "M")
+    Kd = as_dense_symmetric(K, "K")
     if Md.shape != Kd.shape:
         raise ValueError(f"M and K must have the same shape, got M {Md.shape} and K {Kd.shape}")
     return Md, Kd
@@ -324,7 +329,7 @@ def damped_modal_properties(
         If the matrices are invalid or ``M`` is singular.
     """
     Md, Kd = _check_pair(M, K)
-    Cd = _as_dense_square(C, "C")
+    Cd = as_dense_symmetric(C, "C")
     if Cd.shape != Md.shape:
         raise ValueError(f"C must have the shape of M {Md.shape}, got {Cd.shape}")
     n = Md.shape[0]

@@ -31,9 +31,9 @@ __all__ = ["direct_frf", "state_space_decomposition", "state_space_modal_frf", "
 WOODBURY_LIMIT = 40
 
 
-def dense(A) -> np.ndarray:
-    """A dense float/complex ndarray from a dense or scipy.sparse matrix."""
-    return A.toarray() if sp.issparse(A) else np.asarray(A)
+def dense(A, dtype=None) -> np.ndarray:
+    """A dense ndarray from a dense or scipy.sparse matrix (cast to ``dtype`` if given)."""
+    return np.asarray(A.toarray() if sp.issparse(A) else A, dtype)
 
 
 def direct_frf(M, C, K, B, Cq, Cv, Ca, D, freqs_hz) -> np.ndarray:

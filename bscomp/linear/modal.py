@@ -26,6 +26,7 @@ import scipy.sparse.linalg as spla
 from bscomp.errors import SingularSystemError, UnknownNameError, UsageError, check_number
 from bscomp.files import atomic_write
 from bscomp.kernel import Dae, System
+from bscomp.linear.frf_engine import dense
 from bscomp.linear.linearization import SecondOrderModel, second_order
 from bscomp.model import as_system
 from bscomp.plotting.base import mode_shape_plot
@@ -50,9 +51,6 @@ def _second_order(model, inputs=None, outputs=None, at=None, params=None):
     return second_order(model, inputs=inputs, outputs=outputs, at=at, params=params)
 
 
-def _dense(A):
-    return A.toarray() if sp.issparse(A) else np.asarray(A, float)
-
 
 @dataclass
 class _Reduced:
@@ -74,7 +72,7 @@ class _Reduced:
 def _condense(so) -> _Reduced:
     """Static (Guyan) condensation of the massless coordinates of a SecondOrderModel."""
     M, C, K = (sp.csr_matrix(m) for m in (so.M, so.C, so.K))
-    B, Cq, Cv, Ca, D = (_dense(m) for m in (so.B, so.Cq, so.Cv, so.Ca, so.D))
+    B, Cq, Cv, Ca, D = (dense(m, float) for m in (so.B, so.Cq, so.Cv, so.Ca, so.D))
     n = M.shape[0]
     row = np.asarray(abs(M).sum(axis=1)).ravel()
     scale = row.max() if n else 0.0

@@ -67,6 +67,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.errors import SingularSystemError
+from bscomp.kernel.damping import as_dense_symmetric
 from bscomp.linear.linearization import SecondOrderModel
 
 __all__ = ["ReducedModel", "ReducedPort", "cms_reduce", "reduce_second_order"]
@@ -77,25 +78,6 @@ _SYM_RTOL = 1e-9
 # --------------------------------------------------------------------------------------------
 # input checks
 # --------------------------------------------------------------------------------------------
-def _dense_sym(A: Any, name: str, n: int | None = None) -> np.ndarray:
-    if sp.issparse(A):
-        A = A.toarray()
-    try:
-        A = np.array(A, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a real numeric matrix") from exc
-    if A.ndim != 2 or A.shape[0] != A.shape[1] or A.shape[0] == 0:
-        raise ValueError(f"{name} must be a non-empty square matrix, got shape {A.shape}")
-    if n is not None and A.shape[0] != n:
-        raise ValueError(f"{name} must be {n} x {n} like M, got {A.shape}")
-    if not np.all(np.isfinite(A)):
-        raise ValueError(f"{name} contains non-finite entries")
-    scale = np.max(np.abs(A))
-    if scale > 0 and np.max(np.abs(A - A.T)) > _SYM_RTOL * scale:
-        raise ValueError(f"{name} must be symmetric")
-    return 0.5 * (A + A.T)
-
-
 def _index_list(dofs: Any, n: int, names: Sequence[str] | None, what: str) -> np.ndarray:
     items = [dofs] if isinstance(dofs, (str, int, np.integer)) else list(dofs)
     out = []
@@ -424,10 +406,10 @@ def cms_reduce(
     Normal modes are mass-normalised on the structure they come from.  The reduction has
     ``(I - P)`` fewer DOF than the original (Eq 5.14).
     """
-    Md = _dense_sym(M, "M")
+    Md = as_dense_symmetric(M, "M")
     n = Md.shape[0]
-    Kd = _dense_sym(K, "K", n)
-    Cd = None if C is None else _dense_sym(C, "C", n)
+    Kd = as_dense_symmetric(K, "K", n)
+    Cd = None if C is None else as_dense_symmetric(C, "C", n)
     e, i = _check_cms_arguments(n, boundary_dofs, dof_names, n_modes, f_cut, interface)
     lam, V, n_r = _free_modes(Md, Kd, e, rigid_tol)
     G_ii, phi = _constraint_modes(Md, Kd, e, i)

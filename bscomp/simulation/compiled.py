@@ -43,9 +43,9 @@ from bscomp.errors import UnknownNameError
 from bscomp.kernel.component import _Context
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system_damping import system_damping_matrix
-from bscomp.linear.frf_engine import modal_frf
+from bscomp.linear.frf_engine import dense, modal_frf
 from bscomp.linear.linearization import second_order
-from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin, _dense
+from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin
 
 __all__ = ["CompiledModel", "ModalModel", "nonlinear_elements"]
 
@@ -372,7 +372,7 @@ class CompiledModel(TimeSeriesMixin):
             if k in self._sens:
                 v0, dM, dK, dC = self._sens[k]
                 M, K, Cs = M + (v - v0) * dM, K + (v - v0) * dK, Cs + (v - v0) * dC
-        Md, Kd = _dense(M), _dense(K)
+        Md, Kd = dense(M, float), dense(K, float)
         massless = np.flatnonzero(np.abs(np.diag(Md)) == 0)
         if massless.size:
             raise CompiledModelError(f"coordinates {[so.coordinates[i] for i in massless[:5]]} have no mass: give "
@@ -380,14 +380,14 @@ class CompiledModel(TimeSeriesMixin):
         lam, phi = sla.eigh(Kd, Md, check_finite=False)
         rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
         lam = np.where(rigid, 0.0, lam)
-        csd = _dense(Cs)
+        csd = dense(Cs, float)
         c = np.zeros(lam.size)
         if self.damping is not None:
             coords = list(self.dae.mech.coordinate_names)
             if hasattr(self.damping, "modal_ratios"):
                 zeta = np.asarray(self.damping.modal_ratios(lam, phi, M, coords), float)
             else:
-                csd = csd + _dense(system_damping_matrix(self.damping, M, K, coords))
+                csd = csd + dense(system_damping_matrix(self.damping, M, K, coords), float)
                 zeta = np.zeros(lam.size)
             c = 2.0 * zeta * np.sqrt(lam)
         if extra_damping:
@@ -396,9 +396,9 @@ class CompiledModel(TimeSeriesMixin):
         # modes the inputs (measured and element forces) cannot excite or the outputs cannot see -- e.g.
         # the bending modes of the 6-DOF screw for an axial/torsional drive -- enter statically too
         om = np.sqrt(lam)
-        b = np.max(np.abs(phi.T @ _dense(so.B)), axis=1) if so.B.shape[1] else np.zeros(lam.size)
-        g = np.max(np.abs(_dense(so.Cq) @ phi) + om * np.abs(_dense(so.Cv) @ phi)
-                   + om ** 2 * np.abs(_dense(so.Ca) @ phi), axis=0) if so.Cq.shape[0] else np.zeros(lam.size)
+        b = np.max(np.abs(phi.T @ dense(so.B, float)), axis=1) if so.B.shape[1] else np.zeros(lam.size)
+        g = np.max(np.abs(dense(so.Cq, float) @ phi) + om * np.abs(dense(so.Cv, float) @ phi)
+                   + om ** 2 * np.abs(dense(so.Ca, float) @ phi), axis=0) if so.Cq.shape[0] else np.zeros(lam.size)
         seen = (b / max(b.max(), 1e-300)) * (g / max(g.max(), 1e-300)) > self.participation
         keep = np.flatnonzero((lam <= w_keep ** 2) & (seen | (lam == 0.0)))
         trunc = np.setdiff1d(np.arange(lam.size), keep)
@@ -420,9 +420,9 @@ class CompiledModel(TimeSeriesMixin):
         outs = list(dict.fromkeys(o for _, o in pairs))
         bi = [so.inputs.index(i) for i in ins]
         yo = [so.outputs.index(o) for o in outs]
-        B = _dense(so.B)[:, bi]
-        Cq, Cv, Ca = (_dense(m)[yo] for m in (so.Cq, so.Cv, so.Ca))
-        D = _dense(so.D)[yo][:, bi]
+        B = dense(so.B, float)[:, bi]
+        Cq, Cv, Ca = (dense(m, float)[yo] for m in (so.Cq, so.Cv, so.Ca))
+        D = dense(so.D, float)[yo][:, bi]
         H = modal_frf(mm.lam, mm.phi, mm.c_modal, mm.C_struct, B, Cq, Cv, Ca, D, freqs, modes=mm.keep,
                       delay=delay)
         return {(i, o): H[:, outs.index(o), ins.index(i)] for i, o in pairs}

@@ -8,9 +8,9 @@ import math
 import casadi as ca
 import numpy as np
 import scipy.linalg as sla
-import scipy.sparse as sp
 
 from bscomp.errors import BscompError
+from bscomp.linear.frf_engine import dense
 
 __all__ = ["CompiledModelError", "TimeSeriesMixin"]
 
@@ -18,9 +18,6 @@ __all__ = ["CompiledModelError", "TimeSeriesMixin"]
 class CompiledModelError(BscompError):
     """A model that the compiled evaluator cannot handle (named element, what to do instead)."""
 
-
-def _dense(A):
-    return np.asarray(A.toarray() if sp.issparse(A) else A, float)
 
 
 class TimeSeriesMixin:
@@ -111,7 +108,7 @@ class TimeSeriesMixin:
         n2 = 2 * nk
         A = np.block([[np.zeros((nk, nk)), np.eye(nk)], [-np.diag(lk), -mm.Ckk]])
         nu = len(self.inputs)
-        Ball = _dense(so.B)
+        Ball = dense(so.B, float)
         Bu = np.vstack([np.zeros((nk, nu)), pk.T @ Ball[:, :nu]])
         Bw = np.vstack([np.zeros((nk, r)), pk.T @ Ball[:, nu:]]) if r else np.zeros((n2, 1))
         h = dt / n_sub
@@ -133,7 +130,7 @@ class TimeSeriesMixin:
         Gw0 = G0 @ Bw - Gw1
         # outputs and element coordinates: y = Cq q + Cv q' + Ca q'' + D u with q = pk eta + Rt B u
         allouts = list(so.outputs)
-        Cq_, Cv_, Ca_, D_ = (_dense(mat) for mat in (so.Cq, so.Cv, so.Ca, so.D))
+        Cq_, Cv_, Ca_, D_ = (dense(mat, float) for mat in (so.Cq, so.Cv, so.Ca, so.D))
 
         def rows(names):
             idx = [allouts.index(n) for n in names]

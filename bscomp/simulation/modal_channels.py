@@ -39,6 +39,7 @@ import scipy.sparse as sp
 
 from bscomp.errors import BscompError
 from bscomp.kernel.dae import _sp
+from bscomp.linear.frf_engine import dense
 from bscomp.linear.linearization import explicit_form
 from bscomp.simulation.compiled import _Element, nonlinear_elements
 from bscomp.simulation.moving_joints import MovingJoint, find_moving_joints
@@ -49,9 +50,6 @@ __all__ = ["ModalSimulationError", "Channels", "LinearPart"]
 class ModalSimulationError(BscompError):
     """The model cannot be simulated by ``method="modal"``: what is unsupported and what to use instead."""
 
-
-def _dense(A):
-    return np.asarray(A.toarray() if sp.issparse(A) else A, float)
 
 
 class Channels:
@@ -104,7 +102,7 @@ class Channels:
         f = ca.Function("rows", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
                         [y, ca.jacobian(y, dae.xds), ca.jacobian(y, dae.xs), ca.jacobian(y, dae.zs),
                          ca.jacobian(y, dae.us)])
-        y0, Jxd, Jx, Jz, Ju = (_dense(np.asarray(ca.DM(v))) for v in
+        y0, Jxd, Jx, Jz, Ju = (dense(np.asarray(ca.DM(v)), float) for v in
                                f(np.zeros(dae.nx), self.x_a, self.z_a, np.zeros(dae.nu), self.p))
         self.el_rows = (y0.ravel(), Jxd, Jx, Jz, Ju)
         m = dae.mech
@@ -187,7 +185,7 @@ class LinearPart:
         self.n_el = len(ch.elements)
         self.joint_cols = []
         for j in ch.joints:
-            Gj = _dense(ch.Sbal @ j.P.T)
+            Gj = dense(ch.Sbal @ j.P.T, float)
             self.joint_cols.append((sum(c.shape[1] for c in cols), Gj.shape[1]))
             cols.append(Gj)
         self.G = np.hstack(cols) if cols else np.zeros((F.size, 0))

@@ -23,7 +23,8 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from bscomp.simulation.modal_channels import ModalSimulationError, _dense
+from bscomp.linear.frf_engine import dense
+from bscomp.simulation.modal_channels import ModalSimulationError
 
 __all__ = ["ModalPart"]
 
@@ -105,8 +106,8 @@ class ModalPart:
         Rt = (pt / lam[trunc]) @ pt.T if trunc.size else np.zeros_like(K)
         nk, ni, nx = keep.size, len(Ii), dae.nx
         # forces on the balance rows: inputs, channels, constant
-        Fb = np.hstack([_dense(lin.Ju[Rb]), lin.G[Rb], lin.F0[Rb][:, None]])
-        Fi = np.hstack([_dense(lin.Ju[Ri]), lin.G[Ri], lin.F0[Ri][:, None]]) if ni else np.zeros((0, Fb.shape[1]))
+        Fb = np.hstack([dense(lin.Ju[Rb], float), lin.G[Rb], lin.F0[Rb][:, None]])
+        Fi = np.hstack([dense(lin.Ju[Ri], float), lin.G[Ri], lin.F0[Ri][:, None]]) if ni else np.zeros((0, Fb.shape[1]))
         n = 2 * nk + ni
         Ared = np.zeros((n, n))
         Bred = np.zeros((n, Fb.shape[1]))
@@ -118,8 +119,8 @@ class ModalPart:
         if ni:
             Ared[nk:2 * nk, 2 * nk:] = -pk.T @ Kqi
             Jxd, Jx = lin.Jxd, lin.Jx
-            Eii = _dense(Jxd[Ri][:, Ii])
-            Aiq, Aiv, Aii = _dense(Jx[Ri][:, Iq]), _dense(Jx[Ri][:, Iv]), _dense(Jx[Ri][:, Ii])
+            Eii = dense(Jxd[Ri][:, Ii], float)
+            Aiq, Aiv, Aii = dense(Jx[Ri][:, Iq], float), dense(Jx[Ri][:, Iv], float), dense(Jx[Ri][:, Ii], float)
             Einv = np.linalg.inv(Eii)
             Ared[2 * nk:, :nk] = -Einv @ Aiq @ pk
             Ared[2 * nk:, nk:2 * nk] = -Einv @ Aiv @ pk
@@ -177,7 +178,7 @@ class ModalPart:
     def rows(self, Cxd, Cx, Cz, Cu, y0):
         """A linear function ``y = y0 + Cxd ẋ + Cx Δx + Cz Δz + Cu u`` as ``(Cξ, Du, Dg, yc)``:
         ``y = Re(Cξ ξ) + Du u + Dg g + yc``."""
-        Cxd, Cx, Cz, Cu = (_dense(A) for A in (Cxd, Cx, Cz, Cu))
+        Cxd, Cx, Cz, Cu = (dense(A, float) for A in (Cxd, Cx, Cz, Cu))
         Vr, Vrd = self.rate_rows()
         CdR, CdD = Cxd @ Vr, Cxd @ Vrd
         Cxi = Cx @ self.Vx + CdR + CdD * self.lam[None, :]
@@ -213,9 +214,9 @@ def _mechanical_blocks(lin):
     if Ii.size != Ri.size:
         return None
     Jxd, Jx = sp.csr_matrix(lin.Jxd), sp.csr_matrix(lin.Jx)
-    M = _dense(Jxd[Rb][:, Iv])
-    K = _dense(Jx[Rb][:, Iq])
-    C = _dense(Jx[Rb][:, Iv])
+    M = dense(Jxd[Rb][:, Iv], float)
+    K = dense(Jx[Rb][:, Iq], float)
+    C = dense(Jx[Rb][:, Iv], float)
     if Ii.size:
         if abs(Jxd[Rb][:, Ii]).sum() or abs(Jxd[Ri][:, Iv]).sum():
             return None                       # rates of internal states in the balances, or accelerations fed back
@@ -225,7 +226,7 @@ def _mechanical_blocks(lin):
     sym = max(np.abs(K - K.T).max(), np.abs(M - M.T).max())
     if sym > 1e-9 * max(np.abs(K).max(), 1e-300):
         return None
-    Kqi = _dense(Jx[Rb][:, Ii]) if Ii.size else np.zeros((nr, 0))
+    Kqi = dense(Jx[Rb][:, Ii], float) if Ii.size else np.zeros((nr, 0))
     return M, C, 0.5 * (K + K.T), Kqi, Rb, Ri, Iq, Iv, Ii
 
 
