@@ -256,18 +256,18 @@ class Template:
         """Affine constraints ``A(p) q + b(p) = 0`` as a Function of the parameters (numeric coefficients
         are evaluated per instance). Returns the local potentials they involve."""
         cexprs, self.cons_solve_for = [], []
+        q_index = {qq.element_hash(): i for i, qq in enumerate(q)}   # q are distinct scalar symbols
         for cexpr in cons:
             solve_for = None
             if isinstance(cexpr, Constraint):
                 solve_for, cexpr = cexpr.solve_for, cexpr.expr
             cexpr = ca.SX(cexpr)
+            sf = None
+            if solve_for is not None:
+                sfx = ca.SX(solve_for)
+                sf = q_index.get(sfx.element_hash()) if sfx.is_scalar() and sfx.is_symbolic() else None
             for j in range(cexpr.numel()):
                 cexprs.append(cexpr[j])
-                sf = None
-                if solve_for is not None:
-                    for i, qq in enumerate(q):
-                        if ca.is_equal(qq, ca.SX(solve_for)):
-                            sf = i
                 self.cons_solve_for.append(sf)
         self.n_cons = len(cexprs)
         con_q = set()
