@@ -24,21 +24,26 @@ class TimeSeriesMixin:
     """The time-series methods of CompiledModel (needs ``elements``, ``inputs``, ``outputs``, ``y_op``,
     ``modal``, ``_split``, ``law_values``, ``_n_plaw``, ``_steps``, ``_runs``, ``stats``)."""
 
-    def _step_function(self, n2, nu, ny, n_sub, n_newton):
-        """One sample (``n_sub`` sub-steps) as an MX Function of the state and the discretised matrices."""
-        key = (n2, nu, ny, n_sub, n_newton)
+    def _step_function(self, n2, nu, ny, n_sub, n_newton, blocks=None):
+        """One sample (``n_sub`` sub-steps) as an MX Function of the state and the discretised matrices.
+
+        ``blocks``: the diagonal block sizes of the transition matrix in the real modal form
+        (:func:`real_modal_form`; ``None``: dense), so that the state update costs ``O(n2)``, not ``O(n2^2)``.
+        """
+        key = (n2, nu, ny, n_sub, n_newton, blocks)
         if key in self._steps:
             return self._steps[key]
         r = len(self.elements)
         X = ca.MX.sym("x", n2 + r)
         up, uc = ca.MX.sym("up", nu), ca.MX.sym("uc", nu)
-        Ad = ca.MX.sym("Ad", n2, n2)
+        Ad = ca.MX.sym("Ad", n2, n2) if blocks is None else ca.MX.sym("Ad", _block_sparsity(blocks))
         Ga = [ca.MX.sym(f"Ga{j}", n2, nu) for j in range(n_sub)]
         Gb = [ca.MX.sym(f"Gb{j}", n2, nu) for j in range(n_sub)]
         Wend = ca.MX.sym("wend", 2, n_sub)            # weights of (up, uc) in the input at each sub-step's end
         Gw0, Gw1 = ca.MX.sym("Gw0", n2, max(r, 1)), ca.MX.sym("Gw1", n2, max(r, 1))
         Cs, Cv = ca.MX.sym("Cs", max(r, 1), n2), ca.MX.sym("Cv", max(r, 1), n2)
-        Dsu, Dsw = ca.MX.sym("Dsu", max(r, 1), nu), ca.MX.sym("Dsw", max(r, 1), max(r, 1))
+        Dsu = ca.MX.sym("Dsu", max(r, 1), nu)
+        Gs, Gv = ca.MX.sym("Gs", max(r, 1), max(r, 1)), ca.MX.sym("Gv", max(r, 1), max(r, 1))
         Cy, Dyu, Dyw = ca.MX.sym("Cy", ny, n2), ca.MX.sym("Dyu", ny, nu), ca.MX.sym("Dyw", ny, max(r, 1))
         plaw = ca.MX.sym("plaw", self._n_plaw())
         x, w = X[:n2], X[n2:]
@@ -51,8 +56,6 @@ class TimeSeriesMixin:
                 xp = xp + ca.mtimes(Gw0, w)
                 a_s = ca.mtimes(Cs, xp) + ca.mtimes(Dsu, ue)
                 a_v = ca.mtimes(Cv, xp)
-                Gs = ca.mtimes(Cs, Gw1) + Dsw
-                Gv = ca.mtimes(Cv, Gw1)
                 w, res = newton(a_s, a_v, Gs, Gv, w, plaw)
                 bad = ca.fmax(bad, res)
                 x = xp + ca.mtimes(Gw1, w)
@@ -62,7 +65,7 @@ class TimeSeriesMixin:
         if r:
             y = y + ca.mtimes(Dyw, w)
         Xn = ca.vertcat(x, w) if r else x
-        f = ca.Function("sample", [X, up, uc, Ad, *Ga, *Gb, Wend, Gw0, Gw1, Cs, Cv, Dsu, Dsw, Cy, Dyu, Dyw, plaw],
+        f = ca.Function("sample", [X, up, uc, Ad, *Ga, *Gb, Wend, Gw0, Gw1, Cs, Cv, Dsu, Gs, Gv, Cy, Dyu, Dyw, plaw],
                         [Xn, y, bad]).expand()   # SX: ~2x faster per sample than the MX virtual machine
         self._steps[key] = f
         return f
@@ -111,6 +114,12 @@ class TimeSeriesMixin:
         Ball = dense(so.B, float)
         Bu = np.vstack([np.zeros((nk, nu)), pk.T @ Ball[:, :nu]])
         Bw = np.vstack([np.zeros((nk, r)), pk.T @ Ball[:, nu:]]) if r else np.zeros((n2, 1))
+        # the state in the real modal form z = T^-1 x (exact similarity; dense A when ill-conditioned)
+        form = real_modal_form(A, lk)
+        blocks = None
+        if form is not None:
+            T, J, Tinv, blocks = form
+            A, Bu, Bw = J, Tinv @ Bu, Tinv @ Bw
         h = dt / n_sub
         Phi, G0, G2 = _discretize(A, h)
         Gu = G0 @ Bu
@@ -137,6 +146,8 @@ class TimeSeriesMixin:
             Cq, Cv, Ca, D = Cq_[idx], Cv_[idx], Ca_[idx], D_[idx]
             CaP = Ca @ pk
             Cx = np.hstack([Cq @ pk - CaP * lk[None, :], Cv @ pk - CaP @ mm.Ckk])
+            if form is not None:
+                Cx = Cx @ T
             Dall = CaP @ (pk.T @ Ball) + Cq @ (mm.Rt @ Ball) + D
             return Cx, Dall[:, :nu], Dall[:, nu:]
 
@@ -147,7 +158,10 @@ class TimeSeriesMixin:
         else:
             Cs = Cvn = np.zeros((1, n2))
             Dsu, Dsw, Dyw = np.zeros((1, nu)), np.zeros((1, 1)), np.zeros((len(outputs), 1))
-        return n2, Phi, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Dsw, Cy, Dyu, Dyw
+        # the elements' sensitivity to their own forces within a sub-step (constant over the run)
+        Gs, Gv = Cs @ Gw1 + Dsw, Cvn @ Gw1
+        Ad = Phi if blocks is None else ca.DM(_block_sparsity(blocks), Phi.T[_block_mask(blocks).T].tolist())
+        return n2, blocks, Phi, Ad, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs, Gv, Cy, Dyu, Dyw
 
     def simulate(self, params, t, inputs: dict, outputs=None, extra_damping: float = 0.0, delay: float = 0.0,
                  n_sub: int | None = None, n_newton: int = 8, mm=None):
@@ -177,10 +191,10 @@ class TimeSeriesMixin:
         cache = mm.__dict__.setdefault("_discrete", {})
         if key not in cache:   # a change of an element's law parameter only re-runs the integration
             cache[key] = self._discrete(mm, dt, n_sub, alpha, outputs)
-        n2, Phi, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Dsw, Cy, Dyu, Dyw = cache[key]
+        n2, blocks, Phi, Ad, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs, Gv, Cy, Dyu, Dyw = cache[key]
         nu = len(self.inputs)
         plaw = self.law_values(law)
-        f = self._step_function(n2, nu, len(outputs), n_sub, n_newton)
+        f = self._step_function(n2, nu, len(outputs), n_sub, n_newton, blocks)
         if not r:
             Y = _linear_run(Phi, Ga, Gb, Cy, Dyu, up_seq, uc_seq, n_sub)
             bad = 0.0
@@ -190,8 +204,8 @@ class TimeSeriesMixin:
                 self._runs[mkey] = f.mapaccum("run", nt - 1, [0], [0])
             F = self._runs[mkey]
             X0 = np.zeros(n2 + r)
-            Xs, Y, bad = F(X0, up_seq[:, :nt - 1], uc_seq[:, :nt - 1], Phi, *Ga, *Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Dsw,
-                           Cy, Dyu, Dyw, plaw)
+            Xs, Y, bad = F(X0, up_seq[:, :nt - 1], uc_seq[:, :nt - 1], Ad, *Ga, *Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs,
+                           Gv, Cy, Dyu, Dyw, plaw)
             Y = np.asarray(Y)
             bad = float(np.max(np.asarray(bad))) if nt > 1 else 0.0
         y0 = (Dyu @ uc_seq[:, 0])[:, None]
@@ -200,6 +214,65 @@ class TimeSeriesMixin:
         Y = Y + yop[:, None]
         self.stats["last_newton_residual"] = bad
         return {o: Y[i] for i, o in enumerate(outputs)}
+
+
+def real_modal_form(A, lk, max_cond: float = 1e6, tol: float = 1e-10):
+    """``(T, J, T^-1, blocks)`` with ``A = T J T^-1`` and ``J`` real block-diagonal: a 2x2 block
+    ``[[s, w], [-w, s]]`` per complex pair ``s +- jw`` (an underdamped mode) and a 1x1 block per real
+    eigenvalue, or ``None`` when the eigenvector basis is ill-conditioned (``cond > max_cond``: a nearly
+    defective pair such as an undamped rigid-body mode) or does not reproduce ``A`` to ``tol``.
+
+    ``A = [[0, I], [-diag(lk), -Ckk]]`` is the modal first-order matrix; its rows are scaled by the modal
+    frequencies before the eigen-decomposition (displacements and velocities of one size), so the basis
+    stays well conditioned up to the highest kept mode.
+    """
+    n = lk.size
+    om = np.sqrt(np.maximum(lk, 0.0))
+    S = np.r_[np.where(om > 1.0, om, 1.0), np.ones(n)]
+    w, V = np.linalg.eig((S[:, None] * A) / S[None, :])
+    cols, blocks, Jb = [], [], []
+    pending = list(np.argsort(np.abs(w), kind="stable"))
+    while pending:
+        i = pending.pop(0)
+        if abs(w[i].imag) <= 1e-12 * max(1.0, abs(w[i])):
+            cols.append(V[:, i].real)
+            blocks.append(1)
+            Jb.append(np.array([[w[i].real]]))
+            continue
+        j = min(pending, key=lambda k: abs(w[k] - np.conj(w[i])), default=None)
+        if j is None or abs(w[j] - np.conj(w[i])) > 1e-8 * abs(w[i]):
+            return None
+        pending.remove(j)
+        k = i if w[i].imag > 0 else j
+        cols += [V[:, k].real, V[:, k].imag]
+        blocks.append(2)
+        Jb.append(np.array([[w[k].real, w[k].imag], [-w[k].imag, w[k].real]]))
+    Ts = np.column_stack(cols)
+    if not np.all(np.isfinite(Ts)) or np.linalg.cond(Ts) > max_cond:
+        return None
+    J = sla.block_diag(*Jb)
+    T = Ts / S[:, None]
+    Tinv = np.linalg.solve(Ts, np.diag(S))
+    if np.max(np.abs(T @ J @ Tinv - A)) > tol * np.max(np.abs(A)):
+        return None
+    return T, J, Tinv, tuple(blocks)
+
+
+def _block_mask(blocks) -> np.ndarray:
+    """Boolean mask of a block-diagonal matrix with the given block sizes."""
+    n = int(sum(blocks))
+    mask = np.zeros((n, n), bool)
+    i = 0
+    for b in blocks:
+        mask[i:i + b, i:i + b] = True
+        i += b
+    return mask
+
+
+def _block_sparsity(blocks) -> ca.Sparsity:
+    """CasADi sparsity of :func:`_block_mask` (column-major nonzeros, as ``DM(sp, values)`` expects)."""
+    rows, cols = np.nonzero(_block_mask(blocks).T)     # transposed: column-major order
+    return ca.Sparsity.triplet(int(sum(blocks)), int(sum(blocks)), cols.tolist(), rows.tolist())
 
 
 def _discretize(A, h):
