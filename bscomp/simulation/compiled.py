@@ -186,6 +186,7 @@ class CompiledModel(TimeSeriesMixin):
         self.y_op = np.asarray(yf(xd0, x0, z0, np.zeros(dae.nu), dae.p0)).ravel()
         self._sens = {}
         self._reflatten = set()
+        self._lin_sens = {}          # non-structural parameter -> (v0, dM, dK, dC) or None (not affine)
         for name in free:
             self.prepare(name)
         self._steps = {}
@@ -309,7 +310,7 @@ class CompiledModel(TimeSeriesMixin):
                 self.prepare(k)
                 struct[k] = float(v)
             elif k in self.dae.p_names:
-                lin[k] = float(v)
+                self._to_lin_or_struct(k, float(v), lin, struct)
             else:
                 raise UnknownNameError(f"'{k}' is not a parameter of '{self.dae.name}' or of its nonlinear elements")
         # small-signal equivalents follow their element's parameters (e.g. backlash contact stiffness)
@@ -320,8 +321,49 @@ class CompiledModel(TimeSeriesMixin):
                 for n, v in el.lin_values({**el.values, **mine}).items():
                     key = f"{leaf}__lin.{n}"
                     if key in self.dae.p_names:
-                        lin[key] = v
+                        self._to_lin_or_struct(key, float(v), lin, struct)
         return lin, law, struct
+
+    def _to_lin_or_struct(self, name, v, lin, struct):
+        """File a non-structural parameter of the linear part: dropped at its flattening value, applied as
+        an exact affine update of M, K, C (like a structural one) where the model is affine in it, else
+        re-linearized (``lin``)."""
+        v0 = float(self.dae.p0[self.dae.p_names.index(name)])
+        if v == v0:
+            return
+        sens = self._linear_sensitivity(name, v0)
+        if sens is None:
+            lin[name] = v
+        else:
+            self._sens[name] = sens
+            struct[name] = v
+
+    def _linear_sensitivity(self, name, v0):
+        """``(v0, dM, dK, dC)`` of a non-structural parameter from two linearizations at ``v0 (1 +- 0.1)``
+        when M, K and C are affine in it and the input/output matrices do not move; ``None`` otherwise
+        (cached per parameter). A spring's stiffness, a damper's coefficient: exact, and a fit's evaluation
+        then costs no linearization."""
+        if name in self._lin_sens:
+            return self._lin_sens[name]
+        out = None
+        if v0 != 0.0 and np.isfinite(v0):
+            so1, so2 = (second_order(self.dae, refresh_damping=False, params={name: v0 * f}, **self._so_args)
+                        for f in (1.1, 0.9))
+            so0 = self.so0
+            affine = so1.coordinates == so0.coordinates == so2.coordinates
+            for attr in ("M", "K", "C"):
+                A0, A1, A2 = (sp.csr_matrix(getattr(x, attr)) for x in (so0, so1, so2))
+                mid = sp.csr_matrix(0.5 * (A1 + A2) - A0)
+                affine &= not (mid.nnz and abs(mid).max() > 1e-9 * max(abs(A0).max(), 1e-300))
+            for attr in ("B", "Cq", "Cv", "Ca", "D"):
+                for x in (so1, so2):
+                    diff = sp.csr_matrix(getattr(x, attr) - getattr(so0, attr))
+                    affine &= not (diff.nnz and abs(diff).max() > 1e-12 * max(abs(getattr(so0, attr)).max(), 1e-300))
+            if affine:
+                dv = 0.2 * v0
+                out = (v0, *(sp.csr_matrix((getattr(so1, a) - getattr(so2, a)) / dv) for a in ("M", "K", "C")))
+        self._lin_sens[name] = out
+        return out
 
     def _n_plaw(self):
         return max(sum(len(el.pnames) + 3 for el in self.elements), 1)
