@@ -81,8 +81,11 @@ def residual_blocks(model_out, data, sigmas):
                                                 zip(sigmas[0::2], sigmas[1::2])):
             blocks += [w * e_mag / s_m, w * e_ph / s_p]
         return blocks
-    return [(np.asarray(y, float) - np.asarray(model_out[n], float)) / s
-            for (n, y), s in zip(data.outputs.items(), sigmas)]
+    out = []
+    for (n, y), s in zip(data.outputs.items(), sigmas):
+        m = np.asarray(model_out[n], float)
+        out.append((np.asarray(y, float)[:m.size] - m) / s)     # a model run over a prefix: that prefix
+    return out
 
 
 def _split_point(data, min_events: int = 2):
@@ -144,15 +147,17 @@ class Evaluator:
                 self.split.append(None)
         self.n_evaluations = 0
 
-    def outputs(self, overrides: dict, hooks: dict | None = None, only_frf: bool = False) -> list:
+    def outputs(self, overrides: dict, hooks: dict | None = None, only_frf: bool = False,
+                fitted_only: bool = False) -> list:
         """Model outputs per dataset: ``{(input, output): H}`` or ``{name: y}`` (None for time series
-        when ``only_frf``)."""
+        when ``only_frf``; with ``fitted_only`` a split time series is simulated over its fitted first
+        half only -- the integration is causal, so those samples equal the whole run's)."""
         hooks = hooks or {}
         delay = float(hooks.get("input_delay", 0.0))
         zeta = float(hooks.get("extra_modal_damping", 0.0))
         out = []
         modal = {}
-        for d, key in zip(self.datasets, self.keys):
+        for i, (d, key) in enumerate(zip(self.datasets, self.keys)):
             cm = self.models[key]
             mine = {k: v for k, v in overrides.items() if cm.has_parameter(k)}
             if key not in modal:
@@ -163,15 +168,18 @@ class Evaluator:
             elif only_frf:
                 out.append(None)
             else:
-                out.append(cm.simulate(mine, d.t, dict(d.inputs), outputs=list(d.outputs), delay=delay, mm=mm,
+                n = self.split[i] if fitted_only and self.split[i] else d.t.size
+                inputs = {k: np.asarray(v, float)[:n] for k, v in d.inputs.items()}
+                out.append(cm.simulate(mine, d.t[:n], inputs, outputs=list(d.outputs), delay=delay, mm=mm,
                                        n_sub=self.n_sub if cm.elements else 1))
         self.n_evaluations += 1
         return out
 
-    def blocks(self, overrides, hooks, sigmas, only_frf: bool = False) -> list:
-        """Whitened residual blocks per dataset (a list of lists of arrays; empty for skipped series)."""
+    def blocks(self, overrides, hooks, sigmas, only_frf: bool = False, fitted_only: bool = False) -> list:
+        """Whitened residual blocks per dataset (a list of lists of arrays; empty for skipped series;
+        ``fitted_only``: a split time series' blocks cover its fitted half only)."""
         return [[] if y is None else residual_blocks(y, d, s)
-                for y, d, s in zip(self.outputs(overrides, hooks, only_frf), self.datasets, sigmas)]
+                for y, d, s in zip(self.outputs(overrides, hooks, only_frf, fitted_only), self.datasets, sigmas)]
 
 
 # ---- a fit problem: free parameters (log space) mapped to overrides -------------------------------------
@@ -221,10 +229,11 @@ class Problem:
         return ov, hooks
 
     def all_blocks(self, theta):
+        """Residual blocks of what the fit sees: the FRFs and the fitted halves of the time series."""
         ov, hooks = self.overrides(theta)
         if self.only_frf:
             return self.ev.blocks(ov, hooks, self.sigmas, only_frf=True)
-        return self.ev.blocks(ov, hooks, self.sigmas)
+        return self.ev.blocks(ov, hooks, self.sigmas, fitted_only=True)
 
     def fit_vector(self, blocks):
         parts = []

@@ -26,9 +26,7 @@ _cache = {}
 CASES = [
     ("joint", {"table_mode"}, 0.80),
     ("friction", {"guideway_friction"}, 0.80),
-    pytest.param("backlash", {"backlash"}, 0.50, marks=pytest.mark.xfail(
-        strict=True, reason="compliant_backlash named first and accepted (error -99 %), but b +16 %: its "
-                            "parabolic corners are not the truth's softplus ones; see docs/validation.md, Results")),
+    ("backlash", {"backlash"}, 0.50),
     ("delay", {"delay"}, 0.80),
     # joint + friction: the same diagnose call as `bscomp demo`; its assertions (groups, named first, values,
     # error drop, evidence) run in tests/bscomp/test_cli.py::test_demo_tells_the_story_on_the_fe_test_bed

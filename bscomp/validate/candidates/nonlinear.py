@@ -110,6 +110,11 @@ class ScrewNutBacklash(Candidate):
         self.contact_stiffness = float(contact_stiffness)
         self.contact_damping = float(contact_damping)
         self.eps_fraction = float(eps_fraction)
+        self.corner = "parabolic"
+
+    def _shape(self) -> dict:
+        """Constructor arguments of the clearance beyond its parameters (the corner shape)."""
+        return {} if self.corner == "parabolic" else {"corner": self.corner}
 
     def _gap(self, b):
         return {"b": b, "s_rel0": -b / 2, "eps": self.eps_fraction * b}
@@ -123,11 +128,12 @@ class ScrewNutBacklash(Candidate):
             springs = [n for n in inner if type(e.s.component(n)) is Spring]
             if springs:   # a dead zone on the joint already there
                 name = springs[0]
-                e.replace(name, Backlash, c=float(e.s.get(f"{name}.c")), d=0.0, **self._gap(b0))
+                e.replace(name, Backlash, c=float(e.s.get(f"{name}.c")), d=0.0, **self._gap(b0), **self._shape())
                 return {"element": name}
             c = float(e.s.get(point.parameters[0])) if point.parameters else self.contact_stiffness
             name = e.unique("sn_backlash")
-            insert_series(e, name, Backlash, {"c": c, "d": self.contact_damping, **self._gap(b0)}, a, b)
+            insert_series(e, name, Backlash, {"c": c, "d": self.contact_damping, **self._gap(b0), **self._shape()},
+                          a, b)
             body = f"{b.split('.')[0]}.s"
             detached = e.s.damping is not None and hasattr(e.s.damping, "modal_ratios") and \
                 type(e.s.component(b.split(".")[0])).__name__ == "Mass"
@@ -137,7 +143,7 @@ class ScrewNutBacklash(Candidate):
         name = ports[0]
         c = float(e.s.get(f"{name}.c"))
         d = float(e.s.get(f"{ports[1]}.d")) if len(ports) > 1 else 0.0
-        e.replace(name, Backlash, c=c, d=d, **self._gap(b0))
+        e.replace(name, Backlash, c=c, d=d, **self._gap(b0), **self._shape())
         if len(ports) > 1:
             e.remove(ports[1])
         return {"element": name}
@@ -164,10 +170,12 @@ class CompliantBacklash(ScrewNutBacklash):
 
     Two more free parameters describe what a real clearance does that a sharp dead zone does not:
 
-    * ``w``, the **corner width** as a fraction of ``b`` (the dead zone's ``eps = w b``, parabolic
-      corners): the balls of a worn nut do not all take load at the same axial deflection (ball-size
-      scatter, lead errors, Hertzian contact stiffening with load), so the contact stiffness comes in
-      over a travel of some fraction of the gap. Prior: log-normal, median 0.25, bounds 0.01..1 (1:
+    * ``w``, the **corner width** as a fraction of ``b`` (the dead zone's ``eps = w b``, Gaussian
+      corners, ``Backlash(corner="gaussian")``): the balls of a worn nut do not all take load at the same
+      axial deflection (ball-size scatter, lead errors, Hertzian contact stiffening with load), so the
+      contact stiffness comes in over a travel of some fraction of the gap; with the balls' gaps scattered
+      normally the mean contact is a Gaussian-smoothed ramp, with tails on both sides (a uniform scatter
+      would give the compact parabolic corner). Prior: log-normal, median 0.25, bounds 0.01..1 (1:
       no flat part left), sigma_log 1 -- from sharp (a new nut) to fully progressive.
     * ``x0``, **where the nut sits in the gap at t = 0**: ``s_rel0 = (1 - x0) b / 2``, so ``x0 = 1`` is the
       centre, ``x0 -> 0`` / ``x0 -> 2`` the two flanks. A record starting from rest says nothing about which
@@ -192,6 +200,7 @@ class CompliantBacklash(ScrewNutBacklash):
                                               "position in the gap at rest (1: centred, 0 and 2: the flanks)")]
         self.signature = ("as backlash, and the drive's axial mode lower than modelled (the contact is softer "
                           "than the rigid nut-table bolting)")
+        self.corner = "gaussian"
 
     def applicable(self, system):
         point = super().applicable(system)
