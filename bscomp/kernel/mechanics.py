@@ -106,8 +106,11 @@ class SecondOrderBlocks:
     G: Any
 
 
-def second_order_blocks(dae: Dae, jacobians, uidx) -> SecondOrderBlocks:
+def second_order_blocks(dae: Dae, jacobians, uidx, internal_rows=None) -> SecondOrderBlocks:
     """The second-order blocks from the Jacobians of F (:func:`sparse_jacobians`) for inputs ``uidx``.
+
+    ``internal_rows``: the rows of the internal algebraic equations (default: every row after the
+    inertial and balance rows; :func:`start_matrices` passes them without the internal states' ODEs).
 
     Raises
     ------
@@ -132,7 +135,7 @@ def second_order_blocks(dae: Dae, jacobians, uidx) -> SecondOrderBlocks:
     Sw = sp.csr_matrix((np.ones(len(zint)), (zint, np.arange(len(zint)))), shape=(nz, len(zint)))
     ni = len(m.inertial)
     rows_R = m.balance_rows
-    rows_G = list(range(ni + nr, Jx.shape[0]))
+    rows_G = list(range(ni + nr, Jx.shape[0])) if internal_rows is None else list(internal_rows)
 
     def blocks(rows):
         Jxd_r, Jx_r, Jz_r = Jxd[rows], Jx[rows], Jz[rows]
@@ -162,8 +165,27 @@ def second_order_blocks(dae: Dae, jacobians, uidx) -> SecondOrderBlocks:
 
 
 def start_matrices(dae: Dae):
-    """``(M, K)`` (csr) of the mechanical part linearized at the start point with zero inputs."""
-    require_second_order(dae)
+    """``(M, K)`` (csr) of the mechanical part linearized at the start point with zero inputs.
+
+    Internal differential states (a Pade delay, a controller's integrator) are held at their start
+    values: they act on the mechanics as inputs do, so M and K -- what a system damping option needs --
+    are those of the structure alone.
+    """
     op = operating_point(dae)
-    b = second_order_blocks(dae, sparse_jacobians(dae, op), [])
+    jac = sparse_jacobians(dae, op)
+    rows = None
+    m = dae.mech
+    if m.has_internal_states:
+        first = 2 * len(m.inertial) + len(m.damped)           # x = [q_i, q_i', q_d, internal states]
+        own = sp.csr_matrix(jac[0][:, first:])                # rows holding an internal state's derivative
+        rows = [r for r in range(len(m.inertial) + len(m.coordinate_names), own.shape[0]) if own[r].nnz == 0]
+        zint = [i for i in range(dae.nz) if i not in set(m.q_in_z.values())]
+        if len(rows) != len(zint):
+            require_second_order(dae)
+    try:
+        b = second_order_blocks(dae, jac, [], internal_rows=rows)
+    except (SingularSystemError, ValueError, RuntimeError):
+        if rows is None:
+            raise
+        require_second_order(dae)                             # not separable: the NotLinearError
     return sp.csr_matrix(b.M), sp.csr_matrix(b.K)
