@@ -21,6 +21,8 @@ __all__ = [
     "OutputFileError",
     "UsageError",
     "ArgumentTypeError",
+    "ParameterFileError",
+    "MissingParameterFileError",
     "ModelLimitationWarning",
     "check_number",
     "FmuExportError",
@@ -112,6 +114,16 @@ class UsageError(BscompError, ValueError):
 
 class ArgumentTypeError(UsageError, TypeError):
     """A function argument has the wrong type (a ``TypeError`` too, for Python callers that catch that)."""
+
+
+class ParameterFileError(BscompError, ValueError):
+    """A parameter file (TOML) is missing, unreadable or malformed; names the file and the dotted key.
+
+    A missing file is also a ``FileNotFoundError`` (:class:`MissingParameterFileError`)."""
+
+
+class MissingParameterFileError(ParameterFileError, FileNotFoundError):
+    """The parameter file does not exist (a ``FileNotFoundError`` too, for callers that catch that)."""
 
 
 class ModelLimitationWarning(UserWarning):

@@ -35,6 +35,18 @@ def _finite(path, x, rows, col, name, what):
     return x
 
 
+def _nonzero(path, h, f, rows, col, name, pname):
+    """A response of exactly 0 (or one that underflows to 0 in SI) is no measurement: -inf dB, no phase; peak
+    picking would read the dip beside it as a resonance."""
+    zero = np.flatnonzero(h == 0)
+    if zero.size:
+        k = int(zero[0])
+        every = " at every frequency: the pair carries no signal" if zero.size == h.size else \
+            f" at f = {f[k]:.6g} Hz ({zero.size} row(s))"
+        raise MeasurementFileError(path, rows.line(k), col, f"response {pname} is exactly 0{every}; a zero magnitude "
+                                   "is not a measured value (-inf dB): drop the row(s), or the pair's columns", name)
+
+
 def _increasing(path, x, rows, col, name, what):
     d = np.diff(x)
     bad = np.flatnonzero(d <= 0)
@@ -150,6 +162,7 @@ def _frf_from(path, meta, header, hl, rows):
         _check_frf_unit(pname, out, inp, u, meta, w)
         with np.errstate(over="ignore", invalid="ignore"):
             H[(inp, out)] = _finite(path, h * u.scale, rows, first, header[first - 1], f"response {pname}")
+        _nonzero(path, H[(inp, out)], f, rows, first, header[first - 1], pname)
         units[(inp, out)] = u.si
     extra = [n for n in meta.units if "/" in n and n not in {f"{o}/{i}" for i, o in H}]
     if extra:

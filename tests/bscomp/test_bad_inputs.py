@@ -23,6 +23,7 @@ from bscomp.errors import (
     OutputFileError,
     OverdeterminedError,
     ParameterError,
+    ParameterFileError,
     PortConnectionError,
     UnconnectedPortError,
     UnderdeterminedError,
@@ -34,6 +35,7 @@ from bscomp.model import as_dae, as_system
 from bscomp.optimal import Ocp
 from bscomp.optimal.problem import OcpError
 from bscomp.systems import small_drive
+from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.validate import MeasurementFileError, load
 
 T = np.linspace(0.0, 0.01, 11)
@@ -108,6 +110,7 @@ def _measurement(tmp, name, text, encoding="utf-8"):
 
 
 PAIR = "f,re(table.s/motor.tau),im(table.s/motor.tau)"
+UNIT = "# unit table.s/motor.tau: m/(N.m)\n"
 
 CASES = [
     # ---- components and parameters -------------------------------------------------------------------
@@ -121,6 +124,19 @@ CASES = [
     ("mass_unknown_keyword", lambda tmp: Mass(mass=1.0), UnknownNameError, r"Mass has no parameter.*'mass'"),
     ("spring_zero", lambda tmp: Spring(c=0.0), ParameterError, r"Spring\.c = 0\.0 N/m must be > 0"),
     ("inertia_negative", lambda tmp: Inertia(J=-1e-3), ParameterError, r"Inertia\.J = -0\.001"),
+    ("mass_list", lambda tmp: Mass(m=[1, 2]), ParameterError, r"Mass\.m \[kg\] takes one real number, got \[1, 2\]"),
+    ("mass_array", lambda tmp: Mass(m=np.array([3.0])), ParameterError, r"Mass\.m .*takes one real number"),
+    ("mass_complex", lambda tmp: Mass(m=1 + 2j), ParameterError, r"Mass\.m \[kg\] must be a number, got \(1\+2j\)"),
+    ("mass_numpy_complex", lambda tmp: Mass(m=np.complex128(2.0)), ParameterError, r"Mass\.m .*complex"),
+    ("mass_bytes", lambda tmp: Mass(m=b"3"), ParameterError, r"Mass\.m .*b'3'"),
+    ("mass_dict", lambda tmp: Mass(m={}), ParameterError, r"Mass\.m .*must be a number"),
+    ("mass_overflowing_text", lambda tmp: Mass(m="1e400"), ParameterError, r"Mass\.m \[kg\] is inf"),
+    ("spring_list", lambda tmp: Spring(c=(1e6, 2e6)), ParameterError, r"Spring\.c .*takes one real number"),
+    ("set_list", lambda tmp: sd().set("table.m", [1.0, 2.0]), ParameterError,
+     r"table\.m \(Mass\) \[kg\] takes one real number"),
+    ("set_complex", lambda tmp: sd().set("table.m", 250j), ParameterError, r"table\.m \(Mass\).*250j"),
+    ("set_negative_text", lambda tmp: sd().set("table.m", "-3 kg"), ParameterError, r"table\.m = -3\.0 kg"),
+    ("set_not_a_name", lambda tmp: sd().set(3, 1.0), ArgumentTypeError, r"system\.set\(\).*got int 3"),
     ("set_unknown_parameter", lambda tmp: sd().set("table.mm", 1.0), UnknownNameError, r"table.*no parameter 'mm'"),
     ("set_unknown_component", lambda tmp: sd().set("tabel.m", 1.0), UnknownNameError, r"no component 'tabel'"),
     ("set_nan", lambda tmp: sd().set("table.m", NAN), ParameterError, r"table\.m \[kg\] is nan"),
@@ -256,6 +272,40 @@ CASES = [
     ("measurement_nan_value", lambda tmp: load(_measurement(
         tmp, "n.csv", "# kind: time\n# input motor.tau: N m\n# output table.s: m\nt,motor.tau,table.s\n"
         "0,1,nan\n0.1,1,2\n")), MeasurementFileError, r"n\.csv, line 5, column 3 \('table\.s'\).*not finite"),
+    ("measurement_zero_response_row", lambda tmp: load(_measurement(
+        tmp, "z.csv", f"# kind: frf\n{UNIT}{PAIR}\n1,2,3\n2,0,0\n3,1,4\n")),
+     MeasurementFileError, r"z\.csv, line 5, column 2.*table\.s/motor\.tau is exactly 0 at f = 2 Hz"),
+    ("measurement_zero_response_everywhere", lambda tmp: load(_measurement(
+        tmp, "z0.csv", f"# kind: frf\n{UNIT}f,mag(table.s/motor.tau),phase_deg(table.s/motor.tau)\n1,0,0\n2,0,0\n")),
+     MeasurementFileError, r"z0\.csv, line 4.*exactly 0 at every frequency"),
+    ("measurement_mag_db_underflows", lambda tmp: load(_measurement(
+        tmp, "u0.csv", f"# kind: frf\n{UNIT}f,mag_db(table.s/motor.tau),phase_deg(table.s/motor.tau)\n"
+        "1,-20,0\n2,-9000,0\n")),
+     MeasurementFileError, r"u0\.csv, line 5.*exactly 0"),
+    # ---- parameter files (TOML) ------------------------------------------------------------------------
+    ("parameter_file_missing", lambda tmp: load_parameters(tmp / "none.toml"), ParameterFileError,
+     r"parameter file not found: .*none\.toml"),
+    ("parameter_file_directory", lambda tmp: load_parameters(str(tmp) + "/"), ParameterFileError,
+     r"is a directory"),
+    ("parameter_file_not_toml", lambda tmp: load_parameters(_measurement(tmp, "b.toml", "x = = 1\n")),
+     ParameterFileError, r"b\.toml: invalid TOML"),
+    ("parameter_file_latin1", lambda tmp: load_parameters(_measurement(
+        tmp, "l.toml", "[a]\nvalue = 1\nunit = 'm'\nsource = 'm\xe9sure'\n", "latin-1")), ParameterFileError,
+     r"l\.toml: not UTF-8"),
+    ("parameter_file_missing_source", lambda tmp: load_parameters(_measurement(
+        tmp, "s.toml", "[g.k]\nvalue = 1\nunit = 'N/m'\n")), ParameterFileError,
+     r"s\.toml: entry 'g\.k' lacks.*source"),
+    ("parameter_file_nan_value", lambda tmp: load_parameters(_measurement(
+        tmp, "n.toml", "[g.k]\nvalue = nan\nunit = 'N/m'\nsource = 'x'\n")), ParameterFileError,
+     r"n\.toml: entry 'g\.k' has the value nan"),
+    ("parameter_file_bool_value", lambda tmp: load_parameters(_measurement(
+        tmp, "t.toml", "[g.k]\nvalue = true\nunit = 'N/m'\nsource = 'x'\n")), ParameterFileError,
+     r"t\.toml: entry 'g\.k' has value True"),
+    ("parameter_file_bare_value", lambda tmp: load_parameters(_measurement(tmp, "v.toml", "[g]\nk = 1\n")),
+     ParameterFileError, r"v\.toml: key 'g\.k' is a bare value"),
+    ("parameter_file_not_a_name", lambda tmp: load_parameters(3), ParameterFileError, r"got int 3"),
+    ("parameter_entry_unknown", lambda tmp: get_value(load_parameters(), "screw.lenght"), UnknownNameError,
+     r"no parameter entry 'screw\.lenght'"),
     # ---- model resolution ------------------------------------------------------------------------------
     ("model_a_number", lambda tmp: as_system(42), UnknownNameError, r"cannot use int as a model"),
     ("model_none", lambda tmp: as_dae(None), UnknownNameError, r"cannot use NoneType as a model"),
