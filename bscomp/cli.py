@@ -430,14 +430,24 @@ def _describe(exc: BaseException) -> tuple[str, str, str, int]:
 def main(argv=None) -> int:
     """Run one command; every failure is one line (or a JSON object with ``--json``), see the module doc."""
     import json
+    import warnings
 
     argv = sys.argv[1:] if argv is None else list(argv)
     as_json, debug = "--json" in argv, "--debug" in argv
     verb = next((a for a in argv if not a.startswith("-")), "")
+
+    def one_line(message, category, filename, lineno, file=None, line=None):
+        """A warning as one line on stderr, like the errors (no source line)."""
+        print(f"bscomp{' ' + verb if verb else ''}: warning: {category.__name__}: {' '.join(str(message).split())}",
+              file=sys.stderr)
+
     try:
         args = _parser().parse_args(argv)
         verb = args.cmd
-        return args.func(args)
+        with warnings.catch_warnings():
+            if not debug:
+                warnings.showwarning = one_line
+            return args.func(args)
     except KeyboardInterrupt:
         print(f"bscomp {verb}: interrupted".replace("  ", " "), file=sys.stderr)
         return 130

@@ -27,7 +27,7 @@ from bscomp.errors import SingularSystemError, UnknownNameError, UsageError, che
 from bscomp.files import atomic_write
 from bscomp.kernel import Dae, System
 from bscomp.linear.frf_engine import dense
-from bscomp.linear.linearization import SecondOrderModel, second_order
+from bscomp.linear.linearization import SecondOrderModel, second_order, warn_linearized
 from bscomp.model import as_system
 from bscomp.plotting.base import mode_shape_plot
 
@@ -43,8 +43,8 @@ def _second_order(model, inputs=None, outputs=None, at=None, params=None):
 
     if isinstance(model, SecondOrderModel):
         if at or params:
-            raise TypeError("'at' and 'params' cannot be applied to a SecondOrderModel: pass the System "
-                            "or Dae")
+            raise UsageError("'at' and 'params' cannot be applied to a SecondOrderModel: pass the System "
+                             "or Dae")
         return model
     if not isinstance(model, (System, Dae)):         # a name, .py path, build function or ModelSpec
         return second_order(as_system(model, params), inputs=inputs, outputs=outputs, at=at)
@@ -441,6 +441,8 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
     if damping not in ("auto", "complex", "projection"):
         raise UsageError(f"damping must be 'auto', 'complex' or 'projection', got {damping!r}")
     so = _second_order(model, inputs, outputs, at, params)
+    warn_linearized(so.linearized, "modes", "its modes are those of small motions about that point; "
+                    "for the behaviour at a real amplitude simulate with bscomp.simulate(..., method='idas')")
     red = _condense(so)
     lam, phi, rigid, method = _undamped(red, n=n, fmax=fmax)
     omega = np.sqrt(lam)

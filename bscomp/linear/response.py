@@ -27,11 +27,11 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from bscomp.errors import NotLinearError, UnknownNameError, UsageError, check_number
+from bscomp.errors import ArgumentTypeError, NotLinearError, UnknownNameError, UsageError, check_number
 from bscomp.files import atomic_write
 from bscomp.kernel import Dae, System
 from bscomp.kernel.units import convention_units, parse_unit
-from bscomp.linear.linearization import SecondOrderModel, control_labels, linearize
+from bscomp.linear.linearization import SIMULATE_INSTEAD, SecondOrderModel, control_labels, linearize, warn_linearized
 from bscomp.linear.modal import _condense, _group_poles, _second_order, _undamped
 from bscomp.model import as_system
 from bscomp.plotting.base import bode_plot
@@ -238,9 +238,11 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
         if not isinstance(model, (System, Dae)):
             model, params = as_system(model, params), None
         lin = linearize(model, inputs=ins, outputs=outs, at=at, params=params)
+        warn_linearized(getattr(lin, "linearized", ()), "frf", SIMULATE_INSTEAD)
         return Frf(freqs=f, H=_statespace_frf(lin, f), inputs=[s.replace("/", ".") for s in lin.input_labels],
                    outputs=[s.replace("/", ".") for s in lin.output_labels], name=name,
                    notes=["from the linearized state space (no second-order form)"])
+    warn_linearized(so.linearized, "frf", SIMULATE_INSTEAD)
     if isinstance(model, SecondOrderModel):
         so = _restrict(so, ins, outs)
     return Frf(freqs=f, H=so.frf(f), inputs=list(so.inputs), outputs=list(so.outputs), name=name)
@@ -284,7 +286,7 @@ def _section_from_poles(lam, res):
     den = np.real(np.poly(lam))
     num = np.zeros(max(len(lam), 1), complex)
     for i in range(len(lam)):
-        others = np.poly(np.delete(lam, i))
+        others = np.atleast_1d(np.poly(np.delete(lam, i)))
         num[len(num) - len(others):] += res[i] * others
     return np.real(num), den
 
@@ -336,8 +338,10 @@ def transfer_function(model, input: str, output: str, modes=None, include_rigid:
 
 
     if not isinstance(input, str) or not isinstance(output, str):
-        raise TypeError("transfer_function is SISO: give one input name and one output name")
+        raise ArgumentTypeError(f"transfer_function is SISO: give one input name and one output name (str), got "
+                                f"input={input!r}, output={output!r}")
     so = _second_order(model, [input], [output], at, params)
+    warn_linearized(so.linearized, "transfer_function", SIMULATE_INSTEAD)
     so = _restrict(so, [input], [output]) if len(so.inputs) > 1 or len(so.outputs) > 1 else so
     red = _condense(so)
     lam, phi, rigid, _ = _undamped(red, fmax=fmax)

@@ -290,9 +290,9 @@ def peak_pick(freqs, H, pair=("", ""), min_prominence_db: float = 3.0, coherence
     :math:`\\zeta = (f_2 - f_1) / (2 f_r)` from the frequencies where :math:`|H|` falls to
     :math:`|H_r|/\\sqrt 2` (one-sided when only one half-power point is inside the data). Points with
     coherence below ``min_coherence`` and zero or non-finite :math:`|H|` are ignored. With ``refine`` and a
-    complex ``H``, these are the starting values of :func:`modal_fit` over a band of :math:`\\pm 3\\zeta` (8-35 %) around each peak,
-    fitted jointly with the other peaks in that band; the fitted pole gives ``f`` and ``zeta``, which
-    removes the bias of the raw peak on damped modes, velocity and acceleration FRFs and near
+    complex ``H``, these are the starting values of :func:`modal_fit` over a band of :math:`\\pm 3\\zeta`
+    (8-35 %) around each peak, fitted jointly with the other peaks in that band; the fitted pole gives ``f``
+    and ``zeta``, which removes the bias of the raw peak on damped modes, velocity and acceleration FRFs and near
     neighbouring modes or antiresonances. A peak whose fit fails keeps its raw values (``refined`` False).
 
     Returns
