@@ -97,6 +97,7 @@ class Ocp:
         self.rest_below_hz: float | None = None
         self.hold: dict[str, float] = {}
         self._terminal = None    # (rows over x, targets): linear final conditions (modal transcription)
+        self._terminal_names: list = []   # what each of those rows stands for (a final value by name)
         self._modal = None       # the ModalDae at the start state, built on demand (modal_dae)
         # MUMPS's default pivot tolerance (1e-6) gives inaccurate steps on the KKT systems of stiff
         # structures (stiffnesses of 1e8 N/m next to a free rigid-body mode): Ipopt then creeps for
@@ -299,6 +300,12 @@ class Ocp:
             return None
         return np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
+    def terminal_names(self, n: int) -> list:
+        """Names of the ``n`` rows of :meth:`terminal_rows` for messages: the final values a restated problem's
+        rows stand for, then the slow modes brought to equilibrium (``final(rest_below_hz=...)``)."""
+        names = list(self._terminal_names)[:n]
+        return names + [f"equilibrium row {k + 1} (rest_below_hz)" for k in range(n - len(names))]
+
     def _equilibrium_rows(self, lin):
         """Rows ``(R, t)``, ``R x_T = t``: the modes with ``|λ| < 2π rest_below_hz`` at their equilibrium under
         the held input (``e_k = 0`` in :func:`bscomp.optimal.coordinates.residual_rows`)."""
@@ -353,7 +360,7 @@ class Ocp:
                 raise OcpError(f"coordinates='modal': {exc}") from exc
         return self._modal
 
-    def restated(self, dae, terminal, warm=None) -> Ocp:
+    def restated(self, dae, terminal, warm=None, terminal_names=None) -> Ocp:
         """This problem on ``dae``, another set of coordinates of the same model (inputs, outputs and bounds
         keep their names; the modal transcription), its start at 0 and its final values replaced by linear
         rows ``terminal = (R, t)``, ``R x_T = t``; ``warm`` in the new coordinates."""
@@ -361,6 +368,7 @@ class Ocp:
         sub.dae, sub.coordinates, sub._modal = dae, "physical", None
         sub.x_init, sub.x_final, sub.final_rest = {}, {}, False
         sub._terminal, sub.warm = terminal, warm
+        sub._terminal_names = list(terminal_names or [])
         return sub
 
     # ---- guess and solve -----------------------------------------------------------------------
