@@ -25,6 +25,7 @@ __all__ = [
     "MissingParameterFileError",
     "ModelLimitationWarning",
     "check_number",
+    "check_mapping",
     "FmuExportError",
     "CompilerNotFoundError",
 ]
@@ -152,6 +153,20 @@ def check_number(name: str, value, *, positive: bool = False, nonnegative: bool 
     if minimum is not None and v < minimum:
         raise error(f"{name} must be >= {minimum}, got {value!r}")
     return v
+
+
+def check_mapping(name: str, value, what: str = "values") -> dict:
+    """``value`` as a dict ``{name: ...}`` (``None`` -> ``{}``), else :class:`ArgumentTypeError` naming the
+    argument; keys must be strings (dotted names)."""
+    if value is None:
+        return {}
+    if not hasattr(value, "items"):
+        raise ArgumentTypeError(f"{name} must be a dict of {what} by name, e.g. {{'table.s': 0.0}}, got "
+                                f"{type(value).__name__} {value!r}"[:300])
+    bad = [k for k in value if not isinstance(k, str)]
+    if bad:
+        raise ArgumentTypeError(f"{name}: keys must be names (str), got {bad[0]!r}")
+    return dict(value)
 
 
 class FmuExportError(BscompError):

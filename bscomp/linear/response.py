@@ -39,8 +39,13 @@ from bscomp.plotting.base import bode_plot
 __all__ = ["frf", "Frf", "transfer_function", "ModalSection"]
 
 
-def _names(x):
-    return [x] if isinstance(x, str) else (None if x is None else list(x))
+def _names(x, what="input"):
+    """One name or a list of names (``None``: all), else :class:`ArgumentTypeError` naming ``what``."""
+    if x is None or isinstance(x, str):
+        return None if x is None else [x]
+    if not isinstance(x, (list, tuple)) or not all(isinstance(n, str) for n in x):
+        raise ArgumentTypeError(f"{what} must be a name (str) or a list of names, got {type(x).__name__} {x!r}")
+    return list(x)
 
 
 @dataclass
@@ -230,7 +235,7 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
     """
 
     f = _freq_grid(freqs, fmin, fmax, n)
-    ins, outs = _names(input), _names(output)
+    ins, outs = _names(input, "input"), _names(output, "output")
     name = model if isinstance(model, str) else getattr(model, "name", "")
     try:
         so = _second_order(model, ins, outs, at, params)
@@ -340,6 +345,10 @@ def transfer_function(model, input: str, output: str, modes=None, include_rigid:
     if not isinstance(input, str) or not isinstance(output, str):
         raise ArgumentTypeError(f"transfer_function is SISO: give one input name and one output name (str), got "
                                 f"input={input!r}, output={output!r}")
+    if fmax is not None:
+        fmax = check_number("fmax", fmax, positive=True)
+    if isinstance(modes, (int, np.integer)) and not isinstance(modes, bool):
+        modes = check_number("modes", modes, integer=True, minimum=0)
     so = _second_order(model, [input], [output], at, params)
     warn_linearized(so.linearized, "transfer_function", SIMULATE_INSTEAD)
     so = _restrict(so, [input], [output]) if len(so.inputs) > 1 or len(so.outputs) > 1 else so

@@ -9,9 +9,11 @@ naming the file, the line and the column.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 
+from bscomp.errors import ArgumentTypeError
 from bscomp.kernel.units import UnitSyntaxError, convention_units, expected_dimension_ok, parse_unit
 from bscomp.linear.response import Frf
 from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData
@@ -326,4 +328,9 @@ def load(path):
 
 def load_all(paths) -> list:
     """:func:`load` each path (an FrfData/TimeData passes through)."""
+    if isinstance(paths, (str, Path, FrfData, TimeData)):
+        paths = [paths]
+    if not isinstance(paths, (list, tuple)):
+        raise ArgumentTypeError(f"measurements are a file path, an FrfData/TimeData or a list of them, got "
+                                f"{type(paths).__name__} {paths!r}"[:300])
     return [p if isinstance(p, (FrfData, TimeData)) else load(p) for p in paths]

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bscomp.errors import UnknownNameError
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
@@ -81,7 +82,8 @@ def build_for(system_or_build, conditions: dict | None = None, params: dict | No
                 f"{', '.join(sorted(accepted or ())) or 'none'}) nor a parameter ('component.parameter')", source)
         system = as_system(system_or_build, kept)
     else:
-        raise TypeError(f"expected a System, a build callable or a system name, got {type(system_or_build).__name__}")
+        raise UnknownNameError(f"cannot use {type(system_or_build).__name__} as a model: give a system name, a .py "
+                               "path, a build function, a bscomp.System or a bscomp.model.ModelSpec")
     overrides = {**dotted, **(params or {})}
     return system.with_parameters(overrides) if overrides else system
 
