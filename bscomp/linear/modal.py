@@ -393,7 +393,7 @@ def _fmt_pole(p):
 
 # ---- the analysis ----------------------------------------------------------------------------------------
 def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict | None = None,
-          n: int | None = None, fmax: float | None = None, damping: str = "auto") -> Modes:
+          n: int | None = None, fmax: float | None = None, damping: str = "auto", warn: bool = True) -> Modes:
     """Natural frequencies, damping, mode shapes, modal masses and residues of a linear mechanical model.
 
     The undamped problem (Eq A.10-A.11)
@@ -422,6 +422,9 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
         ``DENSE_LIMIT`` is solved with ``scipy.sparse.linalg.eigsh`` in shift-invert mode.
     damping : {"auto", "complex", "projection"}
         How damping ratios are obtained; ``"auto"`` is ``"complex"`` up to ``DENSE_LIMIT`` kept modes.
+    warn : bool
+        Warn (:class:`~bscomp.errors.ModelLimitationWarning`) when the model has nonlinear components, which
+        the modes linearize at the operating point; ``False`` for callers that account for them.
 
     Returns
     -------
@@ -441,7 +444,7 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
     if damping not in ("auto", "complex", "projection"):
         raise UsageError(f"damping must be 'auto', 'complex' or 'projection', got {damping!r}")
     so = _second_order(model, inputs, outputs, at, params)
-    warn_linearized(so.linearized, "modes", "its modes are those of small motions about that point; "
+    warn_linearized(so.linearized if warn else (), "modes", "its modes are those of small motions about that point; "
                     "for the behaviour at a real amplitude simulate with bscomp.simulate(..., method='idas')")
     red = _condense(so)
     lam, phi, rigid, method = _undamped(red, n=n, fmax=fmax)

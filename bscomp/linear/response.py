@@ -208,7 +208,7 @@ def _statespace_frf(lin, f):
 
 
 def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: float = 1000.0, n: int = 500,
-        at: dict | None = None, params: dict | None = None) -> Frf:
+        at: dict | None = None, params: dict | None = None, warn: bool = True) -> Frf:
     """Frequency response of ``output`` to ``input`` from the sparse second-order form.
 
     Parameters
@@ -221,6 +221,9 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
         Frequencies [Hz]; default ``n`` log-spaced points from ``fmin`` to ``fmax``.
     at, params : dict, optional
         Operating point and parameter overrides.
+    warn : bool
+        Warn (:class:`~bscomp.errors.ModelLimitationWarning`) when the model has nonlinear components, which
+        the FRF linearizes at the operating point; ``False`` for callers that account for them.
 
     Returns
     -------
@@ -243,11 +246,11 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
         if not isinstance(model, (System, Dae)):
             model, params = as_system(model, params), None
         lin = linearize(model, inputs=ins, outputs=outs, at=at, params=params)
-        warn_linearized(getattr(lin, "linearized", ()), "frf", SIMULATE_INSTEAD)
+        warn_linearized(getattr(lin, "linearized", ()) if warn else (), "frf", SIMULATE_INSTEAD)
         return Frf(freqs=f, H=_statespace_frf(lin, f), inputs=[s.replace("/", ".") for s in lin.input_labels],
                    outputs=[s.replace("/", ".") for s in lin.output_labels], name=name,
                    notes=["from the linearized state space (no second-order form)"])
-    warn_linearized(so.linearized, "frf", SIMULATE_INSTEAD)
+    warn_linearized(so.linearized if warn else (), "frf", SIMULATE_INSTEAD)
     if isinstance(model, SecondOrderModel):
         so = _restrict(so, ins, outs)
     return Frf(freqs=f, H=so.frf(f), inputs=list(so.inputs), outputs=list(so.outputs), name=name)

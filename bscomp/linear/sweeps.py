@@ -67,14 +67,14 @@ def _analyse(build, overrides, inputs, outputs, freqs, n_modes, at):
 
     system = build_system(build, overrides)
     so = second_order(system, inputs=inputs, outputs=outputs, at=at)
-    md = modes(so)
+    md = modes(so, warn=False)         # not a warning per position
     el = ~md.rigid_body
     f, z = md.frequencies[el], md.damping[el]
     if n_modes is not None:
         f, z = f[:n_modes], z[:n_modes]
     out = {"frequencies": f, "damping": z, "inputs": md.inputs, "outputs": md.outputs}
     if freqs is not None:
-        out["H"] = frf(so, freqs=freqs).H
+        out["H"] = frf(so, freqs=freqs, warn=False).H
     return out
 
 
