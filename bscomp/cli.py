@@ -26,13 +26,13 @@ def _demo(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     system = get("testbed_axial_torsional")
     print(f"bscomp demo: {system.description}")
-    md = modes(system, inputs=["amp.u"], outputs=["rotor.w", "table.a"], n=6)
+    md = modes(system, inputs=["amp.u"], outputs=["rotor.w", "table.a"], n=6, warn=False)  # small-signal demo
     print("  modes (undamped K phi = w^2 M phi; damping from the damped poles):")
     print("    " + md.table("rotor.phi").replace("\n", "\n    "))
     from bscomp.linear.response import frf
 
     f = np.logspace(0, np.log10(2000), 600)
-    res = frf(system, input="amp.u", output=["rotor.w", "table.a"], freqs=f)
+    res = frf(system, input="amp.u", output=["rotor.w", "table.a"], freqs=f, warn=False)
     from bscomp.plotting.base import bode_plot
 
     png = out / "demo_bode.png"
@@ -427,17 +427,30 @@ def _describe(exc: BaseException) -> tuple[str, str, str, int]:
     return name, str(exc) or repr(exc), "this is a bug in bscomp: rerun with --debug and report the traceback", 2
 
 
+def one_line_warning(verb: str):
+    """A ``warnings.formatwarning`` that prints a warning as one line, like the errors:
+    ``bscomp <verb>: warning: <Category>: <message>`` (no file, line or source)."""
+    def fmt(message, category, filename, lineno, line=None):
+        return f"bscomp{' ' + verb if verb else ''}: warning: {category.__name__}: {' '.join(str(message).split())}\n"
+    return fmt
+
+
 def main(argv=None) -> int:
     """Run one command; every failure is one line (or a JSON object with ``--json``), see the module doc."""
     import json
+    import warnings
 
     argv = sys.argv[1:] if argv is None else list(argv)
     as_json, debug = "--json" in argv, "--debug" in argv
     verb = next((a for a in argv if not a.startswith("-")), "")
+
     try:
         args = _parser().parse_args(argv)
         verb = args.cmd
-        return args.func(args)
+        with warnings.catch_warnings():
+            if not debug:
+                warnings.formatwarning = one_line_warning(verb)   # still a Python warning: filters see it
+            return args.func(args)
     except KeyboardInterrupt:
         print(f"bscomp {verb}: interrupted".replace("  ", " "), file=sys.stderr)
         return 130

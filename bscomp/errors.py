@@ -21,8 +21,11 @@ __all__ = [
     "OutputFileError",
     "UsageError",
     "ArgumentTypeError",
+    "ParameterFileError",
+    "MissingParameterFileError",
     "ModelLimitationWarning",
     "check_number",
+    "check_mapping",
     "FmuExportError",
     "CompilerNotFoundError",
 ]
@@ -114,6 +117,16 @@ class ArgumentTypeError(UsageError, TypeError):
     """A function argument has the wrong type (a ``TypeError`` too, for Python callers that catch that)."""
 
 
+class ParameterFileError(BscompError, ValueError):
+    """A parameter file (TOML) is missing, unreadable or malformed; names the file and the dotted key.
+
+    A missing file is also a ``FileNotFoundError`` (:class:`MissingParameterFileError`)."""
+
+
+class MissingParameterFileError(ParameterFileError, FileNotFoundError):
+    """The parameter file does not exist (a ``FileNotFoundError`` too, for callers that catch that)."""
+
+
 class ModelLimitationWarning(UserWarning):
     """A method ignores part of the model (e.g. ``simulate(method="lti")`` on a nonlinear model)."""
 
@@ -140,6 +153,20 @@ def check_number(name: str, value, *, positive: bool = False, nonnegative: bool 
     if minimum is not None and v < minimum:
         raise error(f"{name} must be >= {minimum}, got {value!r}")
     return v
+
+
+def check_mapping(name: str, value, what: str = "values") -> dict:
+    """``value`` as a dict ``{name: ...}`` (``None`` -> ``{}``), else :class:`ArgumentTypeError` naming the
+    argument; keys must be strings (dotted names)."""
+    if value is None:
+        return {}
+    if not hasattr(value, "items"):
+        raise ArgumentTypeError(f"{name} must be a dict of {what} by name, e.g. {{'table.s': 0.0}}, got "
+                                f"{type(value).__name__} {value!r}"[:300])
+    bad = [k for k in value if not isinstance(k, str)]
+    if bad:
+        raise ArgumentTypeError(f"{name}: keys must be names (str), got {bad[0]!r}")
+    return dict(value)
 
 
 class FmuExportError(BscompError):

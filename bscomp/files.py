@@ -59,7 +59,7 @@ def atomic_path(path):
     For writers that take a file name (``matplotlib.Figure.savefig``, ``numpy.savetxt``). The temporary
     name keeps the suffix, so format detection by extension still works.
     """
-    p = Path(path)
+    p = writable_path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent if str(p.parent) else ".")
     os.close(fd)
     try:

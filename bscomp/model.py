@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bscomp.errors import UnknownNameError
+from bscomp.errors import UnknownNameError, check_mapping
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
@@ -100,6 +100,7 @@ def as_system(model, params: dict | None = None) -> System:
     ``params`` are overrides: for a name, path, spec or build function, keys without a dot are build
     keywords; for a System every key must be a dotted parameter (applied to a copy).
     """
+    params = check_mapping("params", params, "parameter overrides")
     if isinstance(model, System):
         build_kw, dotted = split_overrides(params)
         if build_kw:
@@ -169,7 +170,7 @@ def resolve_model(model, params: dict | None = None, *, damping_refreshed: bool 
     re-flattened when the overrides change its parameter values, since its damping matrix follows the
     modes; callers that re-derive the damping themselves (``second_order``) pass ``damping_refreshed``.
     """
-    params = dict(params or {})
+    params = check_mapping("params", params, "parameter overrides")
     if isinstance(model, System):
         return flatten(model.with_parameters(params) if params else model)
     if isinstance(model, Dae):

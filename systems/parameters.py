@@ -8,9 +8,12 @@ The top-level ``[meta]`` table is free-form. See ``docs/testbed-parameters.md``.
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 from typing import Any
+
+from bscomp.errors import MissingParameterFileError, ParameterFileError, UnknownNameError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -39,29 +42,53 @@ def _is_entry(table: dict[str, Any]) -> bool:
     return any(k in table for k in _ENTRY_KEYS)
 
 
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _check_value(path: Path, key: str, value) -> None:
+    """A value is a finite number, a string or a list of finite numbers."""
+    if isinstance(value, str):
+        return
+    items = value if isinstance(value, list) else [value]
+    for v in items:
+        if not _is_number(v):
+            raise ParameterFileError(
+                f"{path}: entry '{key}' has value {value!r}, which is not a number, a string or a list of numbers; "
+                f"write e.g. value = 1.5")
+        if not math.isfinite(v):
+            raise ParameterFileError(f"{path}: entry '{key}' has the value {value!r}: NaN and inf are not "
+                                     "physical; give a finite number")
+    if isinstance(value, list) and not value:
+        raise ParameterFileError(f"{path}: entry '{key}' has an empty list as value; give at least one number")
+
+
 def _check_entry(path: Path, key: str, entry: dict[str, Any]) -> None:
     missing = [k for k in _REQUIRED if k not in entry]
     if missing:
-        raise ValueError(f"{path}: entry '{key}' lacks required field(s) {', '.join(missing)}")
+        raise ParameterFileError(f"{path}: entry '{key}' lacks required field(s) {', '.join(missing)}; an entry "
+                                 "is { value = ..., unit = ..., source = ... }")
     unknown = sorted(set(entry) - _ENTRY_KEYS)
     if unknown:
-        raise ValueError(f"{path}: entry '{key}' has unknown field(s) {', '.join(unknown)}")
+        raise ParameterFileError(f"{path}: entry '{key}' has unknown field(s) {', '.join(unknown)}; allowed: "
+                                 f"{', '.join(_REQUIRED + _OPTIONAL)}")
     for k in ("unit", "source"):
         if not isinstance(entry[k], str):
-            raise ValueError(f"{path}: entry '{key}' field '{k}' must be a string")
+            raise ParameterFileError(f"{path}: entry '{key}' field '{k}' must be a string, got {entry[k]!r}")
     if not entry["source"].strip():
-        raise ValueError(f"{path}: entry '{key}' has an empty 'source'")
+        raise ParameterFileError(f"{path}: entry '{key}' has an empty 'source'; cite where the value comes from")
     if "note" in entry and not isinstance(entry["note"], str):
-        raise ValueError(f"{path}: entry '{key}' field 'note' must be a string")
+        raise ParameterFileError(f"{path}: entry '{key}' field 'note' must be a string, got {entry['note']!r}")
+    _check_value(path, key, entry["value"])
 
 
 def _check_group(path: Path, prefix: str, group: dict[str, Any]) -> None:
     if not group:
-        raise ValueError(f"{path}: group '{prefix}' is empty")
+        raise ParameterFileError(f"{path}: group '{prefix}' is empty; remove it or add entries")
     for k, v in group.items():
         key = f"{prefix}.{k}" if prefix else k
         if not isinstance(v, dict):
-            raise ValueError(
+            raise ParameterFileError(
                 f"{path}: key '{key}' is a bare value; write it as an entry "
                 f"{{ value = ..., unit = ..., source = ... }}"
             )
@@ -88,25 +115,36 @@ def load_parameters(name: str | Path = "fadal_vmc2216_x") -> dict[str, Any]:
 
     Raises
     ------
-    FileNotFoundError
-        If the file does not exist.
-    ValueError
-        If the TOML cannot be parsed, or an entry lacks ``value``/``unit``/``source``, has unknown
-        fields, or a group holds a bare value. The message names the file and the dotted key.
+    bscomp.errors.MissingParameterFileError
+        If the file does not exist (also a ``FileNotFoundError``).
+    bscomp.errors.ParameterFileError
+        If the file cannot be read or parsed as UTF-8 TOML, or an entry lacks ``value``/``unit``/``source``,
+        has unknown fields or a value that is not a finite number, a string or a list of numbers, or a group
+        holds a bare value. The message names the file and the dotted key; also a ``ValueError``.
     """
+    if not isinstance(name, (str, Path)):
+        raise ParameterFileError(f"a parameter set is a bundled name or a .toml path, got {type(name).__name__} "
+                                 f"{name!r}; bundled: {sorted(p.stem for p in DATA_DIR.glob('*.toml'))}")
     path = _resolve(name)
     if not path.is_file():
-        raise FileNotFoundError(f"parameter file not found: {path}")
+        what = "is a directory, not a file" if path.is_dir() else "not found"
+        raise MissingParameterFileError(f"parameter file {what}: {path}; give a .toml file or one of the bundled "
+                                        f"sets {sorted(p.stem for p in DATA_DIR.glob('*.toml'))}")
     try:
         with path.open("rb") as fh:
             data = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: invalid TOML: {exc}") from exc
+        raise ParameterFileError(f"{path}: invalid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ParameterFileError(f"{path}: not UTF-8 text (byte {exc.start}); save the file as UTF-8") from None
+    except (OSError, RecursionError) as exc:
+        raise ParameterFileError(f"{path}: cannot be read ({type(exc).__name__}: {exc})") from None
     for k, v in data.items():
         if k in _FREE_TABLES:
             continue
         if not isinstance(v, dict):
-            raise ValueError(f"{path}: top-level key '{k}' must be a table (group or entry)")
+            raise ParameterFileError(f"{path}: top-level key '{k}' must be a table (group or entry), got "
+                                     f"{v!r}")
         if _is_entry(v):
             _check_entry(path, k, v)
         else:
@@ -119,16 +157,18 @@ def get_value(params: dict[str, Any], key: str) -> Any:
 
     Raises
     ------
-    KeyError
-        If ``key`` does not name an entry.
+    bscomp.errors.UnknownNameError
+        If ``key`` does not name an entry (also a ``KeyError``).
     """
     node: Any = params
-    for part in key.split("."):
+    for part in str(key).split("."):
         if not isinstance(node, dict) or part not in node:
-            raise KeyError(f"no parameter entry '{key}'")
+            near = sorted(node) if isinstance(node, dict) else []
+            raise UnknownNameError(f"no parameter entry '{key}' ('{part}' not found; there: {near[:12]})")
         node = node[part]
     if not isinstance(node, dict) or "value" not in node:
-        raise KeyError(f"'{key}' is a group, not a parameter entry")
+        raise UnknownNameError(f"'{key}' is a group, not a parameter entry; its entries: "
+                               f"{sorted(node)[:12] if isinstance(node, dict) else []}")
     return node["value"]
 
 

@@ -89,6 +89,13 @@ class Parameter:
         self._units: tuple | None = None
 
     @property
+    def scalar(self) -> bool:
+        """True for a parameter that takes one number: its default is a number (or it has none) and its unit is
+        one unit, not a ``|``-separated list of matrix entries. Vector and matrix parameters declare an
+        array default or such a list (``Bushing.K``, ``RigidBody.I``)."""
+        return np.ndim(self.default) == 0 and "|" not in str(self.unit)
+
+    @property
     def units(self) -> tuple[Unit, ...]:
         """The declared unit, parsed (one :class:`~bscomp.kernel.units.Unit` per ``|``-separated entry)."""
         if self._units is None:
@@ -122,12 +129,18 @@ class Parameter:
                                  f"{type(owner).__name__}({self.name}=...) or system.set('{where}', ...)")
         if isinstance(value, str):
             value = self.from_text(value, where)
-        if isinstance(value, (bool, np.bool_)):
-            raise ParameterError(f"parameter {where} [{self.unit}] must be a number, got {value!r} (a bool)")
+        if isinstance(value, (bool, np.bool_, bytes, bytearray, dict, set)) or np.iscomplexobj(value):
+            kind = "a bool" if isinstance(value, (bool, np.bool_)) else f"a {type(value).__name__}"
+            raise ParameterError(f"parameter {where}{_class_of(owner)} [{self.unit}] must be a number, got "
+                                 f"{value!r} ({kind})")
         try:
             arr = np.asarray(value, dtype=float)
         except (TypeError, ValueError) as exc:
             raise ParameterError(f"parameter {where} [{self.unit}] must be a number, got {value!r}") from exc
+        if self.scalar and arr.ndim != 0:
+            raise ParameterError(f"parameter {where}{_class_of(owner)} [{self.unit}] takes one real number, got "
+                                 f"{value!r} "
+                                 f"(shape {arr.shape}); give a single value, e.g. {self.name}=1.0")
         if not np.all(np.isfinite(arr)):
             raise ParameterError(f"parameter {where} [{self.unit}] is {value!r}: NaN and inf are not physical")
         if self.positive and np.any(arr <= 0):
@@ -182,6 +195,11 @@ class Parameter:
         if self.default is not None:
             quals.append(f"default {_format_default(self.default)}")
         return [f"{self.name} : {', '.join(quals)}", f"    {self.doc or '(no description)'}"]
+
+
+def _class_of(owner) -> str:
+    """`` (Mass)`` for a named component (its name alone does not say its class), else ``""``."""
+    return f" ({type(owner).__name__})" if owner is not None and owner.__dict__.get("_name") else ""
 
 
 def _format_default(value) -> str:

@@ -85,6 +85,9 @@ class Dae:
         Consistent initial values (computed by :meth:`initialize`).
     structural_parameters : list of str
         Parameters baked into matrices (constraint coefficients, FE blocks); changing one re-flattens.
+    nonlinear_components : list of str
+        ``"path (Class)"`` of the components whose own equations are nonlinear in their unknowns (friction,
+        backlash, saturation...), recorded by flattening; a linear analysis names them when it linearizes.
     """
 
     name: str
@@ -109,6 +112,7 @@ class Dae:
     substitutions: tuple
     structural_parameters: list
     system: Any = None
+    nonlinear_components: list = field(default_factory=list)
     stats: dict = field(default_factory=dict)
     x0: Any = None
     xd0: Any = None

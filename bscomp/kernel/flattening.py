@@ -147,7 +147,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
         z_start=np.concatenate([np.zeros(len(static)), np.asarray(asm.zint_start, float),
                                 np.zeros(len(sig.sig_loop))]),
         eq_origin=origins, observables=asm.observables, substitutions=stages,
-        structural_parameters=sorted(asm.structural), system=system)
+        structural_parameters=sorted(asm.structural), system=system, nonlinear_components=list(asm.nonlinear))
 
     # -- system damping, then the index-1 check ---------------------------------------------------
     if getattr(system, "damping", None) is not None:

@@ -71,6 +71,7 @@ class Assembly:
         self.blocks = []                           # (coord indices, M, C, K)
         self.structural = set()
         self.templates = {}
+        self.nonlinear = []                        # "path (Class)" of the components with nonlinear equations
 
     def add(self, lf):
         """Instantiate one leaf component."""
@@ -102,6 +103,8 @@ class Assembly:
                       vc([self.qdd_full[c] for c in cidx]), vc([self.sig_syms[k] for k in sidx]),
                       vc([ca.vec(s) for s in psym]), vc(vsym), vc(dsym))
         flows_e, outs_e, rem_e, obs_e = out
+        if tpl.nonlinear:
+            self.nonlinear.append(f"{path} ({type(comp).__name__})")
         self._flows(tpl, path, comp, ports, cidx, struct_coords, flows_e)
         for j, k in enumerate(tpl.out_sig_idx):
             if sidx[k] in self.sig_def:        # a second output on one signal would silently replace the first

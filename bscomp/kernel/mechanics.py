@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from bscomp.errors import NotLinearError, SingularSystemError, UnknownNameError
+from bscomp.errors import NotLinearError, SingularSystemError, UnknownNameError, check_mapping, check_number
 from bscomp.kernel.dae import Dae, _sp
 
 __all__ = ["OperatingPoint", "operating_point", "sparse_jacobians", "require_second_order", "SecondOrderBlocks",
@@ -46,11 +46,11 @@ def operating_point(dae: Dae, at: dict | None = None, params: dict | None = None
     p = dae.parameter_vector({k: v for k, v in (params or {}).items() if k not in dae.structural_parameters})
     x = dae.x_start.copy()
     u = np.zeros(dae.nu)
-    for k, v in (at or {}).items():
+    for k, v in check_mapping("at", at, "state and input values").items():
         if k in dae.x_names:
-            x[dae.x_names.index(k)] = float(v)
+            x[dae.x_names.index(k)] = check_number(f"at['{k}']", v)
         elif k in dae.u_names:
-            u[dae.u_names.index(k)] = float(v)
+            u[dae.u_names.index(k)] = check_number(f"at['{k}']", v)
         else:
             raise UnknownNameError(f"operating point names '{k}', which is neither a state {dae.x_names[:10]}... "
                                    f"nor an input {dae.u_names} of '{dae.name}'")

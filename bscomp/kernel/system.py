@@ -222,6 +222,9 @@ class System:
         another dimension raises :class:`~bscomp.errors.ParameterError` naming the parameter, the given
         and the expected unit. The CLI's ``--set NAME=VALUE`` passes such strings through here.
         """
+        if not isinstance(dotted, str):
+            raise ArgumentTypeError(f"system.set() takes a parameter name 'component.parameter' (a str), got "
+                                    f"{type(dotted).__name__} {dotted!r}")
         comp_path, _, pname = dotted.rpartition(".")
         if not comp_path:
             raise UnknownNameError(f"'{dotted}' is not a parameter name: write 'component.parameter'")

@@ -138,6 +138,15 @@ def eliminate_explicit(eqs, unknowns, pvals):
     return solved, remaining, used
 
 
+def _nonlinear(e, w) -> bool:
+    """True if the Jacobian of the expressions ``e`` with respect to the unknowns ``w`` depends on them
+    (friction, backlash, saturation, a moving contact); parameters alone do not count."""
+    if e.numel() == 0 or w.numel() == 0:
+        return False
+    nz = ca.jacobian(e, w).nonzeros()
+    return bool(nz) and ca.jacobian(ca.vertcat(*nz), w).nnz() > 0
+
+
 class Template:
     """Symbolic processing of one component class, done once and reused for every instance.
 
@@ -191,6 +200,8 @@ class Template:
             f"tpl_{type(comp).__name__}",
             [vc(q), vc(qd), vc(qdd), vc(sig), p_loc, vc(vs), vc(ds)],
             [vc(fl_out), vc(outs), vc(rem), vc(obs_e)])
+        self.nonlinear = _nonlinear(ca.vertcat(vc(fl_out), vc(outs), vc(rem)),
+                                    ca.vertcat(vc(q), vc(qd), vc(qdd), vc(sig), vc(vs), vc(ds)))
 
     def _bind(self, comp, ports, params, variables):
         """Local symbols for parameters, port potentials (and their derivatives), flows, signals and

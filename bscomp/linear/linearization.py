@@ -17,14 +17,16 @@ overrides parameters (structural ones re-flatten a copy of the system).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
+import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from bscomp.errors import NotLinearError, SingularSystemError, UnknownNameError
+from bscomp.errors import ModelLimitationWarning, NotLinearError, SingularSystemError, UnknownNameError
 from bscomp.kernel.dae import Dae, _sp
 from bscomp.kernel.mechanics import (
     OperatingPoint,
@@ -37,7 +39,8 @@ from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import direct_frf, state_space_decomposition, state_space_modal_frf
 from bscomp.model import resolve_model
 
-__all__ = ["linearize", "second_order", "SecondOrderModel", "OperatingPoint", "resolve_model", "control_labels"]
+__all__ = ["linearize", "second_order", "SecondOrderModel", "OperatingPoint", "resolve_model", "control_labels",
+           "nonlinear_variables", "linearized_parts", "warn_linearized"]
 
 
 def control_labels(names):
@@ -57,6 +60,53 @@ def _output_jac(dae: Dae, names, op: OperatingPoint):
             "gj", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
             [ca.jacobian(y, dae.xds), ca.jacobian(y, dae.xs), ca.jacobian(y, dae.zs), ca.jacobian(y, dae.us)])
     return [_sp(m) for m in f(op.xd, op.x, op.z, op.u, op.p)]
+
+
+def nonlinear_variables(dae) -> list:
+    """Names of the variables the residual's Jacobian depends on (empty for a linear model): the one test of
+    whether linearizing ``dae`` drops anything (``simulate(method="lti")``, :func:`frf`, :func:`modes`)."""
+    if "nonlinear_variables" in dae._cache:
+        return dae._cache["nonlinear_variables"]
+    w = [(dae.xds, [f"der({n})" for n in dae.x_names]), (dae.xs, dae.x_names), (dae.zs, dae.z_names),
+         (dae.us, dae.u_names)]
+    wv = ca.vertcat(*(v for v, _ in w))
+    nz = ca.jacobian(dae.F_sx, wv).nonzeros()
+    names = [n for _, ns in w for n in ns]
+    cols = sorted(set(ca.jacobian(ca.vertcat(*nz), wv).sparsity().get_col())) if nz else []
+    dae._cache["nonlinear_variables"] = out = [names[c] for c in cols]
+    return out
+
+
+def linearized_parts(dae) -> tuple:
+    """``(model name, components, variables)`` a linearization of ``dae`` replaces by their tangent: the
+    components whose equations are nonlinear (``"fric (CoulombFriction)"``, recorded by flattening) and the
+    variables the residual's Jacobian depends on; ``()`` for a linear model (:func:`nonlinear_variables`
+    decides)."""
+    names = nonlinear_variables(dae)
+    if not names:
+        return ()
+    return dae.name, list(getattr(dae, "nonlinear_components", []) or []), names
+
+
+#: what a frequency-domain analysis of a nonlinear model should be replaced by
+SIMULATE_INSTEAD = ("for the response at a real amplitude, simulate a sine sweep or stepped sines with "
+                    "bscomp.simulate(..., method='idas') (or 'split') and take the ratio of the output and input "
+                    "spectra")
+
+
+def warn_linearized(parts: tuple, what: str, instead: str, stacklevel: int = 2) -> None:
+    """Warn (:class:`~bscomp.errors.ModelLimitationWarning`) that ``what`` linearizes the nonlinear parts
+    ``parts`` (:func:`linearized_parts`) at the operating point, naming them and saying what to use
+    ``instead``; nothing for a linear model. ``stacklevel`` as in :func:`warnings.warn`, seen from the caller."""
+    if not parts:
+        return
+    name, comps, names = parts
+    which = (f"the nonlinear component(s) {', '.join(comps[:6])}{' ...' if len(comps) > 6 else ''}"
+             if comps else "its nonlinearity")
+    vars_ = f"{', '.join(names[:5])}{' ...' if len(names) > 5 else ''}"
+    warnings.warn(f"{what} on '{name}' linearizes {which} at the operating point (nonlinear in {vars_}): "
+                  "friction, backlash, saturation or a moving contact is replaced by its tangent there, which "
+                  f"holds for small motions only; {instead}", ModelLimitationWarning, stacklevel=stacklevel + 1)
 
 
 def explicit_form(dae: Dae, Jxd, Jx, Jz, Ju):
@@ -140,6 +190,7 @@ def linearize(model, inputs=None, outputs=None, at: dict | None = None, params: 
     except NotLinearError:
         sys.second_order = None
     sys.operating_point = op
+    sys.linearized = linearized_parts(dae)
     return sys
 
 
@@ -153,6 +204,9 @@ class SecondOrderModel:
         Names of the reduced coordinates ``q``.
     units : list of str
     inputs, outputs : list of str
+    linearized : tuple
+        ``(model name, nonlinear components, variables)`` replaced by their tangent at the operating point
+        (:func:`linearized_parts`); ``()`` for a linear model.
     """
 
     M: Any
@@ -167,6 +221,7 @@ class SecondOrderModel:
     units: list
     inputs: list
     outputs: list
+    linearized: tuple = ()
 
     @property
     def n(self):
@@ -291,4 +346,4 @@ def second_order(model, inputs=None, outputs=None, at: dict | None = None, param
         M=sp.csr_matrix(b.M), C=sp.csr_matrix(C), K=sp.csr_matrix(b.K), B=-sp.csr_matrix(b.Bu),
         Cq=sp.csr_matrix(Cq), Cv=sp.csr_matrix(Cv), Ca=sp.csr_matrix(Ca), D=sp.csr_matrix(Dy),
         coordinates=list(m.coordinate_names), units=list(m.coordinate_units), inputs=unames,
-        outputs=list(outputs))
+        outputs=list(outputs), linearized=linearized_parts(dae))

@@ -27,7 +27,7 @@ from bscomp.errors import SingularSystemError, UnknownNameError, UsageError, che
 from bscomp.files import atomic_write
 from bscomp.kernel import Dae, System
 from bscomp.linear.frf_engine import dense
-from bscomp.linear.linearization import SecondOrderModel, second_order
+from bscomp.linear.linearization import SecondOrderModel, second_order, warn_linearized
 from bscomp.model import as_system
 from bscomp.plotting.base import mode_shape_plot
 
@@ -43,8 +43,8 @@ def _second_order(model, inputs=None, outputs=None, at=None, params=None):
 
     if isinstance(model, SecondOrderModel):
         if at or params:
-            raise TypeError("'at' and 'params' cannot be applied to a SecondOrderModel: pass the System "
-                            "or Dae")
+            raise UsageError("'at' and 'params' cannot be applied to a SecondOrderModel: pass the System "
+                             "or Dae")
         return model
     if not isinstance(model, (System, Dae)):         # a name, .py path, build function or ModelSpec
         return second_order(as_system(model, params), inputs=inputs, outputs=outputs, at=at)
@@ -393,7 +393,7 @@ def _fmt_pole(p):
 
 # ---- the analysis ----------------------------------------------------------------------------------------
 def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict | None = None,
-          n: int | None = None, fmax: float | None = None, damping: str = "auto") -> Modes:
+          n: int | None = None, fmax: float | None = None, damping: str = "auto", warn: bool = True) -> Modes:
     """Natural frequencies, damping, mode shapes, modal masses and residues of a linear mechanical model.
 
     The undamped problem (Eq A.10-A.11)
@@ -422,6 +422,9 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
         ``DENSE_LIMIT`` is solved with ``scipy.sparse.linalg.eigsh`` in shift-invert mode.
     damping : {"auto", "complex", "projection"}
         How damping ratios are obtained; ``"auto"`` is ``"complex"`` up to ``DENSE_LIMIT`` kept modes.
+    warn : bool
+        Warn (:class:`~bscomp.errors.ModelLimitationWarning`) when the model has nonlinear components, which
+        the modes linearize at the operating point; ``False`` for callers that account for them.
 
     Returns
     -------
@@ -441,6 +444,8 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
     if damping not in ("auto", "complex", "projection"):
         raise UsageError(f"damping must be 'auto', 'complex' or 'projection', got {damping!r}")
     so = _second_order(model, inputs, outputs, at, params)
+    warn_linearized(so.linearized if warn else (), "modes", "its modes are those of small motions about that point; "
+                    "for the behaviour at a real amplitude simulate with bscomp.simulate(..., method='idas')")
     red = _condense(so)
     lam, phi, rigid, method = _undamped(red, n=n, fmax=fmax)
     omega = np.sqrt(lam)

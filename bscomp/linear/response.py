@@ -27,11 +27,11 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from bscomp.errors import NotLinearError, UnknownNameError, UsageError, check_number
+from bscomp.errors import ArgumentTypeError, NotLinearError, UnknownNameError, UsageError, check_number
 from bscomp.files import atomic_write
 from bscomp.kernel import Dae, System
 from bscomp.kernel.units import convention_units, parse_unit
-from bscomp.linear.linearization import SecondOrderModel, control_labels, linearize
+from bscomp.linear.linearization import SIMULATE_INSTEAD, SecondOrderModel, control_labels, linearize, warn_linearized
 from bscomp.linear.modal import _condense, _group_poles, _second_order, _undamped
 from bscomp.model import as_system
 from bscomp.plotting.base import bode_plot
@@ -39,8 +39,13 @@ from bscomp.plotting.base import bode_plot
 __all__ = ["frf", "Frf", "transfer_function", "ModalSection"]
 
 
-def _names(x):
-    return [x] if isinstance(x, str) else (None if x is None else list(x))
+def _names(x, what="input"):
+    """One name or a list of names (``None``: all), else :class:`ArgumentTypeError` naming ``what``."""
+    if x is None or isinstance(x, str):
+        return None if x is None else [x]
+    if not isinstance(x, (list, tuple)) or not all(isinstance(n, str) for n in x):
+        raise ArgumentTypeError(f"{what} must be a name (str) or a list of names, got {type(x).__name__} {x!r}")
+    return list(x)
 
 
 @dataclass
@@ -203,7 +208,7 @@ def _statespace_frf(lin, f):
 
 
 def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: float = 1000.0, n: int = 500,
-        at: dict | None = None, params: dict | None = None) -> Frf:
+        at: dict | None = None, params: dict | None = None, warn: bool = True) -> Frf:
     """Frequency response of ``output`` to ``input`` from the sparse second-order form.
 
     Parameters
@@ -216,6 +221,9 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
         Frequencies [Hz]; default ``n`` log-spaced points from ``fmin`` to ``fmax``.
     at, params : dict, optional
         Operating point and parameter overrides.
+    warn : bool
+        Warn (:class:`~bscomp.errors.ModelLimitationWarning`) when the model has nonlinear components, which
+        the FRF linearizes at the operating point; ``False`` for callers that account for them.
 
     Returns
     -------
@@ -230,7 +238,7 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
     """
 
     f = _freq_grid(freqs, fmin, fmax, n)
-    ins, outs = _names(input), _names(output)
+    ins, outs = _names(input, "input"), _names(output, "output")
     name = model if isinstance(model, str) else getattr(model, "name", "")
     try:
         so = _second_order(model, ins, outs, at, params)
@@ -238,9 +246,11 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
         if not isinstance(model, (System, Dae)):
             model, params = as_system(model, params), None
         lin = linearize(model, inputs=ins, outputs=outs, at=at, params=params)
+        warn_linearized(getattr(lin, "linearized", ()) if warn else (), "frf", SIMULATE_INSTEAD)
         return Frf(freqs=f, H=_statespace_frf(lin, f), inputs=[s.replace("/", ".") for s in lin.input_labels],
                    outputs=[s.replace("/", ".") for s in lin.output_labels], name=name,
                    notes=["from the linearized state space (no second-order form)"])
+    warn_linearized(so.linearized if warn else (), "frf", SIMULATE_INSTEAD)
     if isinstance(model, SecondOrderModel):
         so = _restrict(so, ins, outs)
     return Frf(freqs=f, H=so.frf(f), inputs=list(so.inputs), outputs=list(so.outputs), name=name)
@@ -284,7 +294,7 @@ def _section_from_poles(lam, res):
     den = np.real(np.poly(lam))
     num = np.zeros(max(len(lam), 1), complex)
     for i in range(len(lam)):
-        others = np.poly(np.delete(lam, i))
+        others = np.atleast_1d(np.poly(np.delete(lam, i)))
         num[len(num) - len(others):] += res[i] * others
     return np.real(num), den
 
@@ -336,8 +346,14 @@ def transfer_function(model, input: str, output: str, modes=None, include_rigid:
 
 
     if not isinstance(input, str) or not isinstance(output, str):
-        raise TypeError("transfer_function is SISO: give one input name and one output name")
+        raise ArgumentTypeError(f"transfer_function is SISO: give one input name and one output name (str), got "
+                                f"input={input!r}, output={output!r}")
+    if fmax is not None:
+        fmax = check_number("fmax", fmax, positive=True)
+    if isinstance(modes, (int, np.integer)) and not isinstance(modes, bool):
+        modes = check_number("modes", modes, integer=True, minimum=0)
     so = _second_order(model, [input], [output], at, params)
+    warn_linearized(so.linearized, "transfer_function", SIMULATE_INSTEAD)
     so = _restrict(so, [input], [output]) if len(so.inputs) > 1 or len(so.outputs) > 1 else so
     red = _condense(so)
     lam, phi, rigid, _ = _undamped(red, fmax=fmax)

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp import plotting
-from bscomp.errors import BscompError, UnknownNameError
+from bscomp.errors import BscompError, UnknownNameError, UsageError
 from bscomp.files import atomic_write
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system_damping import system_damping_matrix
@@ -67,14 +67,14 @@ def _analyse(build, overrides, inputs, outputs, freqs, n_modes, at):
 
     system = build_system(build, overrides)
     so = second_order(system, inputs=inputs, outputs=outputs, at=at)
-    md = modes(so)
+    md = modes(so, warn=False)         # not a warning per position
     el = ~md.rigid_body
     f, z = md.frequencies[el], md.damping[el]
     if n_modes is not None:
         f, z = f[:n_modes], z[:n_modes]
     out = {"frequencies": f, "damping": z, "inputs": md.inputs, "outputs": md.outputs}
     if freqs is not None:
-        out["H"] = frf(so, freqs=freqs).H
+        out["H"] = frf(so, freqs=freqs, warn=False).H
     return out
 
 
@@ -366,9 +366,15 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
     PositionSweep
     """
     t_start = time.perf_counter()
-    positions = np.atleast_1d(np.asarray(positions, float))
+    try:
+        positions = np.atleast_1d(np.asarray(positions, float))
+    except (TypeError, ValueError):
+        raise UsageError(f"positions must be numbers [m] (nut positions), got {positions!r}"[:300]) from None
+    if positions.ndim != 1 or not positions.size or not np.all(np.isfinite(positions)):
+        raise UsageError(f"positions must be a non-empty 1-D array of finite nut positions [m], got "
+                         f"{positions!r}"[:300])
     if method not in ("auto", "tangent", "rebuild"):
-        raise ValueError(f"position_sweep: method must be 'auto', 'tangent' or 'rebuild', got {method!r}")
+        raise UsageError(f"position_sweep: method must be 'auto', 'tangent' or 'rebuild', got {method!r}")
     base = build_system(build, overrides)
     if parameter is None:
         parameter = position_parameter(base)

@@ -24,6 +24,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from bscomp.optimal.infeasibility import Ledger, describe
 from bscomp.optimal.result import OcpResult, active_fraction, convergence_error
 
 __all__ = ["RadauScheme", "radau", "objective", "output_at", "solve_physical"]
@@ -135,6 +136,15 @@ class _Transcription:
         self.x0, self.lin, self.T0, self.ref = guess.x0, guess.lin, guess.T0, guess.ref
         self.xs, self.ws, self.zs, self.us = guess.xs, guess.ws, guess.zs, guess.us
         self.opti = ca.Opti()
+        self.ledger = Ledger()
+        self.tk = np.arange(self.N) / self.N                 # interval starts, fractions of T
+        self.tc = self.scheme.stage_times(self.N)            # collocation points, fractions of T
+
+    def _subject_to(self, constraint, label, names, tfrac, scale=1.0, lo=None, hi=None, rate=False):
+        """``opti.subject_to`` with the rows recorded in the ledger (what they are, names, times, scales)."""
+        start = self.opti.ng
+        self.opti.subject_to(constraint)
+        self.ledger.add(self.opti.ng - start, label, names, tfrac, scale, lo, hi, start=start, rate=rate)
 
     def solve(self, solver_options) -> OcpResult:
         ocp, opti = self.ocp, self.opti
@@ -180,7 +190,7 @@ class _Transcription:
         if ocp.T_fixed is None:
             self.Tsc = opti.variable()          # T in units of its guess
             self.T = self.T0 * self.Tsc
-            opti.subject_to(self.Tsc >= 1e-6)
+            self._subject_to(self.Tsc >= 1e-6, "horizon", "T", 1.0, self.T0, lo=1e-6 * self.T0)
             opti.set_initial(self.Tsc, self.ref["T"] / self.T0)
         else:
             self.T = ocp.T_fixed
@@ -189,40 +199,47 @@ class _Transcription:
     def _collocation(self):
         """Radau IIA: ``h x'(t_kj) = Σ_r C[r, j] x_kr``, each row in units of its state nominal; continuity
         ``x_{k+1} = x_kd``; the residual ``F = 0`` at every collocation point, each row by its scale."""
-        opti, N, d, C = self.opti, self.N, self.d, self.scheme.C
-        xs, ws = self.xs, self.ws
+        N, d, C, tau = self.N, self.d, self.scheme.C, self.scheme.tau
+        xs, ws, names = self.xs, self.ws, self.dae.x_names
+        nx, st = len(names), self._subject_to
         for j in range(1, d + 1):
             terms = C[0, j - 1] * self.Xs[:, :N]
             for r in range(1, d + 1):
                 terms = terms + C[r, j - 1] * self.Xcs[:, (r - 1)::d]
-            opti.subject_to(ca.vec(self.h * ca.diag(ws / xs) @ self.Wcs[:, (j - 1)::d] - terms) == 0)
-        opti.subject_to(ca.vec(self.Xs[:, 1:] - self.Xcs[:, (d - 1)::d]) == 0)
+            st(ca.vec(self.h * ca.diag(ws / xs) @ self.Wcs[:, (j - 1)::d] - terms) == 0, "collocation equation",
+               names * N, np.repeat((np.arange(N) + tau[j]) / N, nx), np.tile(xs, N))
+        st(ca.vec(self.Xs[:, 1:] - self.Xcs[:, (d - 1)::d]) == 0, "continuity", names * N,
+           np.repeat(np.arange(1, N + 1) / N, nx), np.tile(xs, N))
         self.Ucol = ca.horzcat(*[self.U[:, k] @ np.ones((1, d)) for k in range(N)])  # u held on each interval
         self.Pm = ca.repmat(ca.DM(self.ocp.p), 1, N * d)
         res = self.dae.F.map(N * d)(self.Wc, self.Xc, self.Zc, self.Ucol, self.Pm)
         self.rs = self.guess.residual_scales(self.ocp)
-        opti.subject_to(ca.vec(ca.diag(1.0 / self.rs) @ res) == 0)
+        nF = len(self.rs)
+        st(ca.vec(ca.diag(1.0 / self.rs) @ res) == 0, "model residual", list(self.dae.eq_origin[:nF]) * (N * d),
+           np.repeat(self.tc, nF), np.tile(self.rs, N * d))
 
     def _boundary(self):
         """Initial state, final values and rest, linear final rows, and the residual-vibration limits
         ``|L (x_T - x0) + l| <= limit`` (in units of the limit)."""
-        opti, ocp, xs, Xs, N, x0 = self.opti, self.ocp, self.xs, self.Xs, self.N, self.x0
-        opti.subject_to(Xs[:, 0] == x0 / xs)
-        for i, v in ocp.final_targets():
-            opti.subject_to(Xs[i, N] == v / xs[i])
+        ocp, xs, Xs, N, x0, st = self.ocp, self.xs, self.Xs, self.N, self.x0, self._subject_to
+        names = self.dae.x_names
+        st(Xs[:, 0] == x0 / xs, "initial value", names, 0.0, xs)
+        for i, v in ocp.final_targets():      # v: the target (the row is x_N - v, in units of the state)
+            st(Xs[i, N] == v / xs[i], "final value", names[i], 1.0, xs[i])
         term = ocp.terminal_rows(self.lin)
         if term is not None:
             Ct, tt = term
             CtS = Ct * xs[None, :]
             sc = np.max(np.abs(CtS), axis=1)
             sc = np.where(sc > 0, sc, 1.0)
-            opti.subject_to(ca.mtimes(ca.DM(CtS / sc[:, None]), Xs[:, N]) == ca.DM(tt / sc))
+            st(ca.mtimes(ca.DM(CtS / sc[:, None]), Xs[:, N]) == ca.DM(tt / sc), "final condition",
+               ocp.terminal_names(len(tt)), 1.0, sc)
         self.res_expr = {}
         for n, (L, l_) in ocp.residual_rows(self.lin).items():
             lim = ocp.residual_limits[n]
             e = ca.mtimes(ca.DM(L * xs[None, :] / lim), Xs[:, N]) + ca.DM((l_ - L @ x0) / lim)
             self.res_expr[n] = ca.sqrt(ca.sumsqr(e)) * lim
-            opti.subject_to(ca.sumsqr(e) <= 1.0)
+            st(ca.sumsqr(e) <= 1.0, "residual-vibration limit (in units of the limit, squared)", n, 1.0)
 
     def _outputs(self):
         """Observables that are bounded, rate limited or in the objective, at the collocation points, and
@@ -253,22 +270,25 @@ class _Transcription:
                 i = dae.u_names.index(n)
                 if i in self.fixed_u:
                     continue
-                expr, s = self.Us[i, :], self.us[i]
+                expr, s, tf = self.Us[i, :], self.us[i], self.tk
             elif kind == "x":
                 i = dae.x_names.index(n)
                 expr, s = ca.horzcat(self.Xs[i, :], self.Xcs[i, :]), self.xs[i]
+                tf = np.r_[np.arange(self.N + 1) / self.N, self.tc]
             else:
-                s = self.ys[n]
+                s, tf = self.ys[n], self.tc
                 expr = self.Yc[self.all_y.index(n), :] / s
             if lo == hi:
-                opti.subject_to(ca.vec(expr) == lo / s)
-                continue
-            if np.isfinite(lo) and np.isfinite(hi):
-                opti.subject_to(opti.bounded(lo / s, ca.vec(expr), hi / s))
+                c = ca.vec(expr) == lo / s
+            elif np.isfinite(lo) and np.isfinite(hi):
+                c = opti.bounded(lo / s, ca.vec(expr), hi / s)
             elif np.isfinite(lo):
-                opti.subject_to(ca.vec(expr) >= lo / s)
+                c = ca.vec(expr) >= lo / s
             elif np.isfinite(hi):
-                opti.subject_to(ca.vec(expr) <= hi / s)
+                c = ca.vec(expr) <= hi / s
+            else:
+                continue
+            self._subject_to(c, "bound", n, tf, s, lo=lo, hi=hi)
 
     def _after_arrival(self, u_hold):
         """``(x', z)`` just after arrival, consistent with the final state and the held input (unknowns)."""
@@ -282,7 +302,8 @@ class _Transcription:
             z_a = ca.diag(self.zs) @ Za
         else:
             z_a = ca.DM(0, 1)
-        opti.subject_to(ca.diag(1.0 / self.rs) @ dae.F(xd_a, self.X[:, self.N], z_a, u_hold, self.ocp.p) == 0)
+        self._subject_to(ca.diag(1.0 / self.rs) @ dae.F(xd_a, self.X[:, self.N], z_a, u_hold, self.ocp.p) == 0,
+                         "model residual just after arrival", list(dae.eq_origin[:len(self.rs)]), 1.0, self.rs)
         return xd_a, z_a
 
     def _rate_limits(self) -> dict:
@@ -317,8 +338,9 @@ class _Transcription:
             h0 = self.T0 / N
             g = diff / (lim * h0)                                               # in units of the allowed step
             hs = self.h / h0
-            self.opti.subject_to(ca.vec(g - hs) <= 0)
-            self.opti.subject_to(ca.vec(-g - hs) <= 0)
+            tf = np.minimum(np.arange(1, diff.numel() + 1) / N, 1.0)
+            self._subject_to(ca.vec(g - hs) <= 0, "rate limit", n, tf, lim * h0, rate=True)
+            self._subject_to(ca.vec(-g - hs) <= 0, "rate limit", n, tf, lim * h0, rate=True)
             rate_expr[n] = diff / self.h
         return rate_expr
 
@@ -336,8 +358,12 @@ class _Transcription:
     def _failure(self):
         """The :class:`OcpError` of a failed solve, with the violation and vibration bound at the last iterate."""
         opti = self.opti
+        where, info = "", {}
         try:
-            viol = float(np.max(np.abs(opti.debug.value(opti.g))))
+            gv, lbg, ubg = (np.asarray(opti.debug.value(e), float).ravel() for e in (opti.g, opti.lbg, opti.ubg))
+            viol = float(np.max(np.r_[0.0, lbg - gv, gv - ubg]))
+            T = float(opti.debug.value(self.T)) if self.ocp.T_fixed is None else self.ocp.T_fixed
+            where, info = describe(self.ledger, T, gv, lbg, ubg)
         except Exception:  # noqa: BLE001 - diagnostic only
             viol = float("nan")
         vib = {}
@@ -346,7 +372,7 @@ class _Transcription:
                 vib[n] = float(opti.debug.value(e))
             except Exception:  # noqa: BLE001 - diagnostic only
                 vib[n] = None
-        return convergence_error(self.dae.name, opti.stats(), viol, vib, self.ocp.residual_limits)
+        return convergence_error(self.dae.name, opti.stats(), viol, vib, self.ocp.residual_limits, where, info)
 
     def _result(self, sol, stats, rate_expr) -> OcpResult:
         """The solution at the grid points (derivatives and algebraic variables: the last stage of each

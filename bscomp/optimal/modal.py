@@ -21,6 +21,7 @@ import numpy as np
 
 from bscomp.optimal.collocation import objective, output_at, radau
 from bscomp.optimal.guess import initial_guess
+from bscomp.optimal.infeasibility import Ledger, describe
 from bscomp.optimal.result import OcpError, OcpResult, active_fraction, convergence_error
 
 __all__ = ["SPARSE_MODAL_NX", "solve_modal", "solve_condensed", "condensed_states", "sparse_collocation"]
@@ -43,10 +44,11 @@ def solve_modal(ocp, solver_options: dict | None = None) -> OcpResult:
                        "use Ocp(..., coordinates='physical') or drop the rate limit")
     dae, x0 = ocp.dae, ocp.start_state()
     md = ocp.modal_dae()
-    rows, tgt = [], []
+    rows, tgt, names = [], [], []
     for i, v in ocp.final_targets():
         rows.append(md.P[i])
         tgt.append(v - x0[i])
+        names.append(dae.x_names[i])
     terminal = (np.array(rows).reshape(len(rows), md.nx), np.array(tgt, float))
     warm = None
     if ocp.warm is not None:
@@ -54,7 +56,7 @@ def solve_modal(ocp, solver_options: dict | None = None) -> OcpResult:
         xi = md.from_physical(w.x) if w.x.shape[1] == dae.nx else w.x
         warm = OcpResult(T=w.T, t=w.t, x=xi, u=w.u, outputs={}, x_names=md.x_names, u_names=w.u_names, active={})
     sparse = ocp.coordinates == "modal-sparse" or (ocp.coordinates == "modal" and md.nx > SPARSE_MODAL_NX)
-    r = solve_condensed(ocp.restated(md, terminal, warm), solver_options, sparse=sparse)
+    r = solve_condensed(ocp.restated(md, terminal, warm, names), solver_options, sparse=sparse)
     X = md.to_physical(r.x)
     XD = r.xd @ md.P.T
     uk = np.vstack([r.u[:1], r.u])
@@ -111,13 +113,18 @@ class _ModalNlp:
         self.beta = ca.mtimes(ca.DM(md.Bm), self.U) + ca.repmat(ca.DM(md.fm), 1, N)          # nx x N
         self.g, self.lbg, self.ubg = [], [], []
         self.Xvars, self.X0, self.Evars, self.E0 = [], [], [], []
+        self.ledger = Ledger()
 
-    def add(self, expr, lo, hi):
-        """Constraint ``lo <= expr <= hi`` (element-wise, bounds broadcast)."""
+    def add(self, expr, lo, hi, label="constraint", names="", tfrac=1.0, scale=1.0, bound=None):
+        """Constraint ``lo <= expr <= hi`` (element-wise, bounds broadcast), recorded in the ledger with what it
+        is (``label``, ``names`` and times ``tfrac`` per row, ``scale`` back to physical units; ``bound``: the
+        physical ``(lo, hi)`` of a bound)."""
         self.g.append(ca.vec(expr))
         n_ = expr.numel()
         self.lbg.append(np.broadcast_to(lo, (n_,)).astype(float))
         self.ubg.append(np.broadcast_to(hi, (n_,)).astype(float))
+        blo, bhi = bound if bound is not None else (None, None)
+        self.ledger.add(n_, label, names, tfrac, scale, blo, bhi)
 
     def _states(self):
         """ξ at the grid points (``Xi``) and at the collocation points (``Xc``): eliminated or kept."""
@@ -143,7 +150,8 @@ class _ModalNlp:
             refmag = np.max(np.abs(np.vstack([ref["X"], ref["Xc"].T]) @ Ctm.T), axis=0)
             sc = np.maximum(np.abs(tt), refmag)
             sc = np.where(sc > 0, sc, 1.0)
-            self.add(ca.mtimes(ca.DM(Ctm / sc[:, None]), Xi[:, N]) - ca.DM(tt / sc), 0.0, 0.0)
+            self.add(ca.mtimes(ca.DM(Ctm / sc[:, None]), Xi[:, N]) - ca.DM(tt / sc), 0.0, 0.0, "final value",
+                     ocp.terminal_names(len(tt)), 1.0, sc)
         self.res_expr = {}
         for n, (L, l_) in ocp.residual_rows(self.lin).items():
             lim = ocp.residual_limits[n]
@@ -152,8 +160,8 @@ class _ModalNlp:
             self.Evars.append(E)
             self.E0.append((L @ ref["X"][-1] + l_ - L @ x0) / lim)
             self.res_expr[n] = ca.sqrt(ca.sumsqr(e)) * lim
-            self.add(E - e, 0.0, 0.0)
-            self.add(ca.sumsqr(E), -np.inf, 1.0)
+            self.add(E - e, 0.0, 0.0, "residual-vibration bound (in units of the limit)", n)
+            self.add(ca.sumsqr(E), -np.inf, 1.0, "residual-vibration limit (in units of the limit, squared)", n)
 
     def _bounds(self):
         """Outputs (and original states) at the collocation points with their nominals; output bounds as
@@ -181,9 +189,17 @@ class _ModalNlp:
                     ulo[free_u.index(i)], uhi[free_u.index(i)] = lo / self.us[i], hi / self.us[i]
                 continue
             s = self.ys[n]
-            self.add(self.Yc[all_y.index(n), :] / s, lo / s, hi / s)
+            self.add(self.Yc[all_y.index(n), :] / s, lo / s, hi / s, "bound", n, radau(d).stage_times(N), s, (lo, hi))
         lbx.append(ulo.ravel(order="F"))
         ubx.append(uhi.ravel(order="F"))
+        if self.free_T:
+            self.ledger.add(1, "horizon", "T", 1.0, self.T0, lo=1e-6 * self.T0, space="x", start=0)
+        nf = len(free_u)
+        if nf:
+            sc = np.tile([self.us[i] for i in free_u], N)
+            self.ledger.add(nf * N, "bound", [md.u_names[i] for i in free_u] * N, np.repeat(np.arange(N) / N, nf),
+                            sc, lo=ulo.ravel(order="F") * sc, hi=uhi.ravel(order="F") * sc, space="x",
+                            start=int(self.free_T))
         return lbx, ubx
 
     def solve(self, solver_options) -> OcpResult:
@@ -217,7 +233,9 @@ class _ModalNlp:
         if not stats.get("success"):
             gv = np.asarray(sol["g"]).ravel()
             viol = float(np.max(np.r_[0.0, lbg - gv, gv - ubg])) if gv.size else 0.0
-            raise convergence_error(self.md.name, stats, viol, residual, ocp.residual_limits)
+            where, info = describe(self.ledger, float(vals[0]), gv, lbg, ubg, np.asarray(sol["x"]).ravel(),
+                                   np.concatenate(lbx), np.concatenate(ubx))
+            raise convergence_error(self.md.name, stats, viol, residual, ocp.residual_limits, where, info)
         return self._result(vals, stats, residual, int(w.numel()) - nE)
 
     def _result(self, vals, stats, residual, n_unknowns) -> OcpResult:
@@ -307,5 +325,6 @@ def sparse_collocation(md, ref, us, h, h0, beta, add):
         for r in range(1, d + 1):
             lhs = lhs + C[r, j - 1] * Xcs[:, (r - 1)::d]
         rhs = h * (ca.mtimes(Lsp, Xcs[:, (j - 1)::d]) + bs)
-        add(ca.mtimes(Rinv, lhs - rhs), 0.0, 0.0)
+        add(ca.mtimes(Rinv, lhs - rhs), 0.0, 0.0, "modal collocation equation", list(md.x_names) * N,
+            np.repeat((np.arange(N) + radau(d).tau[j]) / max(N, 1), nx), np.tile(rs * xsc, N))
     return Xc, Xcs, xsc

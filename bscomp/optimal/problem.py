@@ -22,7 +22,7 @@ from typing import Callable
 
 import numpy as np
 
-from bscomp.errors import UnknownNameError, UsageError, check_number
+from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_number
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.system import System
 from bscomp.model import as_dae
@@ -36,6 +36,13 @@ from bscomp.simulation.result import SimulationResult
 __all__ = ["Ocp"]
 
 COORDINATES = ("physical", "modal", "modal-condensed", "modal-sparse")
+
+
+def _bound_value(name, v, side) -> float:
+    """A bound as a float (``±inf`` for none, NaN kept for the caller's message), else :class:`UsageError`."""
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.number)):
+        raise UsageError(f"bound on '{name}': the {side} bound must be a number (-inf/inf for none), got {v!r}")
+    return float(v)
 
 
 class Ocp:
@@ -97,6 +104,7 @@ class Ocp:
         self.rest_below_hz: float | None = None
         self.hold: dict[str, float] = {}
         self._terminal = None    # (rows over x, targets): linear final conditions (modal transcription)
+        self._terminal_names: list = []   # what each of those rows stands for (a final value by name)
         self._modal = None       # the ModalDae at the start state, built on demand (modal_dae)
         # MUMPS's default pivot tolerance (1e-6) gives inaccurate steps on the KKT systems of stiff
         # structures (stiffnesses of 1e8 N/m next to a free rigid-body mode): Ipopt then creeps for
@@ -109,10 +117,13 @@ class Ocp:
     def bound(self, name, lo=-np.inf, hi=np.inf, scale=None):
         """Path bound ``lo <= name <= hi`` on a state, input or observable (enforced at every point)."""
         self.kind(name)
+        lo, hi = (_bound_value(name, v, side) for v, side in ((lo, "lower"), (hi, "upper")))
         if lo != lo or hi != hi:
             raise UsageError(f"bound on '{name}': a bound is NaN (lo={lo}, hi={hi}); use -inf/inf for none")
         if lo > hi:
             raise UsageError(f"bound on '{name}': lower {lo} > upper {hi}")
+        if scale is not None:
+            scale = check_number(f"scale of '{name}'", scale, positive=True)
         self.bounds[name] = (float(lo), float(hi))
         if scale is not None:
             self.scale[name] = float(scale)
@@ -134,13 +145,15 @@ class Ocp:
         coordinates only.
         """
         self.kind(name)
-        if not limit > 0:
+        if isinstance(limit, (int, float, np.number)) and not limit > 0:
             raise UsageError(f"rate limit on '{name}' must be > 0, not {limit}")
+        limit = check_number(f"rate limit on '{name}'", limit, positive=True)
         self.rate_limits[name] = float(limit)
         return self
 
     def initial(self, values: dict):
         """Initial state values by name (others at the model's start values: at rest)."""
+        values = check_mapping("initial(values)", values, "state values")
         for k in values:
             if self.kind(k) != "x":
                 raise UnknownNameError(f"initial value for '{k}': only states can be given")
@@ -159,6 +172,9 @@ class Ocp:
         with N intervals and ~N velocities to zero the problem is square and degenerate (measured: Ipopt
         stalls at a constraint violation of 3e-6). Choose ``f`` like the cut-off of a reduced model.
         """
+        values = check_mapping("final(values)", values, "state values")
+        if rest_below_hz is not None:
+            rest_below_hz = check_number("rest_below_hz", rest_below_hz, positive=True)
         for k in values:
             if self.kind(k) != "x":
                 raise UnknownNameError(f"final value for '{k}': only states can be given")
@@ -176,14 +192,24 @@ class Ocp:
 
     def minimize_effort(self, T: float, weights: dict | None = None):
         """Minimise ∫ Σ w_i u_i² dt over a fixed horizon T."""
+        weights = check_mapping("weights", weights, "input weights")
+        for k, w in weights.items():
+            if k not in self.dae.u_names:
+                raise UnknownNameError(f"weight for '{k}', which is not an input of '{self.dae.name}' "
+                                       f"({self.dae.u_names})")
+            weights[k] = check_number(f"weight of '{k}'", w, nonnegative=True)
         self.objective_kind = "effort"
         self.T_fixed = check_number("T", T, positive=True)
-        self.objective_args = {"weights": weights or {}}
+        self.objective_args = {"weights": weights}
         return self
 
     def minimize_tracking(self, T: float, output: str, reference: Callable, effort_weight: float = 0.0):
         """Minimise ∫ (y - r(t))² dt (+ effort) over a fixed horizon."""
         self.kind(output)
+        if not callable(reference):
+            raise ArgumentTypeError(f"reference must be a function of t giving the wanted '{output}', got "
+                                    f"{type(reference).__name__} {reference!r}")
+        effort_weight = check_number("effort_weight", effort_weight, nonnegative=True)
         self.objective_kind = "tracking"
         self.T_fixed = check_number("T", T, positive=True)
         self.objective_args = {"output": output, "reference": reference, "effort_weight": effort_weight}
@@ -193,8 +219,13 @@ class Ocp:
         """Fixed-time move, then minimise ∫ y² over the last ``T_settle`` seconds (e.g. table acceleration
         or screw stretch after arrival)."""
         self.kind(output)
+        T = check_number("T", T, positive=True)
+        T_settle = check_number("T_settle", T_settle, positive=True)
+        if T_settle > T:
+            raise UsageError(f"T_settle = {T_settle} s is longer than the horizon T = {T} s: the vibration is "
+                             "measured over the last T_settle seconds of the move; give T_settle <= T")
         self.objective_kind = "vibration"
-        self.T_fixed = check_number("T", T, positive=True)
+        self.T_fixed = T
         self.objective_args = {"output": output, "T_settle": float(T_settle)}
         return self
 
@@ -219,14 +250,17 @@ class Ocp:
         at ``T`` and the bound is on what follows. ``OcpResult.residual`` reports the bound at the optimum.
         Raises :class:`OcpError` at solve time if the limits cannot be met (with the bound reached).
         """
+        limits, hold = check_mapping("limits", limits, "limits"), check_mapping("hold", hold, "input values")
         for k, v in limits.items():
             if self.kind(k) == "u":
                 raise UnknownNameError(f"residual-vibration limit on '{k}': give an output or a state, not an input")
             if not v > 0:
                 raise UsageError(f"residual-vibration limit on '{k}' must be > 0, not {v}")
-        for k in hold or {}:
+        for k in hold:
             if self.kind(k) != "u":
                 raise UnknownNameError(f"hold value for '{k}': only inputs can be held")
+            hold[k] = check_number(f"hold value of '{k}'", hold[k])
+        limits = {k: check_number(f"residual-vibration limit on '{k}'", v, positive=True) for k, v in limits.items()}
         self.residual_limits.update({k: float(v) for k, v in limits.items()})
         self.hold.update({k: float(v) for k, v in (hold or {}).items()})
         return self
@@ -235,6 +269,8 @@ class Ocp:
         """Start from a previous solution (an :class:`OcpResult`, interpolated if its N differs) or from a
         simulation of the same model (a :class:`~bscomp.simulation.SimulationResult`, e.g. of a hand-made
         input profile; see :func:`bscomp.optimal.guess.from_simulation`) instead of the reference motion."""
+        if not isinstance(result, (SimulationResult, OcpResult)):
+            raise ArgumentTypeError(f"warm_start takes an OcpResult or a SimulationResult, got {type(result).__name__}")
         self.warm = from_simulation(result, self.dae) if isinstance(result, SimulationResult) else result
         return self
 
@@ -299,6 +335,12 @@ class Ocp:
             return None
         return np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
+    def terminal_names(self, n: int) -> list:
+        """Names of the ``n`` rows of :meth:`terminal_rows` for messages: the final values a restated problem's
+        rows stand for, then the slow modes brought to equilibrium (``final(rest_below_hz=...)``)."""
+        names = list(self._terminal_names)[:n]
+        return names + [f"equilibrium row {k + 1} (rest_below_hz)" for k in range(n - len(names))]
+
     def _equilibrium_rows(self, lin):
         """Rows ``(R, t)``, ``R x_T = t``: the modes with ``|λ| < 2π rest_below_hz`` at their equilibrium under
         the held input (``e_k = 0`` in :func:`bscomp.optimal.coordinates.residual_rows`)."""
@@ -353,7 +395,7 @@ class Ocp:
                 raise OcpError(f"coordinates='modal': {exc}") from exc
         return self._modal
 
-    def restated(self, dae, terminal, warm=None) -> Ocp:
+    def restated(self, dae, terminal, warm=None, terminal_names=None) -> Ocp:
         """This problem on ``dae``, another set of coordinates of the same model (inputs, outputs and bounds
         keep their names; the modal transcription), its start at 0 and its final values replaced by linear
         rows ``terminal = (R, t)``, ``R x_T = t``; ``warm`` in the new coordinates."""
@@ -361,6 +403,7 @@ class Ocp:
         sub.dae, sub.coordinates, sub._modal = dae, "physical", None
         sub.x_init, sub.x_final, sub.final_rest = {}, {}, False
         sub._terminal, sub.warm = terminal, warm
+        sub._terminal_names = list(terminal_names or [])
         return sub
 
     # ---- guess and solve -----------------------------------------------------------------------

@@ -22,7 +22,11 @@ __all__ = ["OcpResult", "OcpError", "active_fraction", "convergence_error"]
 
 
 class OcpError(SolverError):
-    """Ipopt did not converge; the message gives its status, the largest violations and a hint."""
+    """Ipopt did not converge; the message gives its status, the constraint violated most (name, time,
+    amount), the bounds at their limits (name, bound, times) and a hint. ``infeasibility`` holds the same
+    as a dict (``{"worst": ..., "bounds": [...]}``; empty for a problem refused before solving)."""
+
+    infeasibility: dict = {}
 
 
 def active_fraction(v, lo, hi) -> float:
@@ -38,9 +42,11 @@ def active_fraction(v, lo, hi) -> float:
 
 
 def convergence_error(model_name: str, stats: dict, violation: float, residual: dict | None = None,
-                      limits: dict | None = None) -> OcpError:
+                      limits: dict | None = None, where: str = "", info: dict | None = None) -> OcpError:
     """The :class:`OcpError` of a failed Ipopt run, with its status, the largest scaled constraint
-    violation and, for residual-vibration limits, the bound reached at the last iterate.
+    violation, the constraint it is on and the bounds at their limits (``where``, from
+    :func:`bscomp.optimal.infeasibility.describe`) and, for residual-vibration limits, the bound reached at
+    the last iterate. ``info`` (the same as a dict) becomes the error's ``infeasibility`` attribute.
 
     Parameters
     ----------
@@ -52,6 +58,10 @@ def convergence_error(model_name: str, stats: dict, violation: float, residual: 
     residual, limits : dict, optional
         Residual-vibration bound at the last iterate (``None`` where it could not be evaluated) and its
         limit, by output name.
+    where : str, optional
+        The largest infeasibility in the model's names, units and times, and the bounds at their limits.
+    info : dict, optional
+        ``{"worst": {...}, "bounds": [...]}`` (see :func:`~bscomp.optimal.infeasibility.describe`).
     """
     vib = ""
     if residual:
@@ -60,11 +70,15 @@ def convergence_error(model_name: str, stats: dict, violation: float, residual: 
         vib = (" Residual-vibration bound at the last iterate: " + ", ".join(parts) + "; a limit below what "
                "the input grid can reach is infeasible: raise N (finer torque shaping before arrival) or the "
                "limit, or add time (fixed-T problems).")
-    return OcpError(
+    err = OcpError(
         f"Ipopt did not converge on '{model_name}' (status: {stats.get('return_status')}, iterations "
-        f"{stats.get('iter_count')}, largest scaled constraint violation {violation:.3g}).{vib} Hints: check that "
-        "the final state is reachable within the bounds, give a better T_guess or warm start, loosen bounds, "
-        "or give scale= for signals of very different magnitudes")
+        f"{stats.get('iter_count')}, largest scaled constraint violation {violation:.3g})."
+        f"{' ' + where if where else ''}"
+        f"{vib} Hints: check that the final state is reachable within the bounds (a bound held on most of the "
+        "horizon is the one to loosen, or give more time), give a better T_guess or warm start, or give scale= "
+        "for signals of very different magnitudes")
+    err.infeasibility = dict(info or {})
+    return err
 
 
 @dataclass

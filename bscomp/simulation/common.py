@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bscomp.errors import UnknownNameError, UsageError, check_number
+from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_number
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.system import System
 from bscomp.model import as_dae
@@ -103,12 +103,15 @@ def prepare(model, t, inputs=None, x0=None, params=None, outputs=None, controlle
     own = (params or {}) if isinstance(model, (System, Dae)) else {}  # the other forms built them in
     p = dae.parameter_vector({k: v for k, v in own.items() if k not in dae.structural_parameters})
     xs = dae.x_start.copy()
-    for k, v in (x0 or {}).items():
+    for k, v in check_mapping("x0", x0, "initial state values").items():
         if k not in dae.x_names:
             raise UnknownNameError(f"x0 names '{k}', which is not a state of '{dae.name}' ({dae.x_names[:8]}...)")
         xs[dae.x_names.index(k)] = check_number(f"x0['{k}']", v)
     U = input_matrix(dae, t, inputs, [a for c in controllers for a in c.actuate])
-    outputs = list(outputs or [])
+    outputs = [outputs] if isinstance(outputs, str) else list(outputs or [])
+    bad = [o for o in outputs if not isinstance(o, str)]
+    if bad:
+        raise ArgumentTypeError(f"outputs must be names (str), e.g. ['table.s'], got {bad[0]!r}")
     if outputs:
         dae.output_function(outputs)  # unknown output names fail before integrating
     if progress is None:
@@ -125,13 +128,13 @@ def input_matrix(dae, t, inputs, fixed=()):
     """
     nint = len(t) - 1
     U = np.zeros((dae.nu, max(nint, 1)))
-    for k, v in (inputs or {}).items():
+    for k, v in check_mapping("inputs", inputs, "input signals").items():
         if k not in dae.u_names:
             raise UnknownNameError(f"'{k}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
         i = dae.u_names.index(k)
         if callable(v):
             tm = 0.5 * (t[:-1] + t[1:])
-            U[i] = np.array([float(v(tt)) for tt in tm])
+            U[i] = [_call_input(k, v, tt) for tt in tm]
         else:
             try:
                 arr = np.asarray(v, float)
@@ -153,6 +156,19 @@ def input_matrix(dae, t, inputs, fixed=()):
         if k not in dae.u_names:
             raise UnknownNameError(f"'{k}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
     return U
+
+
+def _call_input(name, fn, t) -> float:
+    """The value of the input function ``fn`` at ``t``: a number, else :class:`UsageError` naming it."""
+    try:
+        v = fn(t)
+    except Exception as exc:  # noqa: BLE001 - the user's function: say which one failed and where
+        raise UsageError(f"input '{name}': its function raised {type(exc).__name__} at t = {t:.6g} s: {exc}") from exc
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        raise UsageError(f"input '{name}': its function returned {v!r} at t = {t:.6g} s; it must return a number "
+                         "(one input value per call)") from None
 
 
 class SampledLoop:

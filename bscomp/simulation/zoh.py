@@ -20,16 +20,13 @@ up to 32 states the recursion is solved for all steps at once in complex Schur c
 from __future__ import annotations
 
 import time
-import warnings
 
-import casadi as ca
 import numpy as np
 import scipy.linalg as sla
 from scipy.signal import lfilter
 
-from bscomp.errors import ModelLimitationWarning
 from bscomp.kernel.dae import _sp
-from bscomp.linear.linearization import explicit_form
+from bscomp.linear.linearization import explicit_form, linearized_parts, warn_linearized
 from bscomp.simulation.common import SampledLoop, finish
 
 __all__ = ["simulate_zoh", "zoh_schur"]
@@ -37,26 +34,9 @@ __all__ = ["simulate_zoh", "zoh_schur"]
 SCHUR_MAX = 32  # largest model solved in Schur coordinates (O(n^2 N) element-wise work)
 
 
-def nonlinear_variables(dae) -> list:
-    """Names of the variables the residual's Jacobian depends on (empty for a linear model)."""
-    w = [(dae.xds, [f"der({n})" for n in dae.x_names]), (dae.xs, dae.x_names), (dae.zs, dae.z_names),
-         (dae.us, dae.u_names)]
-    wv = ca.vertcat(*(v for v, _ in w))
-    nz = ca.jacobian(dae.F_sx, wv).nonzeros()
-    if not nz:
-        return []
-    cols = sorted(set(ca.jacobian(ca.vertcat(*nz), wv).sparsity().get_col()))
-    names = [n for _, ns in w for n in ns]
-    return [names[c] for c in cols]
-
-
 def _warn_if_nonlinear(dae) -> None:
-    names = nonlinear_variables(dae)
-    if names:
-        warnings.warn(f"simulate(method='lti') on '{dae.name}', which is nonlinear in {', '.join(names[:5])}"
-                      f"{' ...' if len(names) > 5 else ''}: the model is linearized at the start point and the "
-                      "nonlinearity (friction, backlash, a moving nut) is ignored; use method='idas', 'fixed' or "
-                      "'split'", ModelLimitationWarning, stacklevel=4)
+    warn_linearized(linearized_parts(dae), "simulate(method='lti')", "use method='idas', 'fixed' or 'split'",
+                    stacklevel=4)
 
 
 def simulate_zoh(problem, options=None):

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from bscomp.errors import UsageError, check_number
 from bscomp.files import atomic_write, json_default
 from bscomp.kernel.interface import interface_of
 from bscomp.kernel.system import System
@@ -72,9 +73,16 @@ def _uncertain(system, uncertain, default_spread):
         if iface is not None:
             return iface.spreads()
         return {k: default_spread for k in (getattr(system, "uncertain", None) or [])}
+    if isinstance(uncertain, str):
+        uncertain = [uncertain]
     if isinstance(uncertain, dict):
-        return {k: float(v) for k, v in uncertain.items()}
-    return {k: default_spread for k in uncertain}
+        out = {k: check_number(f"spread of '{k}'", v, positive=True) for k, v in uncertain.items()}
+    else:
+        out = {k: default_spread for k in uncertain}
+    if not out:
+        raise UsageError("uncertain is empty: name at least one parameter to calibrate (e.g. ['table.m']), or "
+                         "leave it out to use the drive's declared uncertain parameters")
+    return out
 
 
 def parameter_bounds(system, uncertain: dict, values: dict) -> list:

@@ -44,9 +44,10 @@ from threadpoolctl import threadpool_limits
 from bscomp.kernel.interface import NotApplicable
 from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
-from bscomp.validate.datasets import FrfData, TimeData
+from bscomp.validate.datasets import FrfData
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
 from bscomp.validate.evaluation import Problem
+from bscomp.validate.readers import load_all
 from bscomp.validate.refinement import job_base, refine_candidate, refine_task
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
@@ -185,9 +186,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
               min_heldout_drop, noise_tolerance, overrides, verbose, progress, default_spread, n_screen, n_scan,
               remote):
     t_start = time.perf_counter()
-    if isinstance(datasets, (FrfData, TimeData)):
-        datasets = [datasets]
-    datasets = list(datasets)
+    datasets = load_all(datasets)
     if not datasets:
         raise ValueError("diagnose needs at least one dataset")
     log = print if verbose else (lambda *a, **k: None)

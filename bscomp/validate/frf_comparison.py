@@ -188,7 +188,7 @@ def _model_poles(dae, data, fmin, fmax):
     """The model's elastic modes in the band, ``[(f, zeta, index, strong)]`` (``f`` = |p|/2 pi of the damped
     pole pair, the undamped frequency without one), or None when the model has no second-order form."""
     try:
-        md = modes(dae, inputs=data.inputs, outputs=data.outputs)
+        md = modes(dae, inputs=data.inputs, outputs=data.outputs, warn=False)
     except NotLinearError:
         return None
     out = []
@@ -219,7 +219,8 @@ def _model_frf(dae, data, extra_freqs):
     """Model FRF at the measured frequencies and at ``extra_freqs`` (one FRF evaluation):
     ``({pair: H}, {pair: H at extra_freqs})``."""
     n = data.freqs.size
-    res = frf(dae, input=data.inputs, output=data.outputs, freqs=np.concatenate([data.freqs, extra_freqs]))
+    res = frf(dae, input=data.inputs, output=data.outputs, freqs=np.concatenate([data.freqs, extra_freqs]),
+              warn=False)
     H = {(i, o): res.H[:, res.outputs.index(o), res.inputs.index(i)] for i, o in data.H}
     return {p: h[:n] for p, h in H.items()}, {p: h[n:] for p, h in H.items()}
 

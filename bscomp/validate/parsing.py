@@ -326,6 +326,9 @@ def _header(path, meta):
 
 def read_table(path):
     """``(path, meta, header, header_line, table)`` of a measurement CSV file (see the module notes)."""
+    if not isinstance(path, (str, Path)):
+        raise MeasurementFileError(str(path)[:80], None, None, f"a measurement file is given by its path (str or "
+                                   f"pathlib.Path), got {type(path).__name__}")
     path = Path(path)
     if not path.is_file():
         raise MeasurementFileError(path, None, None, "no such file")

@@ -235,6 +235,8 @@ def _raw_peaks(f, L, min_prominence_db):
             zeta = (fp - np.exp(lo)) / fp
         else:
             zeta = np.nan
+        if not zeta > 0:          # a half-power point on the wrong side of the peak: no damping estimate
+            zeta = np.nan
         out.append((int(k), fp, float(lp), float(zeta), float(prom)))
     return out
 
@@ -287,10 +289,10 @@ def peak_pick(freqs, H, pair=("", ""), min_prominence_db: float = 3.0, coherence
     parabola through the three highest points (in log frequency), with the half-power damping
     :math:`\\zeta = (f_2 - f_1) / (2 f_r)` from the frequencies where :math:`|H|` falls to
     :math:`|H_r|/\\sqrt 2` (one-sided when only one half-power point is inside the data). Points with
-    coherence below ``min_coherence`` are ignored. With ``refine`` and a complex ``H``, these are the
-    starting values of :func:`modal_fit` over a band of :math:`\\pm 3\\zeta` (8-35 %) around each peak,
-    fitted jointly with the other peaks in that band; the fitted pole gives ``f`` and ``zeta``, which
-    removes the bias of the raw peak on damped modes, velocity and acceleration FRFs and near
+    coherence below ``min_coherence`` and zero or non-finite :math:`|H|` are ignored. With ``refine`` and a
+    complex ``H``, these are the starting values of :func:`modal_fit` over a band of :math:`\\pm 3\\zeta`
+    (8-35 %) around each peak, fitted jointly with the other peaks in that band; the fitted pole gives ``f``
+    and ``zeta``, which removes the bias of the raw peak on damped modes, velocity and acceleration FRFs and near
     neighbouring modes or antiresonances. A peak whose fit fails keeps its raw values (``refined`` False).
 
     Returns
@@ -299,7 +301,8 @@ def peak_pick(freqs, H, pair=("", ""), min_prominence_db: float = 3.0, coherence
     """
     f = np.asarray(freqs, float)
     Hc = np.asarray(H)
-    ok = f > 0
+    # a zero or non-finite |H| is no data point (its -inf dB dip would make its neighbours peaks): skipped
+    ok = (f > 0) & np.isfinite(f) & np.isfinite(Hc) & (np.abs(Hc) > 0)
     g = None if coherence is None else np.asarray(coherence, float)
     if g is not None:
         ok &= g >= min_coherence

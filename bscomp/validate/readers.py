@@ -9,9 +9,11 @@ naming the file, the line and the column.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 
+from bscomp.errors import ArgumentTypeError
 from bscomp.kernel.units import UnitSyntaxError, convention_units, expected_dimension_ok, parse_unit
 from bscomp.linear.response import Frf
 from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData
@@ -33,6 +35,18 @@ def _finite(path, x, rows, col, name, what):
         raise MeasurementFileError(path, rows.line(k), col, f"{what} is not finite after conversion to SI (value "
                                    f"{float(rows.A[k, col - 1])!r} in the file): out of range of a float", name)
     return x
+
+
+def _nonzero(path, h, f, rows, col, name, pname):
+    """A response of exactly 0 (or one that underflows to 0 in SI) is no measurement: -inf dB, no phase; peak
+    picking would read the dip beside it as a resonance."""
+    zero = np.flatnonzero(h == 0)
+    if zero.size:
+        k = int(zero[0])
+        every = " at every frequency: the pair carries no signal" if zero.size == h.size else \
+            f" at f = {f[k]:.6g} Hz ({zero.size} row(s))"
+        raise MeasurementFileError(path, rows.line(k), col, f"response {pname} is exactly 0{every}; a zero magnitude "
+                                   "is not a measured value (-inf dB): drop the row(s), or the pair's columns", name)
 
 
 def _increasing(path, x, rows, col, name, what):
@@ -150,6 +164,7 @@ def _frf_from(path, meta, header, hl, rows):
         _check_frf_unit(pname, out, inp, u, meta, w)
         with np.errstate(over="ignore", invalid="ignore"):
             H[(inp, out)] = _finite(path, h * u.scale, rows, first, header[first - 1], f"response {pname}")
+        _nonzero(path, H[(inp, out)], f, rows, first, header[first - 1], pname)
         units[(inp, out)] = u.si
     extra = [n for n in meta.units if "/" in n and n not in {f"{o}/{i}" for i, o in H}]
     if extra:
@@ -313,4 +328,9 @@ def load(path):
 
 def load_all(paths) -> list:
     """:func:`load` each path (an FrfData/TimeData passes through)."""
+    if isinstance(paths, (str, Path, FrfData, TimeData)):
+        paths = [paths]
+    if not isinstance(paths, (list, tuple)):
+        raise ArgumentTypeError(f"measurements are a file path, an FrfData/TimeData or a list of them, got "
+                                f"{type(paths).__name__} {paths!r}"[:300])
     return [p if isinstance(p, (FrfData, TimeData)) else load(p) for p in paths]

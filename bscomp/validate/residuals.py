@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bscomp.errors import UnknownNameError
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
@@ -81,7 +82,8 @@ def build_for(system_or_build, conditions: dict | None = None, params: dict | No
                 f"{', '.join(sorted(accepted or ())) or 'none'}) nor a parameter ('component.parameter')", source)
         system = as_system(system_or_build, kept)
     else:
-        raise TypeError(f"expected a System, a build callable or a system name, got {type(system_or_build).__name__}")
+        raise UnknownNameError(f"cannot use {type(system_or_build).__name__} as a model: give a system name, a .py "
+                               "path, a build function, a bscomp.System or a bscomp.model.ModelSpec")
     overrides = {**dotted, **(params or {})}
     return system.with_parameters(overrides) if overrides else system
 
@@ -135,7 +137,7 @@ def frf_at(system, data: FrfData) -> dict:
     dae = system if isinstance(system, Dae) else flatten(system.linear_equivalent())
     ins, outs = data.inputs, data.outputs
     check_channels(dae, data, ins, outs)
-    res = frf(dae, input=ins, output=outs, freqs=data.freqs)
+    res = frf(dae, input=ins, output=outs, freqs=data.freqs, warn=False)   # compare/diagnose model them
     return {(i, o): res.H[:, res.outputs.index(o), res.inputs.index(i)] for i, o in data.H}
 
 

@@ -23,6 +23,7 @@ from bscomp.errors import (
     OutputFileError,
     OverdeterminedError,
     ParameterError,
+    ParameterFileError,
     PortConnectionError,
     UnconnectedPortError,
     UnderdeterminedError,
@@ -34,6 +35,7 @@ from bscomp.model import as_dae, as_system
 from bscomp.optimal import Ocp
 from bscomp.optimal.problem import OcpError
 from bscomp.systems import small_drive
+from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.validate import MeasurementFileError, load
 
 T = np.linspace(0.0, 0.01, 11)
@@ -101,6 +103,12 @@ def _different_kinds():
     s.connect("m.flange_a", "J.flange_a")
 
 
+def _frf_file(tmp):
+    p = tmp / "h.csv"
+    bscomp.frf(sd(), "motor.tau", "table.s", [10.0, 100.0]).to_csv(p)
+    return p
+
+
 def _measurement(tmp, name, text, encoding="utf-8"):
     p = tmp / name
     p.write_bytes(text.encode(encoding))
@@ -108,6 +116,7 @@ def _measurement(tmp, name, text, encoding="utf-8"):
 
 
 PAIR = "f,re(table.s/motor.tau),im(table.s/motor.tau)"
+UNIT = "# unit table.s/motor.tau: m/(N.m)\n"
 
 CASES = [
     # ---- components and parameters -------------------------------------------------------------------
@@ -121,6 +130,19 @@ CASES = [
     ("mass_unknown_keyword", lambda tmp: Mass(mass=1.0), UnknownNameError, r"Mass has no parameter.*'mass'"),
     ("spring_zero", lambda tmp: Spring(c=0.0), ParameterError, r"Spring\.c = 0\.0 N/m must be > 0"),
     ("inertia_negative", lambda tmp: Inertia(J=-1e-3), ParameterError, r"Inertia\.J = -0\.001"),
+    ("mass_list", lambda tmp: Mass(m=[1, 2]), ParameterError, r"Mass\.m \[kg\] takes one real number, got \[1, 2\]"),
+    ("mass_array", lambda tmp: Mass(m=np.array([3.0])), ParameterError, r"Mass\.m .*takes one real number"),
+    ("mass_complex", lambda tmp: Mass(m=1 + 2j), ParameterError, r"Mass\.m \[kg\] must be a number, got \(1\+2j\)"),
+    ("mass_numpy_complex", lambda tmp: Mass(m=np.complex128(2.0)), ParameterError, r"Mass\.m .*complex"),
+    ("mass_bytes", lambda tmp: Mass(m=b"3"), ParameterError, r"Mass\.m .*b'3'"),
+    ("mass_dict", lambda tmp: Mass(m={}), ParameterError, r"Mass\.m .*must be a number"),
+    ("mass_overflowing_text", lambda tmp: Mass(m="1e400"), ParameterError, r"Mass\.m \[kg\] is inf"),
+    ("spring_list", lambda tmp: Spring(c=(1e6, 2e6)), ParameterError, r"Spring\.c .*takes one real number"),
+    ("set_list", lambda tmp: sd().set("table.m", [1.0, 2.0]), ParameterError,
+     r"table\.m \(Mass\) \[kg\] takes one real number"),
+    ("set_complex", lambda tmp: sd().set("table.m", 250j), ParameterError, r"table\.m \(Mass\).*250j"),
+    ("set_negative_text", lambda tmp: sd().set("table.m", "-3 kg"), ParameterError, r"table\.m = -3\.0 kg"),
+    ("set_not_a_name", lambda tmp: sd().set(3, 1.0), ArgumentTypeError, r"system\.set\(\).*got int 3"),
     ("set_unknown_parameter", lambda tmp: sd().set("table.mm", 1.0), UnknownNameError, r"table.*no parameter 'mm'"),
     ("set_unknown_component", lambda tmp: sd().set("tabel.m", 1.0), UnknownNameError, r"no component 'tabel'"),
     ("set_nan", lambda tmp: sd().set("table.m", NAN), ParameterError, r"table\.m \[kg\] is nan"),
@@ -256,6 +278,136 @@ CASES = [
     ("measurement_nan_value", lambda tmp: load(_measurement(
         tmp, "n.csv", "# kind: time\n# input motor.tau: N m\n# output table.s: m\nt,motor.tau,table.s\n"
         "0,1,nan\n0.1,1,2\n")), MeasurementFileError, r"n\.csv, line 5, column 3 \('table\.s'\).*not finite"),
+    ("measurement_zero_response_row", lambda tmp: load(_measurement(
+        tmp, "z.csv", f"# kind: frf\n{UNIT}{PAIR}\n1,2,3\n2,0,0\n3,1,4\n")),
+     MeasurementFileError, r"z\.csv, line 5, column 2.*table\.s/motor\.tau is exactly 0 at f = 2 Hz"),
+    ("measurement_zero_response_everywhere", lambda tmp: load(_measurement(
+        tmp, "z0.csv", f"# kind: frf\n{UNIT}f,mag(table.s/motor.tau),phase_deg(table.s/motor.tau)\n1,0,0\n2,0,0\n")),
+     MeasurementFileError, r"z0\.csv, line 4.*exactly 0 at every frequency"),
+    ("measurement_mag_db_underflows", lambda tmp: load(_measurement(
+        tmp, "u0.csv", f"# kind: frf\n{UNIT}f,mag_db(table.s/motor.tau),phase_deg(table.s/motor.tau)\n"
+        "1,-20,0\n2,-9000,0\n")),
+     MeasurementFileError, r"u0\.csv, line 5.*exactly 0"),
+    # ---- parameter files (TOML) ------------------------------------------------------------------------
+    ("parameter_file_missing", lambda tmp: load_parameters(tmp / "none.toml"), ParameterFileError,
+     r"parameter file not found: .*none\.toml"),
+    ("parameter_file_directory", lambda tmp: load_parameters(str(tmp) + "/"), ParameterFileError,
+     r"is a directory"),
+    ("parameter_file_not_toml", lambda tmp: load_parameters(_measurement(tmp, "b.toml", "x = = 1\n")),
+     ParameterFileError, r"b\.toml: invalid TOML"),
+    ("parameter_file_latin1", lambda tmp: load_parameters(_measurement(
+        tmp, "l.toml", "[a]\nvalue = 1\nunit = 'm'\nsource = 'm\xe9sure'\n", "latin-1")), ParameterFileError,
+     r"l\.toml: not UTF-8"),
+    ("parameter_file_missing_source", lambda tmp: load_parameters(_measurement(
+        tmp, "s.toml", "[g.k]\nvalue = 1\nunit = 'N/m'\n")), ParameterFileError,
+     r"s\.toml: entry 'g\.k' lacks.*source"),
+    ("parameter_file_nan_value", lambda tmp: load_parameters(_measurement(
+        tmp, "n.toml", "[g.k]\nvalue = nan\nunit = 'N/m'\nsource = 'x'\n")), ParameterFileError,
+     r"n\.toml: entry 'g\.k' has the value nan"),
+    ("parameter_file_bool_value", lambda tmp: load_parameters(_measurement(
+        tmp, "t.toml", "[g.k]\nvalue = true\nunit = 'N/m'\nsource = 'x'\n")), ParameterFileError,
+     r"t\.toml: entry 'g\.k' has value True"),
+    ("parameter_file_bare_value", lambda tmp: load_parameters(_measurement(tmp, "v.toml", "[g]\nk = 1\n")),
+     ParameterFileError, r"v\.toml: key 'g\.k' is a bare value"),
+    ("parameter_file_not_a_name", lambda tmp: load_parameters(3), ParameterFileError, r"got int 3"),
+    ("parameter_entry_unknown", lambda tmp: get_value(load_parameters(), "screw.lenght"), UnknownNameError,
+     r"no parameter entry 'screw\.lenght'"),
+    # ---- a careless user across the public API (issue 15 review) ----------------------------------------
+    ("modes_at_text", lambda tmp: bscomp.modes(sd(), at={"table.s": "abc"}), UsageError,
+     r"at\['table\.s'\] must be a number"),
+    ("modes_at_list", lambda tmp: bscomp.modes(sd(), at=[1, 2]), ArgumentTypeError, r"at must be a dict"),
+    ("modes_params_list", lambda tmp: bscomp.modes("small_drive", params=[1, 2]), ArgumentTypeError,
+     r"params must be a dict"),
+    ("frf_input_a_number", lambda tmp: bscomp.frf(sd(), 3, "table.s", F), ArgumentTypeError,
+     r"input must be a name.*3"),
+    ("frf_output_a_list_of_numbers", lambda tmp: bscomp.frf(sd(), "motor.tau", [1, 2], F), ArgumentTypeError,
+     r"output must be a name"),
+    ("frf_csv_to_a_directory", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", F).to_csv(tmp), OutputFileError,
+     r"is a directory"),
+    ("frf_json_missing_folder", lambda tmp: bscomp.frf(sd(), "motor.tau", "table.s", F).to_json(tmp / "no" / "x.json"),
+     OutputFileError, r"folder .*no' does not exist"),
+    ("transfer_function_list", lambda tmp: bscomp.transfer_function(sd(), ["motor.tau"], "table.s"), ArgumentTypeError,
+     r"SISO.*\['motor\.tau'\]"),
+    ("transfer_function_modes_negative", lambda tmp: bscomp.transfer_function(sd(), "motor.tau", "table.s", modes=-1),
+     UsageError, r"modes must be >= 0, got -1"),
+    ("transfer_function_fmax_negative", lambda tmp: bscomp.transfer_function(sd(), "motor.tau", "table.s", fmax=-1),
+     UsageError, r"fmax must be > 0"),
+    ("simulate_inputs_list", lambda tmp: bscomp.simulate(sd(), T, inputs=[1.0]), ArgumentTypeError,
+     r"inputs must be a dict"),
+    ("simulate_input_function_raises", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": lambda t: 1 / 0}),
+     UsageError, r"input 'motor\.tau': its function raised ZeroDivisionError at t = 0\.0005 s"),
+    ("simulate_input_function_text", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": lambda t: "x"}),
+     UsageError, r"input 'motor\.tau': its function returned 'x'"),
+    ("simulate_x0_list", lambda tmp: bscomp.simulate(sd(), T, x0=[1, 2]), ArgumentTypeError, r"x0 must be a dict"),
+    ("simulate_x0_text", lambda tmp: bscomp.simulate(sd(), T, x0={"table.s": "abc"}), UsageError,
+     r"x0\['table\.s'\] must be a number"),
+    ("simulate_output_a_number", lambda tmp: bscomp.simulate(sd(), T, outputs=[1]), ArgumentTypeError,
+     r"outputs must be names"),
+    ("simulate_csv_to_a_directory", lambda tmp: bscomp.simulate(sd(), T).to_csv(tmp), OutputFileError,
+     r"is a directory"),
+    ("ocp_bound_text", lambda tmp: Ocp(sd()).bound("motor.tau", "a", 1), UsageError,
+     r"bound on 'motor\.tau': the lower bound must be a number.*'a'"),
+    ("ocp_bound_none", lambda tmp: Ocp(sd()).bound("motor.tau", -1, None), UsageError,
+     r"'motor\.tau': the upper bound must be a number.*None"),
+    ("ocp_scale_zero", lambda tmp: Ocp(sd()).bound("motor.tau", -1, 1, scale=0), UsageError,
+     r"scale of 'motor\.tau' must be > 0"),
+    ("ocp_scale_nan", lambda tmp: Ocp(sd()).bound("motor.tau", -1, 1, scale=NAN), UsageError,
+     r"scale of 'motor\.tau' must be finite"),
+    ("ocp_rate_text", lambda tmp: Ocp(sd()).bound_rate("motor.tau", "a"), UsageError,
+     r"rate limit on 'motor\.tau' must be a number"),
+    ("ocp_rate_nan", lambda tmp: Ocp(sd()).bound_rate("motor.tau", NAN), UsageError, r"rate limit on 'motor\.tau'"),
+    ("ocp_final_list", lambda tmp: Ocp(sd()).final(["table.s"]), ArgumentTypeError, r"final\(values\) must be a dict"),
+    ("ocp_final_text", lambda tmp: Ocp(sd()).final({"table.s": "a"}), UsageError,
+     r"final value of 'table\.s' must be a number"),
+    ("ocp_rest_below_negative", lambda tmp: Ocp(sd()).final({"table.s": 0.1}, rest_below_hz=-5), UsageError,
+     r"rest_below_hz must be > 0"),
+    ("ocp_T_text", lambda tmp: Ocp(sd()).minimize_effort(T="a"), UsageError, r"T must be a number, got 'a'"),
+    ("ocp_weight_nan", lambda tmp: Ocp(sd()).minimize_effort(T=0.1, weights={"motor.tau": NAN}), UsageError,
+     r"weight of 'motor\.tau' must be finite"),
+    ("ocp_weight_unknown_input", lambda tmp: Ocp(sd()).minimize_effort(T=0.1, weights={"motor.tauu": 1.0}),
+     UnknownNameError, r"weight for 'motor\.tauu'"),
+    ("ocp_reference_not_callable", lambda tmp: Ocp(sd()).minimize_tracking(0.1, "table.s", 3.0), ArgumentTypeError,
+     r"reference must be a function of t.*'table\.s'"),
+    ("ocp_effort_weight_nan", lambda tmp: Ocp(sd()).minimize_tracking(0.1, "table.s", lambda t: 0.0,
+                                                                      effort_weight=NAN), UsageError,
+     r"effort_weight must be finite"),
+    ("ocp_settle_negative", lambda tmp: Ocp(sd()).minimize_residual_vibration(0.1, "table.s", T_settle=-1), UsageError,
+     r"T_settle must be > 0"),
+    ("ocp_settle_longer_than_T", lambda tmp: Ocp(sd()).minimize_residual_vibration(0.1, "table.s", T_settle=5),
+     UsageError, r"T_settle = 5\.0 s is longer than the horizon T = 0\.1 s"),
+    ("ocp_limit_nan", lambda tmp: Ocp(sd()).limit_residual_vibration({"table.s": NAN}), UsageError,
+     r"residual-vibration limit on 'table\.s'"),
+    ("ocp_hold_nan", lambda tmp: Ocp(sd()).limit_residual_vibration({"table.s": 1e-6}, hold={"motor.tau": NAN}),
+     UsageError, r"hold value of 'motor\.tau' must be finite"),
+    ("ocp_warm_start_junk", lambda tmp: Ocp(sd()).warm_start(42), ArgumentTypeError,
+     r"warm_start takes an OcpResult or a SimulationResult, got int"),
+    ("ocp_N_text", lambda tmp: Ocp(sd(), N="a"), UsageError, r"N must be a number"),
+    ("ocp_initial_nan", lambda tmp: Ocp(sd()).initial({"table.s": NAN}), UsageError,
+     r"initial value of 'table\.s' must be finite"),
+    ("compare_model_a_number", lambda tmp: bscomp.compare(42, _frf_file(tmp)), UnknownNameError,
+     r"cannot use int as a model"),
+    ("compare_data_a_number", lambda tmp: bscomp.compare(sd(), 42), ArgumentTypeError,
+     r"measurements are a file path.*got int 42"),
+    ("diagnose_data_a_number", lambda tmp: bscomp.diagnose(sd(), 42), ArgumentTypeError,
+     r"measurements are a file path.*got int 42"),
+    ("calibrate_nothing", lambda tmp: bscomp.calibrate(sd(), _frf_file(tmp), []), UsageError,
+     r"uncertain is empty"),
+    ("calibrate_spread_nan", lambda tmp: bscomp.calibrate(sd(), _frf_file(tmp), {"table.m": NAN}), UsageError,
+     r"spread of 'table\.m' must be finite"),
+    ("sweep_positions_text", lambda tmp: bscomp.position_sweep("small_drive", "nope"), UsageError,
+     r"positions must be numbers.*'nope'"),
+    ("sweep_positions_nan", lambda tmp: bscomp.position_sweep("small_drive", [0.1, NAN]), UsageError,
+     r"positions must be a non-empty 1-D array of finite"),
+    ("sweep_positions_empty", lambda tmp: bscomp.position_sweep("small_drive", []), UsageError,
+     r"positions must be a non-empty"),
+    ("sweep_method_unknown", lambda tmp: bscomp.position_sweep("small_drive", [0.1], method="fast"), UsageError,
+     r"method must be 'auto', 'tangent' or 'rebuild', got 'fast'"),
+    ("load_a_number", lambda tmp: load(42), MeasurementFileError, r"42: a measurement file is given by its path"),
+    ("load_a_directory", lambda tmp: load(tmp), MeasurementFileError, r"no such file"),
+    ("load_binary", lambda tmp: load(_measurement(tmp, "b.csv", "\x00\x01\x02", "latin-1")), MeasurementFileError,
+     r"b\.csv"),
+    ("second_order_model_with_params", lambda tmp: bscomp.modes(bscomp.second_order(sd()), params={"table.m": 1.0}),
+     UsageError, r"'at' and 'params' cannot be applied to a SecondOrderModel"),
     # ---- model resolution ------------------------------------------------------------------------------
     ("model_a_number", lambda tmp: as_system(42), UnknownNameError, r"cannot use int as a model"),
     ("model_none", lambda tmp: as_dae(None), UnknownNameError, r"cannot use NoneType as a model"),

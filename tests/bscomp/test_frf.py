@@ -154,3 +154,48 @@ def test_modal_and_direct_frf_agree_on_a_damped_drive():
     H_direct = so.frf(f, method="direct")
     H_modal = so.frf(f, method="modal")
     np.testing.assert_allclose(H_modal, H_direct, rtol=1e-6)
+
+
+def _drive_with_friction():
+    from bscomp.components import CoulombFriction
+
+    s = small_drive()
+    s.add("fric", CoulombFriction(F_c_pos=100.0, F_c_neg=100.0))
+    s.connect("ground.flange", "fric.flange_a")
+    s.connect("fric.flange_b", "table.flange_b")
+    return s
+
+
+def test_linear_analyses_of_a_nonlinear_model_warn_by_name(tmp_path):
+    """Issue 15: frf/modes/transfer_function (and simulate(method='lti'), the same detector) of a model with
+    friction warn, naming the linearized component and what to use instead; a linear model is silent."""
+    import warnings
+
+    from bscomp.cli import main, one_line_warning
+    from bscomp.errors import ModelLimitationWarning
+    from bscomp.simulation.dispatch import simulate
+
+    s = _drive_with_friction()
+    calls = [lambda: frf(s, "motor.tau", "table.s", [10.0, 100.0]), lambda: modes(s),
+             lambda: transfer_function(s, "motor.tau", "table.s"),
+             lambda: simulate(s, np.linspace(0, 1e-3, 3), method="lti")]
+    for call in calls:
+        with pytest.warns(ModelLimitationWarning, match=r"linearizes the nonlinear component\(s\) fric "
+                          r"\(CoulombFriction\).*nonlinear in der\(table\.s\).*method='idas'") as rec:
+            call()
+        assert rec[0].filename == __file__          # points at the caller's line
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelLimitationWarning)
+        frf(small_drive(), "motor.tau", "table.s", [10.0, 100.0])
+        modes(small_drive())
+    path = tmp_path / "fric.py"
+    path.write_text("from bscomp.systems import small_drive\nfrom bscomp.components import CoulombFriction\n\n\n"
+                    "def build():\n    s = small_drive()\n"
+                    "    s.add('fric', CoulombFriction(F_c_pos=100.0, F_c_neg=100.0))\n"
+                    "    s.connect('ground.flange', 'fric.flange_a')\n"
+                    "    s.connect('fric.flange_b', 'table.flange_b')\n    return s\n")
+    with pytest.warns(ModelLimitationWarning, match=r"frf on 'small_drive' linearizes .*fric \(CoulombFriction\)"):
+        assert main(["frf", str(path), "--input", "motor.tau", "--output", "table.s", "--n", "3", "--csv",
+                     str(tmp_path / "h.csv")]) == 0
+    line = one_line_warning("frf")("a\n  b", ModelLimitationWarning, "x.py", 1)
+    assert line == "bscomp frf: warning: ModelLimitationWarning: a b\n"

@@ -318,6 +318,26 @@ def test_peak_picking_recovers_a_known_resonance():
     assert r.f == pytest.approx(fn, rel=0.01) and r.zeta == pytest.approx(z, rel=0.10)
 
 
+def test_a_zero_or_nan_row_is_never_a_resonance():
+    """Issue 15: one |H| = 0 row made its neighbour a 'resonance' with negative damping; such rows (0, NaN,
+    inf) are skipped, so the resonances are those of the clean FRF, none with zeta <= 0."""
+    fn, z = 150.0, 0.02
+    f = np.geomspace(50, 400, 300)
+    s = 2j * np.pi * f
+    h = 1 / (s ** 2 + 2 * z * 2 * np.pi * fn * s + (2 * np.pi * fn) ** 2)
+    clean = [(r.f, r.zeta) for r in peak_pick(f, np.abs(h), refine=False)]
+    assert len(clean) == 1 and clean[0][0] == pytest.approx(fn, rel=0.01)
+    for bad in (0.0, np.nan, np.inf):
+        for k in (40, 200, 280):
+            hb = np.abs(h).copy()
+            hb[k] = bad
+            got = [(r.f, r.zeta) for r in peak_pick(f, hb, refine=False)]
+            assert len(got) == 1 and got[0][0] == pytest.approx(fn, rel=0.01) and got[0][1] > 0, (bad, k, got)
+    hb = h.copy()
+    hb[250] = 0.0
+    assert [r.f for r in peak_pick(f, hb)] == pytest.approx([r.f for r in peak_pick(f, h)], rel=1e-3)
+
+
 def test_resid_flags_a_residual_that_follows_the_input():
     rng = np.random.default_rng(0)
     n = 4000
