@@ -27,10 +27,10 @@ from bscomp.validate.measurements import load_all  # noqa: E402
 
 MODELS = {"axial_torsional": "testbed_axial_torsional", "full": "testbed"}
 CASES = ["control", "joint", "friction", "backlash", "delay", "joint_friction"]
-#: accepted effect -> (hidden effect, its main parameters)
-MAIN = {"table_subassembly": ("joint", ("m", "k")), "guideway_friction": ("friction", ("F_c",)),
-        "guideway_stribeck": ("friction", ("F_c",)), "screw_nut_backlash": ("backlash", ("b",)),
-        "compliant_backlash": ("backlash", ("b", "k")), "amplifier_delay": ("delay", ("T",))}
+#: accepted effect -> (hidden effect, its main parameters as (candidate name, truth name))
+MAIN = {"table_subassembly": ("joint", (("m", "m"), ("k", "k"))), "guideway_friction": ("friction", (("F_c", "F_c"),)),
+        "guideway_stribeck": ("friction", (("F_c", "F_c"),)), "screw_nut_backlash": ("backlash", (("b", "b"),)),
+        "compliant_backlash": ("backlash", (("b", "b"), ("k", "c"))), "amplifier_delay": ("delay", (("T", "T"),))}
 
 
 def run(model: str, case: str) -> dict:
@@ -45,8 +45,8 @@ def run(model: str, case: str) -> dict:
     params = []
     for a in d.accepted:
         hidden, names = MAIN.get(a.name, (None, ()))
-        for n in names:
-            t = truth["hidden"].get(hidden, {}).get(n)
+        for n, tn in names:
+            t = truth["hidden"].get(hidden, {}).get(tn)
             if t is not None and n in a.values:
                 params.append(f"{a.name}.{n} {a.values[n] / t - 1:+.1%}")
     return {"model": model, "case": case, "first": d.ranked[0].name if d.ranked else "-",
