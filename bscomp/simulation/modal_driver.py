@@ -278,6 +278,10 @@ class ModalSimulator:
                     "extremes; e.g. an amplifier current limit): use method='idas' or 'split'")
         self._checked.add(key)
 
+    def _ctl(self, tol):
+        """The kernel's stop rule (the one of :meth:`_flags`): ``[tol, running force scale, Newton acceptance]``."""
+        return np.array([tol, self.scale, NEWTON_ACCEPT * tol])
+
     def _flags(self, info, tol):
         """``(j, switch, scale)`` of a block of step infos: the first ``j`` steps are accepted; ``switch``: the
         last of them ended in another regime (the linear part is switched there); ``scale`` the running force
@@ -303,7 +307,7 @@ class ModalSimulator:
         if N > len(Uc):
             Uc = np.vstack([Uc, np.repeat(Uc[-1:], N - len(Uc), axis=0)])
         x0 = stp.pack_state(st.xi, st.g[stp.gsel])
-        X, info = run(x0, Uc, mats, stp.theta)
+        X, info = run(x0, Uc, mats, stp.theta, self._ctl(tol))
         b, switch, scale = self._flags(info[:n * per], tol)
         if switch and b % per:
             b -= b % per                      # a switch inside a grid step: that grid step is redone finer
@@ -341,7 +345,7 @@ class ModalSimulator:
             left = n - i
             x0 = stp.pack_state(st.xi, st.g[stp.gsel])
             run = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS if deepest else CHUNK_ITERATIONS)
-            X, info = run(x0, np.repeat(u[None, :], run.n, axis=0), mats, stp.theta)
+            X, info = run(x0, np.repeat(u[None, :], run.n, axis=0), mats, stp.theta, self._ctl(tol))
             j, switch, scale = self._flags(info[:left], tol)
             self.counts["batches"] += 1
             forced = deepest and j < left and not switch
