@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 
 from bscomp.simulation.modal_channels import Channels, LinearPart, ModalSimulationError
-from bscomp.simulation.modal_kernels import Kernel
+from bscomp.simulation.modal_kernels import Kernel, NumpyCall
 from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec
 from bscomp.simulation.modal_parts import ModalPart
 from bscomp.simulation.modal_steps import THETAS, Stepper
@@ -107,6 +107,7 @@ class ModalSimulator:
             spec = LawSpec(self.ch, sizes, self.cands)
             spec.f = spec.function()
             spec.fs = spec.functions()
+            spec.fast = NumpyCall(spec.f)
             self.laws[sizes] = spec
         return spec
 
@@ -123,7 +124,7 @@ class ModalSimulator:
             if kern is None:
                 kern = self.kernels[shape] = Kernel(*shape[:4], spec.fs, 2 * len(self.ch.elements), THETAS,
                                                     jit=self.jit)
-            st = Stepper(mp, rows, gsel, spec.f, theta, kern)
+            st = Stepper(mp, rows, gsel, spec.fast, theta, kern)
             self.steppers[key] = st
         return st
 
@@ -176,8 +177,8 @@ class ModalSimulator:
             v = ca.SX.sym("v", n)
             laws = [el.law(s[i], v[i], ca.DM(el.pvec)) for i, el in enumerate(self.ch.elements)]
             J = ca.vertcat(*[ca.horzcat(ca.jacobian(f, s[i]), ca.jacobian(f, v[i])) for i, f in enumerate(laws)])
-            self._slopes = ca.Function("slopes", [s, v], [J])
-        kd = self._slopes(y[0:2 * n:2], y[1:2 * n:2]).full()
+            self._slopes = NumpyCall(ca.Function("slopes", [s, v], [ca.densify(J)]))
+        kd = self._slopes(y[0:2 * n:2], y[1:2 * n:2])[0]
         out = []
         for i in range(n):
             c = np.abs(np.array(self.cands[i]))

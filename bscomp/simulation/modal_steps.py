@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bscomp.simulation.modal_kernels import pack_step
+from bscomp.simulation.modal_kernels import NumpyCall, pack_step
 
 __all__ = ["phis", "StepData", "Stepper"]
 
@@ -94,6 +94,7 @@ class Stepper:
 
     def __init__(self, mp, rows, gsel, law, theta, kernel):
         self.mp, self.rows, self.law, self.theta, self.kernel = mp, rows, law, theta, kernel
+        self._law = law if isinstance(law, NumpyCall) else NumpyCall(law)
         self.gsel = np.asarray(gsel, int)
         self.r = self.gsel.size
         self.m = kernel.m                    # modal coordinates of the kernel (>= the part's: padded)
@@ -111,8 +112,8 @@ class Stepper:
 
     def evaluate(self, y):
         """``(g, dg/dy, fmax, regime_ok, element_ok)`` at channel values ``y``."""
-        g, L, fmax, okr, oke = self.law(y, self.theta)
-        return g.full().ravel(), L.full(), float(fmax), bool(float(okr)), bool(float(oke))
+        g, L, fmax, okr, oke = self._law(y, self.theta)
+        return g.ravel().copy(), L.copy(), float(fmax[0, 0]), bool(okr[0, 0]), bool(oke[0, 0])
 
     def consistent(self, xi, u, g):
         """Channel forces consistent with ``xi`` at zero step length (static feedthrough only)."""
