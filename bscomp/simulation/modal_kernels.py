@@ -183,11 +183,12 @@ class Kernel:
         self._f[key] = g
         return g
 
-    def _solver(self):
-        """SX Function ``(L, H, b) -> (I - L H)^{-1} b`` (the Newton update in the channel forces)."""
+    def _solver(self, cols=1):
+        """SX Function ``(L, H, b) -> (I - L H)^{-1} b`` for ``b`` of ``cols`` columns (the Newton update in the
+        channel forces; with the identity, the chord matrix in one factorisation)."""
         r, rm = self.r, self.rm
-        L, H, b = ca.SX.sym("L", r, rm), ca.SX.sym("H", rm, r), ca.SX.sym("b", r)
-        return ca.Function("newton_update", [L, H, b], [ca.solve(ca.SX.eye(r) - ca.mtimes(L, H), b)])
+        L, H, b = ca.SX.sym("L", r, rm), ca.SX.sym("H", rm, r), ca.SX.sym("b", r, cols)
+        return ca.Function(f"newton_update{cols}", [L, H, b], [ca.solve(ca.SX.eye(r) - ca.mtimes(L, H), b)])
 
     def _inner(self, n, n_newton):
         """``n`` guarded steps (a power of 4) taking the step matrices as separate arguments: four calls of the
@@ -247,8 +248,7 @@ class Kernel:
             return ca.MX.zeros(0, 0)
         y0 = ca.mtimes(CEr, x0[:m]) - ca.mtimes(CEi, x0[m:2 * m]) + ca.mtimes(Du, u0) + ca.mtimes(Dg, x0[2 * m:]) + yc
         L = self.law_newton(y0, th)[1]
-        cols = [self._solver()(L, H, ca.MX(ca.DM.eye(r)[:, j])) for j in range(r)]
-        return ca.horzcat(*cols)
+        return self._solver(r)(L, H, ca.MX(ca.DM.eye(r)))
 
     def runner(self, n, n_newton=None):
         """A buffered caller of ``n`` steps (a power of 4): ``call(x0, U (n, nu), mats, theta, ctl) -> (X, INFO)``."""
