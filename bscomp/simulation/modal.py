@@ -98,6 +98,9 @@ class Outputs:
         nt = len(XI)
         out = {n: np.zeros(nt) for n in self.names}
         bounds = [s for s, _ in segs] + [nt]
+        dae = self.sim.dae
+        if self.other:        # the columns the other outputs read, filled per segment, evaluated in one call
+            X, XD, Z = np.tile(self.sim.ch.x_a, (nt, 1)), np.zeros((nt, dae.nx)), np.tile(self.sim.ch.z_a, (nt, 1))
         for (k0, mp), k1 in zip(segs, bounds[1:], strict=True):
             if k1 <= k0:
                 continue
@@ -109,21 +112,19 @@ class Outputs:
                 for i, n in enumerate(self.affine):
                     out[n][k0:k1] = Y[:, i]
             if self.other:
-                Y = self._nonaffine(mp, xi, u, g)
-                for i, n in enumerate(self.other):
-                    out[n][k0:k1] = Y[:, i]
+                self._nonaffine(mp, xi, u, g, X[k0:k1], XD[k0:k1], Z[k0:k1])
+        if self.other:
+            Y = evaluate_outputs(dae, self.other, XD, X, Z, Uh, self.sim.p)
+            for n in self.other:
+                out[n] = Y[n]
         return out
 
-    def _nonaffine(self, mp, xi, u, g):
-        sim, dae = self.sim, self.sim.dae
-        n = len(xi)
+    def _nonaffine(self, mp, xi, u, g, X, XD, Z):
+        """Fill the columns of ``(X, XD, Z)`` (views of one segment, X and Z holding the rest point) that the
+        non-affine outputs read."""
         cd, cx, cz = self.cols
-        X = np.zeros((n, dae.nx))
-        XD = np.zeros((n, dae.nx))
-        Z = np.zeros((n, dae.nz))
         if cx.size:
-            X[:, cx] = (xi @ mp.Vx[cx].T).real + u @ mp.Xu[cx].T + g @ mp.Xg[cx].T + mp.xc[cx]
-        X += sim.ch.x_a
+            X[:, cx] += (xi @ mp.Vx[cx].T).real + u @ mp.Xu[cx].T + g @ mp.Xg[cx].T + mp.xc[cx]
         if cd.size:
             Vr, Vrd = mp.rate_rows()
             rate = xi * mp.lam + u @ mp.Bu.T + g @ mp.Bg.T + mp.bc
@@ -131,9 +132,7 @@ class Outputs:
         if cz.size and mp.Z is not None:
             Zx, Zu, Zg, zc = mp.Z
             dx = mp.state(xi, u, g)
-            Z[:, cz] = sim.ch.z_a[cz] + dx @ Zx[cz].T + u @ Zu[cz].T + g @ Zg[cz].T + zc[cz]
-        Y = evaluate_outputs(dae, self.other, XD, X, Z, u, sim.p)
-        return np.column_stack([Y[o] for o in self.other])
+            Z[:, cz] += dx @ Zx[cz].T + u @ Zu[cz].T + g @ Zg[cz].T + zc[cz]
 
 
 def _states(sim, XI, G, segs, Uh):

@@ -58,8 +58,9 @@ class ModalPart:
         self.lin = lin
         dae = lin.ch.dae
         m = dae.mech
-        if dae.nz == 0 and not m.damped and not m.static and _mechanical_blocks(lin) is not None:
-            self._second_order(lin, f_keep)
+        mb = _mechanical_blocks(lin) if dae.nz == 0 and not m.damped and not m.static else None
+        if mb is not None:
+            self._second_order(lin, f_keep, mb)
             self.route = "second-order"
         else:
             self._first_order(lin)
@@ -86,9 +87,8 @@ class ModalPart:
         self.W = W[keep]
         self.Bu, self.Bg, self.bc = self.W @ B, self.W @ E, self.W @ c
 
-    def _second_order(self, lin, f_keep):
+    def _second_order(self, lin, f_keep, mb):
         dae = lin.ch.dae
-        mb = _mechanical_blocks(lin)
         M, C, K, Kqi, Rb, Ri, Iq, Iv, Ii = mb
         key = (K.tobytes(), M.tobytes())           # regimes that change only damping share the undamped modes
         cache = lin.ch.__dict__.setdefault("_eigh", {})
