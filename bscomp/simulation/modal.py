@@ -100,7 +100,8 @@ class Outputs:
         bounds = [s for s, _ in segs] + [nt]
         dae = self.sim.dae
         if self.other:        # the columns the other outputs read, filled per segment, evaluated in one call
-            X, XD, Z = np.tile(self.sim.ch.x_a, (nt, 1)), np.zeros((nt, dae.nx)), np.tile(self.sim.ch.z_a, (nt, 1))
+            X, XD, Z = np.empty((nt, dae.nx)), np.zeros((nt, dae.nx)), np.empty((nt, dae.nz))
+            X[:], Z[:] = self.sim.ch.x_a, self.sim.ch.z_a
         for (k0, mp), k1 in zip(segs, bounds[1:], strict=True):
             if k1 <= k0:
                 continue

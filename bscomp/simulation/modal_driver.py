@@ -70,6 +70,7 @@ class ModalSimulator:
         self.cands = [ch.candidate_regimes(i) for i in range(len(ch.elements))]
         self.parts, self.steppers, self.laws, self.kernels = {}, {}, {}, {}
         self._slopes = None
+        self._last_stepper = None
         self._pads = []
         self.outputs = {}     # names -> modal.Outputs (rows per modal part)
         self._checked = set()
@@ -112,6 +113,11 @@ class ModalSimulator:
         return spec
 
     def stepper(self, mp, cset):
+        """The :class:`~bscomp.simulation.modal_steps.Stepper` of a modal part and channel set (cached; the last
+        one is returned without building its key)."""
+        last = self._last_stepper
+        if last is not None and last[0] is mp and last[1] is cset:
+            return last[2]
         key = (id(mp), tuple((tuple(S), el) for S, el in cset))
         st = self.steppers.get(key)
         if st is None:
@@ -126,6 +132,7 @@ class ModalSimulator:
                                                     jit=self.jit)
             st = Stepper(mp, rows, gsel, spec.fast, theta, kern)
             self.steppers[key] = st
+        self._last_stepper = (mp, cset, st)
         return st
 
     def _padded(self, m):
@@ -234,7 +241,8 @@ class ModalSimulator:
             if chunks:
                 cap = min(n_chunk, CHUNK // 4 ** level)
                 n = max(1, min(cap, int(stops[np.searchsorted(stops, k, side="right")]) - k))
-                done = self._chunk(st, U, k, n, h, tol, XI, G, level)
+                done, part = self._chunk(st, U, k, n, h, tol, XI, G, level)
+                per = 4 ** level
                 k += done
                 if st.mp is not segs[-1][1]:          # the chunk's last step switched the linear part:
                     segs.append((k + 1, st.mp))       # grid point k is stored in the old coordinates
@@ -249,7 +257,11 @@ class ModalSimulator:
                     level += 1
                 if k >= nt - 1:
                     break
-            self._advance(st, U[k], h, 4 ** (level + 1), h, tol, 0)
+                # the rest of grid step k one level finer (its first `part` sub-steps were accepted)
+                fine = 4 ** (level + 1) // per
+                self._advance(st, U[k], (per - part) * h / per, (per - part) * fine, h, tol, 0)
+            else:
+                self._advance(st, U[k], h, 4 ** (level + 1), h, tol, 0)
             if st.mp is not segs[-1][1]:
                 segs.append((k + 1, st.mp))
             XI[k + 1], G[k + 1] = st.xi, st.g
@@ -297,11 +309,13 @@ class ModalSimulator:
         return j, bool(new.any()), scale
 
     def _chunk(self, st, U, k, n, h, tol, XI, G, level):
-        """Up to ``n`` grid steps (``4^level`` sub-steps each) in one compiled call; returns how many grid steps
-        were accepted (stored in XI, G)."""
+        """Up to ``n`` grid steps (``4^level`` sub-steps each) in one compiled call: ``(done, part)``, the grid
+        steps accepted (stored in XI, G) and the sub-steps accepted of the next one (the state is left after
+        them; the driver finishes that grid step finer)."""
         stp = self.stepper(st.mp, st.cset)
         per = 4 ** level
-        _, mats = stp.data(h / per)
+        tau = h / per
+        _, mats = stp.data(tau)
         run = stp.kernel.runner(_chunk_size(n * per), CHUNK_ITERATIONS)
         N = run.n
         Uc = np.repeat(U[k:k + n], per, axis=0)
@@ -310,28 +324,30 @@ class ModalSimulator:
         x0 = stp.pack_state(st.xi, st.g[stp.gsel])
         X, info = run(x0, Uc, mats, stp.theta, self._ctl(tol))
         b, switch, scale = self._flags(info[:n * per], tol)
-        if switch and b % per:
-            b -= b % per                      # a switch inside a grid step: that grid step is redone finer
-            switch = False
-        done = b // per
+        done, part = divmod(b, per)
         self.counts["chunks"] += 1
+        if not b:
+            return 0, 0
+        self.scale = float(scale[b - 1])
+        m, mp_ = stp.m, stp.m_part
         if done:
-            self.scale = float(scale[done * per - 1])
-            m, mp_ = stp.m, stp.m_part
             Xa = X[per - 1:done * per:per]
             xs = Xa[:, :mp_] + 1j * Xa[:, m:m + mp_]
             for i in range(done):
                 XI[k + 1 + i] = xs[i]
             G[k + 1:k + 1 + done] = 0.0
             G[k + 1:k + 1 + done, stp.gsel] = Xa[:, 2 * m:]
-            st.xi, st.g = xs[-1], G[k + done].copy()
             self.counts["chunk_steps"] += done
-            if switch:                        # the last accepted step ended in another regime
-                x_before = X[done * per - 2] if done * per >= 2 else x0
-                xi0, g0 = stp.unpack_state(np.asarray(x_before))
-                uk = U[k + done - 1]
-                st.after(stp.end_values(xi0, g0, Xa[-1, 2 * m:], uk, h / per), uk)
-        return done
+        self.counts["substeps"] += part
+        xi, g = stp.unpack_state(X[b - 1])
+        st.xi = xi
+        st.g = np.zeros_like(st.g)
+        st.g[stp.gsel] = g
+        if switch:                        # the last accepted sub-step ended in another regime
+            xi0, g0 = stp.unpack_state(np.asarray(X[b - 2] if b >= 2 else x0))
+            uk = U[k + (b - 1) // per]
+            st.after(stp.end_values(xi0, g0, g, uk, tau), uk)
+        return done, part
 
     def _advance(self, st, u, T, n, h, tol, depth):
         """Advance the state by ``T`` in compiled batches of ``n`` equal sub-steps, refining every bad sub-step

@@ -231,10 +231,16 @@ def _mechanical_blocks(lin):
 
 
 def _inverse(V, name):
-    cond = np.linalg.cond(V)
+    """``V^{-1}``, refused when ``V`` is (nearly) singular: its 1-norm condition number ``|V|_1 |V^{-1}|_1`` above
+    :data:`COND_MAX` (no SVD: the inverse is needed anyway)."""
+    try:
+        W = np.linalg.inv(V)
+        cond = np.linalg.norm(V, 1) * np.linalg.norm(W, 1)
+    except np.linalg.LinAlgError:
+        cond = np.inf
     if not np.isfinite(cond) or cond > COND_MAX:
         raise ModalSimulationError(
             f"'{name}': the linear part is not diagonalisable (eigenvector condition {cond:.2g}: a Jordan block, e.g. "
             "an undamped rigid-body mode): give the rigid-body motion some damping (viscous guide or motor "
             "damping), or use method='split' / 'idas'")
-    return np.linalg.inv(V)
+    return W

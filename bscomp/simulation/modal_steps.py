@@ -100,14 +100,18 @@ class Stepper:
         self.m = kernel.m                    # modal coordinates of the kernel (>= the part's: padded)
         self.m_part = mp.lam.size
         self._data = {}
+        self._last_tau = self._last_data = None
 
     def data(self, tau):
         """``(StepData, packed vector)`` for a sub-step length (cached)."""
+        if tau == self._last_tau:
+            return self._last_data
         key = round(tau, 16)
         d = self._data.get(key)
         if d is None:
             sd = StepData(self.mp, self.rows, self.gsel, tau)
             d = self._data[key] = (sd, pack_step(sd, self.kernel.ne, self.m))
+        self._last_tau, self._last_data = tau, d
         return d
 
     def evaluate(self, y):
