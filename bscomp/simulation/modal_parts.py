@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
-import scipy.sparse as sp
 
 from bscomp.linear.frf_engine import dense
 from bscomp.simulation.modal_channels import ModalSimulationError
@@ -89,7 +88,7 @@ class ModalPart:
 
     def _second_order(self, lin, f_keep, mb):
         dae = lin.ch.dae
-        M, C, K, Kqi, Rb, Ri, Iq, Iv, Ii = mb
+        M, C, K, Kqi, Rb, Ri, Iq, Iv, Ii, Jxd_d, Jx_d = mb
         key = (K.tobytes(), M.tobytes())           # regimes that change only damping share the undamped modes
         cache = lin.ch.__dict__.setdefault("_eigh", {})
         if key not in cache:
@@ -118,9 +117,8 @@ class ModalPart:
         # q = pk eta + qs, qs = -Rt (Kqi x_i + Fb col)
         if ni:
             Ared[nk:2 * nk, 2 * nk:] = -pk.T @ Kqi
-            Jxd, Jx = lin.Jxd, lin.Jx
-            Eii = dense(Jxd[Ri][:, Ii], float)
-            Aiq, Aiv, Aii = dense(Jx[Ri][:, Iq], float), dense(Jx[Ri][:, Iv], float), dense(Jx[Ri][:, Ii], float)
+            Eii = Jxd_d[np.ix_(Ri, Ii)]
+            Aiq, Aiv, Aii = Jx_d[np.ix_(Ri, Iq)], Jx_d[np.ix_(Ri, Iv)], Jx_d[np.ix_(Ri, Ii)]
             Einv = np.linalg.inv(Eii)
             Ared[2 * nk:, :nk] = -Einv @ Aiq @ pk
             Ared[2 * nk:, nk:2 * nk] = -Einv @ Aiv @ pk
@@ -213,21 +211,20 @@ def _mechanical_blocks(lin):
     Ri = np.setdiff1d(np.arange(lin.Jx.shape[0]), np.r_[np.arange(len(m.inertial)), Rb])
     if Ii.size != Ri.size:
         return None
-    Jxd, Jx = sp.csr_matrix(lin.Jxd), sp.csr_matrix(lin.Jx)
-    M = dense(Jxd[Rb][:, Iv], float)
-    K = dense(Jx[Rb][:, Iq], float)
-    C = dense(Jx[Rb][:, Iv], float)
+    Jxd, Jx = dense(lin.Jxd, float), dense(lin.Jx, float)      # a few hundred rows: dense slicing is cheapest
+    M = Jxd[np.ix_(Rb, Iv)]
+    K = Jx[np.ix_(Rb, Iq)]
+    C = Jx[np.ix_(Rb, Iv)]
     if Ii.size:
-        if abs(Jxd[Rb][:, Ii]).sum() or abs(Jxd[Ri][:, Iv]).sum():
+        if np.abs(Jxd[np.ix_(Rb, Ii)]).sum() or np.abs(Jxd[np.ix_(Ri, Iv)]).sum():
             return None                       # rates of internal states in the balances, or accelerations fed back
-    other = Jxd[Rb][:, Iq]
-    if other.nnz and abs(other).max() > 0:
+    if np.abs(Jxd[np.ix_(Rb, Iq)]).max(initial=0.0) > 0:
         return None
     sym = max(np.abs(K - K.T).max(), np.abs(M - M.T).max())
     if sym > 1e-9 * max(np.abs(K).max(), 1e-300):
         return None
-    Kqi = dense(Jx[Rb][:, Ii], float) if Ii.size else np.zeros((nr, 0))
-    return M, C, 0.5 * (K + K.T), Kqi, Rb, Ri, Iq, Iv, Ii
+    Kqi = Jx[np.ix_(Rb, Ii)] if Ii.size else np.zeros((nr, 0))
+    return M, C, 0.5 * (K + K.T), Kqi, Rb, Ri, Iq, Iv, Ii, Jxd, Jx
 
 
 def _inverse(V, name):
