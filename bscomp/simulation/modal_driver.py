@@ -29,7 +29,7 @@ from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec
 from bscomp.simulation.modal_parts import ModalPart
 from bscomp.simulation.modal_steps import THETAS, Stepper
 
-__all__ = ["ModalSimulator"]
+__all__ = ["ModalSimulator", "ModalHistory"]
 
 
 def _chunk_size(n):
@@ -46,6 +46,43 @@ CALM = 1              # clean chunks before the next one tries the coarser level
 CHUNK_ITERATIONS = -3  # chunks and batches: three chord iterations (a step that needs more is redone finer)
 FINE_ITERATIONS = 3   # the finest level: three Newton iterations
 FINE_LEVELS = 3       # refinement levels below a failed chunk's level, then single sub-steps
+
+
+class ModalHistory:
+    """The modal coordinates at the grid points: one complex row per point, as wide as the largest modal part
+    stored so far (a point of a part with ``m`` coordinates uses the first ``m`` columns)."""
+
+    def __init__(self, nt, m):
+        self.a = np.zeros((nt, m), complex)
+
+    def __len__(self):
+        return self.a.shape[0]
+
+    def _fit(self, m):
+        if m > self.a.shape[1]:
+            self.a = np.hstack([self.a, np.zeros((self.a.shape[0], m - self.a.shape[1]), complex)])
+
+    def put(self, k, xi):
+        self._fit(xi.size)
+        self.a[k, :xi.size] = xi
+
+    def put_rows(self, k, xs):
+        self._fit(xs.shape[1])
+        self.a[k:k + len(xs), :xs.shape[1]] = xs
+
+    def block(self, k0, k1, m):
+        """Rows ``k0:k1`` in a part of ``m`` coordinates."""
+        return self.a[k0:k1, :m]
+
+    def thinned(self, keep):
+        out = ModalHistory(0, 0)
+        out.a = self.a[keep]
+        return out
+
+
+def block(XI, k0, k1, m):
+    """Rows ``k0:k1`` of a :class:`ModalHistory` or of a list of coordinate vectors (m coordinates each)."""
+    return XI.block(k0, k1, m) if isinstance(XI, ModalHistory) else np.array(XI[k0:k1])
 
 
 class ModalSimulator:
@@ -217,9 +254,10 @@ class ModalSimulator:
         nt = len(t)
         self.check(U)
         st = _State(self, xs, U[0])
-        XI = [None] * nt
+        XI = ModalHistory(nt, st.xi.size)
         G = np.zeros((nt, st.mp.lin.ng))
-        XI[0], G[0] = st.xi, st.g
+        XI.put(0, st.xi)
+        G[0] = st.g
         segs = [(0, st.mp)]
         self.scale = 1.0
         h_all = np.diff(t)
@@ -264,7 +302,8 @@ class ModalSimulator:
                 self._advance(st, U[k], h, 4 ** (level + 1), h, tol, 0)
             if st.mp is not segs[-1][1]:
                 segs.append((k + 1, st.mp))
-            XI[k + 1], G[k + 1] = st.xi, st.g
+            XI.put(k + 1, st.xi)
+            G[k + 1] = st.g
             k += 1
         if progress is not None:
             progress(nt - 1)
@@ -333,8 +372,7 @@ class ModalSimulator:
         if done:
             Xa = X[per - 1:done * per:per]
             xs = Xa[:, :mp_] + 1j * Xa[:, m:m + mp_]
-            for i in range(done):
-                XI[k + 1 + i] = xs[i]
+            XI.put_rows(k + 1, xs)
             G[k + 1:k + 1 + done] = 0.0
             G[k + 1:k + 1 + done, stp.gsel] = Xa[:, 2 * m:]
             self.counts["chunk_steps"] += done
@@ -414,7 +452,7 @@ class ModalSimulator:
         for (k0, mp), k1 in zip(segs, bounds[1:], strict=True):
             if k1 <= k0:
                 continue
-            xi = np.array(XI[k0:k1])
+            xi = block(XI, k0, k1, mp.lam.size)
             u, g = Uh[k0:k1], G[k0:k1]
             X[k0:k1] = mp.state(xi, u, g)
             Vr, Vrd = mp.rate_rows()
