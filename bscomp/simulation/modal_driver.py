@@ -24,7 +24,7 @@ import casadi as ca
 import numpy as np
 
 from bscomp.simulation.modal_channels import Channels, LinearPart, ModalSimulationError
-from bscomp.simulation.modal_kernels import Kernel, NumpyCall
+from bscomp.simulation.modal_kernels import SKIPPED, Kernel, NumpyCall
 from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec
 from bscomp.simulation.modal_parts import ModalPart
 from bscomp.simulation.modal_steps import THETAS, Stepper
@@ -336,16 +336,28 @@ class ModalSimulator:
 
     def _flags(self, info, tol):
         """``(j, switch, scale)`` of a block of step infos: the first ``j`` steps are accepted; ``switch``: the
-        last of them ended in another regime (the linear part is switched there); ``scale`` the running force
-        scale. A step is bad if its interpolation error or last Newton update exceeds the tolerance or its
-        contact point left the element."""
-        scale = np.maximum.accumulate(np.maximum(info[:, 1], self.scale))
-        bad = (info[:, 0] > tol * scale) | (info[:, 3] < 0.5) | ~(info[:, 4] < NEWTON_ACCEPT * tol * scale)
-        j = int(np.argmax(bad)) if bad.any() else len(info)
-        new = info[:j, 2] < 0.5
-        if new.any():
-            j = int(np.argmax(new)) + 1
-        return j, bool(new.any()), scale
+        last of them ended in another regime (the linear part is switched there); ``scale(i)`` the running force
+        scale after step i. A step is bad if its interpolation error or last Newton update exceeds the tolerance
+        or its contact point left the element.
+
+        The kernel applies the same rule and skips every step after the first bad or regime-changing one
+        (:data:`~bscomp.simulation.modal_kernels.SKIPPED`), so only the last computed step is tested here."""
+        n = len(info)
+        skipped = info[:, 0] >= SKIPPED
+        c = int(np.argmax(skipped)) if skipped[n - 1] else n
+        scale0 = self.scale
+
+        def scale(i):
+            return max(scale0, float(info[:i + 1, 1].max())) if i >= 0 else scale0
+
+        if c == 0:
+            return 0, False, scale
+        err, fmax, okr, oke, upd = info[c - 1]
+        sc = scale(c - 1)
+        bad = err > tol * sc or oke < 0.5 or not upd < NEWTON_ACCEPT * tol * sc
+        if bad:
+            return c - 1, False, scale
+        return c, bool(okr < 0.5), scale
 
     def _chunk(self, st, U, k, n, h, tol, XI, G, level):
         """Up to ``n`` grid steps (``4^level`` sub-steps each) in one compiled call: ``(done, part)``, the grid
@@ -367,7 +379,7 @@ class ModalSimulator:
         self.counts["chunks"] += 1
         if not b:
             return 0, 0
-        self.scale = float(scale[b - 1])
+        self.scale = scale(b - 1)
         m, mp_ = stp.m, stp.m_part
         if done:
             Xa = X[per - 1:done * per:per]
@@ -400,14 +412,14 @@ class ModalSimulator:
             left = n - i
             x0 = stp.pack_state(st.xi, st.g[stp.gsel])
             run = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS if deepest else CHUNK_ITERATIONS)
-            X, info = run(x0, np.repeat(u[None, :], run.n, axis=0), mats, stp.theta, self._ctl(tol))
+            X, info = run(x0, u, mats, stp.theta, self._ctl(tol))
             j, switch, scale = self._flags(info[:left], tol)
             self.counts["batches"] += 1
             forced = deepest and j < left and not switch
             if forced:
                 j += 1                                # the finest level: accept the flagged one, follow it
             if j:
-                self.scale = float(scale[j - 1])
+                self.scale = scale(j - 1)
                 self._accept(st, stp, X, j, u, tau, x0 if j == 1 else X[j - 2], switch or forced)
                 i += j
             if i < n and not (deepest or switch):

@@ -285,7 +285,7 @@ class _Buffered:
 
     def __init__(self, F, nx, n):
         self.F, self.n = F, n
-        self._mats = self._theta = None
+        self._mats = self._theta = self._U = None
         self.buf, self.trigger = F.buffer()
         self.X = np.zeros((n, nx))           # row k: state after step k (C-order rows = CasADi columns)
         self.I = np.zeros((n, INFO))
@@ -293,7 +293,13 @@ class _Buffered:
         self.buf.set_res(1, memoryview(self.I.reshape(-1)))
 
     def __call__(self, x0, U, mats, theta, ctl):
+        """``U``: (n, nu) inputs per step, or one (nu,) input held over all of them."""
         x0 = np.ascontiguousarray(x0, float)
+        if np.ndim(U) == 1:
+            if self._U is None:
+                self._U = np.zeros((self.n, len(U)))
+            self._U[:] = U
+            U = self._U
         U = np.ascontiguousarray(U, float)            # (n, nu) rows = CasADi columns
         ctl = np.ascontiguousarray(ctl, float)
         self.buf.set_arg(0, memoryview(x0))

@@ -106,11 +106,14 @@ class Stepper:
         """``(StepData, packed vector)`` for a sub-step length (cached)."""
         if tau == self._last_tau:
             return self._last_data
-        key = round(tau, 16)
-        d = self._data.get(key)
+        d = self._data.get(tau)
+        if d is None:
+            key = round(tau, 16)
+            d = self._data.get(key)
         if d is None:
             sd = StepData(self.mp, self.rows, self.gsel, tau)
             d = self._data[key] = (sd, pack_step(sd, self.kernel.ne, self.m))
+        self._data[tau] = d
         self._last_tau, self._last_data = tau, d
         return d
 
