@@ -443,7 +443,7 @@ class ModalSimulator:
         total forces are continuous, so ``g`` changes by the change of the slopes times ``(s, v)`` (the start of
         a short Newton on the new part's static feedthrough)."""
         dx = old.state(xi[None, :], u[None, :], g[None, :])[0]
-        xi_new = new.W @ dx
+        xi_new = new.project(dx)
         stp = self.stepper(new, cset)
         g = g.copy()
         for i, ((k0, d0), (k1, d1)) in enumerate(zip(old.lin.regime, new.lin.regime, strict=True)):

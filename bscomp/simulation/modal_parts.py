@@ -164,8 +164,25 @@ class ModalPart:
 
     # ---- use ------------------------------------------------------------------------------------------
     def state(self, xi, u, g):
-        """``Δx`` at modal coordinates ``xi`` (rows: time points allowed), input ``u`` and forces ``g``."""
-        return (xi @ self.Vx.T).real + u @ self.Xu.T + g @ self.Xg.T + self.xc
+        """``Δx`` at modal coordinates ``xi`` (rows: time points allowed), input ``u`` and forces ``g`` (only the
+        forces that are non-zero somewhere enter the product: a joint's channels are a few of its columns)."""
+        g = np.asarray(g)
+        act = np.flatnonzero(np.any(g != 0.0, axis=tuple(range(g.ndim - 1))))
+        Vr, Vi = self._split()
+        return xi.real @ Vr - xi.imag @ Vi + u @ self.Xu.T + g[..., act] @ self.Xg[:, act].T + self.xc
+
+    def project(self, dx):
+        """``ξ = W Δx`` for a real state ``dx`` (two real products)."""
+        if getattr(self, "_W_split", None) is None:
+            self._W_split = (np.ascontiguousarray(self.W.real), np.ascontiguousarray(self.W.imag))
+        Wr, Wi = self._W_split
+        return Wr @ dx + 1j * (Wi @ dx)
+
+    def _split(self):
+        """``(Re V_x^T, Im V_x^T)``, contiguous (``Re(ξ V_x^T)`` without the imaginary part)."""
+        if getattr(self, "_V_split", None) is None:
+            self._V_split = (np.ascontiguousarray(self.Vx.real.T), np.ascontiguousarray(self.Vx.imag.T))
+        return self._V_split
 
     def rate_rows(self):
         """``(Vr, Vrd)``: ``ẋ = Re(Vr ξ + Vrd ξ')`` (first-order route: ``Vr = 0``, ``Vrd = V``)."""

@@ -134,12 +134,13 @@ class Stepper:
         if not self.r:
             return g, y_free, 0.0
         upd = np.inf
+        eye = np.eye(self.r)
         for _ in range(n_iter):
             y = y_free + H @ g
-            gl, L, *_ = self.evaluate(y)
-            dg = np.linalg.solve(np.eye(self.r) - L @ H, gl - g)
+            gl, L, *_ = self._law(y, self.theta)
+            dg = np.linalg.solve(eye - L @ H, gl.ravel() - g)
             g += dg
-            upd = np.max(np.abs(dg)) / (1.0 + np.max(np.abs(g)))
+            upd = np.abs(dg).max() / (1.0 + np.abs(g).max())
             if upd < NEWTON_TOL:
                 break
         return g, y_free + H @ g, upd
