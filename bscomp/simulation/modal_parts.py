@@ -127,33 +127,34 @@ class ModalPart:
         mu, Y = sla.eig(Ared, check_finite=False)
         Yi = _inverse(Y, dae.name)
         nu, ng = lin.Ju.shape[1], lin.ng
-        # r -> Δx and r' -> ẋ in the Dae's state order
-        Tr = np.zeros((nx, n))
-        Td = np.zeros((nx, n))
-        Tdd = np.zeros((nx, n))
-        Tr[Iq, :nk], Tr[Iv, nk:2 * nk] = pk, pk
-        Td[Iq, nk:2 * nk] = pk                   # rate of a position: the velocity (in r)
-        Tdd[Iv, nk:2 * nk] = pk                  # rate of a velocity: the acceleration (in r')
-        if ni:
-            Tr[Iq, 2 * nk:] = -Rt @ Kqi
-            Tr[Ii, 2 * nk:] = np.eye(ni)
-            Tdd[Ii, 2 * nk:] = np.eye(ni)
         keepc = np.flatnonzero(mu.imag >= -1e-9 * np.maximum(np.abs(mu), 1.0))
         pair = np.abs(mu[keepc].imag) > 1e-9 * np.maximum(np.abs(mu[keepc]), 1.0)
         wgt = np.where(pair, 2.0, 1.0)
         self.lam = mu[keepc]
         Yk = Y[:, keepc] * wgt
-        self.Vx = Tr @ Yk
-        # ẋ = Td r + Tdd r' : the positions' rates are velocities (r), the velocities' rates accelerations (r')
-        self._Vd_r, self._Vd_rd = Td @ Yk, Tdd @ Yk
-        Wr = np.zeros((n, nx))
-        Mp = M @ pk
-        Wr[:nk][:, Iq] = Mp.T
-        Wr[nk:2 * nk][:, Iv] = Mp.T
+        m = keepc.size
+        # r = [eta; eta'; x_i] -> Δx, and r, r' -> ẋ, in the Dae's state order, block by block (the maps are
+        # block-sparse: positions = pk eta (+ the static part of x_i), velocities = pk eta')
+        P1, P2 = _rmul(pk, Yk[:nk]), _rmul(pk, Yk[nk:2 * nk])
+        self.Vx = np.zeros((nx, m), complex)
+        self.Vx[Iq], self.Vx[Iv] = P1, P2
+        self._Vd_r = np.zeros((nx, m), complex)      # rate of a position: the velocity (in r)
+        self._Vd_r[Iq] = P2
+        self._Vd_rd = np.zeros((nx, m), complex)     # rate of a velocity: the acceleration (in r')
+        self._Vd_rd[Iv] = P2
         if ni:
-            Wr[2 * nk:][:, Ii] = np.eye(ni)
-        self.W = Yi[keepc] @ Wr
-        Bm = Yi[keepc] @ Bred
+            self.Vx[Iq] += _rmul(-Rt @ Kqi, Yk[2 * nk:])
+            self.Vx[Ii] = Yk[2 * nk:]
+            self._Vd_rd[Ii] = Yk[2 * nk:]
+        # ξ = W Δx with W = Y^-1 [M pk on positions; M pk on velocities; I on x_i]
+        Yik = Yi[keepc]
+        Mp = M @ pk
+        self.W = np.zeros((m, nx), complex)
+        self.W[:, Iq] = _rmul(Yik[:, :nk], Mp.T, left=True)
+        self.W[:, Iv] = _rmul(Yik[:, nk:2 * nk], Mp.T, left=True)
+        if ni:
+            self.W[:, Ii] = Yik[:, 2 * nk:]
+        Bm = _rmul(Yik, Bred, left=True)
         self.Bu, self.Bg, self.bc = Bm[:, :nu], Bm[:, nu:nu + ng], Bm[:, -1]
         Xs = np.zeros((nx, Fb.shape[1]))
         Xs[Iq] = -Rt @ Fb
@@ -242,6 +243,13 @@ def _mechanical_blocks(lin):
         return None
     Kqi = Jx[np.ix_(Rb, Ii)] if Ii.size else np.zeros((nr, 0))
     return M, C, 0.5 * (K + K.T), Kqi, Rb, Ri, Iq, Iv, Ii, Jxd, Jx
+
+
+def _rmul(A, B, left=False):
+    """A real matrix times a complex one (``left``: complex times real) by two real products."""
+    if left:
+        return A.real @ B + 1j * (A.imag @ B)
+    return A @ B.real + 1j * (A @ B.imag)
 
 
 def _inverse(V, name):
