@@ -32,7 +32,9 @@ __all__ = ["pack_step", "Kernel", "NumpyCall"]
 
 INFO = 5
 SKIPPED = 1e300   # the error a skipped step reports (never accepted)
-_SOURCE_KEY = hashlib.sha1(Path(__file__).read_bytes()).hexdigest()   # a change of this file recompiles
+# a change of this file or of the laws' construction recompiles
+_SOURCE_KEY = hashlib.sha1(Path(__file__).read_bytes()
+                           + (Path(__file__).parent / "modal_laws.py").read_bytes()).hexdigest()
 JIT_SCHEMES = (-3, 3)  # the chunks' chord and the batches' Newton iterations (bscomp.simulation.modal_driver)
 
 
@@ -266,9 +268,10 @@ class Kernel:
         if self._native is None:
             wanted = [(k, it) for it in JIT_SCHEMES for k in (1, 4, 16, 64, 256)]
             names = [f"modal_chunk{k}_{_tag(it)}" for k, it in wanted]
+            # the laws by their value and check Functions: the Newton one is the same expression and its Jacobian
+            # (modal_laws.LawSpec._build, in the source key), the largest to serialize
             key = "|".join([_SOURCE_KEY, repr((self.m, self.nu, self.r, self.rm, self.ne, self.thetas))]
-                           + [f.serialize() for f in (self.law_newton, self.law_value, self.law_check,
-                                                      self.law_elements)])
+                           + [f.serialize() for f in (self.law_check, self.law_elements)])
             funcs = native_functions(lambda: [self.chunk(k, it) for k, it in wanted], key=key, names=names)
             self._native = dict(zip(wanted, funcs, strict=True))
         if (n, n_newton) not in self._native:
