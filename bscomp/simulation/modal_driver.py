@@ -246,8 +246,9 @@ class ModalSimulator:
         """Integrate over the grid ``t`` with inputs ``U`` (nt-1, nu) from the state ``xs``.
 
         Chunks of compiled steps run at a *level* ``L`` (``4^L`` equal sub-steps per grid step, ``L <= 2``):
-        a chunk that fails within its first two grid steps sends the level up, two clean chunks bring it
-        down. A grid step that fails is redone from its start by :meth:`_advance` one level finer.
+        a chunk that fails within its first two grid steps sends the level up, a clean chunk brings it
+        down. The sub-steps a chunk accepted inside the grid step where it failed are kept; the rest of that grid
+        step is done by :meth:`_advance` one level finer.
         ``sample(k, state)`` is called before the step from each grid index in ``breaks`` (sampled
         controllers: it may change ``U[k:]``); chunks end there.
         """
