@@ -263,10 +263,16 @@ class Dae:
                 raise UnknownNameError(f"no output named '{n}' in '{self.name}'; outputs of that component: {close}")
             exprs.append(self.observables[n])
         e = ca.vertcat(*exprs) if exprs else ca.SX(0, 1)
-        for sf, st in self.substitutions:
-            if sf:
-                e = ca.substitute(e, ca.vertcat(*sf), ca.densify(ca.vertcat(*st)))
-        known = {s.name() for s in ca.symvar(ca.vertcat(self.xs, self.xds, self.zs, self.us, self.ps))}
+        subs = self._cache.get("output_substitutions")
+        if subs is None:         # the substitution lists as vectors, once (vertcat of long lists is not free)
+            subs = self._cache["output_substitutions"] = [(ca.vertcat(*sf), ca.densify(ca.vertcat(*st)))
+                                                          for sf, st in self.substitutions if sf]
+        for sf, st in subs:
+            e = ca.substitute(e, sf, st)
+        known = self._cache.get("known_symbols")
+        if known is None:
+            known = self._cache["known_symbols"] = {s.name() for s in ca.symvar(ca.vertcat(self.xs, self.xds, self.zs,
+                                                                                          self.us, self.ps))}
         bad = [s.name() for s in ca.symvar(e) if s.name() not in known]
         if bad:
             raise UnknownNameError(f"outputs {list(names)} use {bad}, which are not available (the derivative of "
@@ -391,12 +397,14 @@ def dm_sparse(A) -> ca.DM:
 
 
 def _sp(m):
-    """CasADi DM (sparse) -> scipy csc."""
+    """CasADi DM (sparse) -> scipy csc, from its CCS arrays (``DM.sparse()`` costs ~1 ms for a few-hundred-row
+    Jacobian)."""
     m = ca.DM(m)
     if m.numel() == 0:
         return sp.csc_matrix(m.shape)
-    return sp.csc_matrix(m.sparse()) if hasattr(m, "sparse") and not isinstance(m.sparse(), np.ndarray) \
-        else _dm_to_csc(m)
+    colind, row = m.sparsity().get_ccs()
+    return sp.csc_matrix((np.asarray(m.nonzeros(), float), np.asarray(row, np.int32), np.asarray(colind, np.int32)),
+                         shape=m.shape)
 
 
 def _dm_to_csc(m):

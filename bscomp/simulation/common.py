@@ -243,28 +243,38 @@ def evaluate_outputs(dae, names, XD, X, Z, Uh, p, chunk=1000):
     """
     if not names:
         return {}
-    nt = X.shape[0]
+    Y = evaluate_mapped(dae, ("outmap", tuple(names)), lambda: dae.output_function(names), (XD, X, Z, Uh), p, chunk)
+    return {name: Y[:, i].copy() for i, name in enumerate(names)}
+
+
+def evaluate_mapped(dae, key, build, data, p, chunk=1000):
+    """``f(d_1[k], ..., d_n[k], p)`` for every row k of the (nt, ·) arrays ``data``: ``(nt, n_out)``.
+
+    ``build()`` makes the Function (one dense column output); its map over ``min(chunk, nt)`` points is cached
+    on the Dae under ``key``, and called through zero-copy buffers (see :func:`evaluate_outputs`)."""
+    data = [np.ascontiguousarray(a, dtype=float) for a in data]
+    nt = data[0].shape[0]
     n = min(chunk, nt)
-    key = ("outmap", tuple(names), n)
-    if key not in dae._cache:
-        dae._cache[key] = dae.output_function(names).map("ymap", "serial", n, [4], [])
-    fm = dae._cache[key]
-    data = [np.ascontiguousarray(a, dtype=float) for a in (XD, X, Z, Uh)]
+    mkey = key + (n,)
+    if mkey not in dae._cache:
+        dae._cache[mkey] = build().map("ymap", "serial", n, [len(data)], [])
+    fm = dae._cache[mkey]
     pc = np.ascontiguousarray(p, dtype=float)
-    Y = np.zeros((nt, len(names)))
+    ny = fm.size1_out(0)
+    Y = np.zeros((nt, ny))
     buf, ev = fm.buffer()
-    buf.set_arg(4, memoryview(pc))
+    buf.set_arg(len(data), memoryview(pc))
     starts = list(range(0, nt - n + 1, n))
     if starts[-1] + n < nt:
         starts.append(nt - n)  # last chunk overlaps the previous one: no padding needed
+    ys = np.zeros((n, ny))
+    buf.set_res(0, memoryview(ys.reshape(-1)))
     for k in starts:
-        ys = np.zeros((n, len(names)))
         for i, a in enumerate(data):
             buf.set_arg(i, memoryview(a[k:k + n].reshape(-1)))
-        buf.set_res(0, memoryview(ys.reshape(-1)))
         ev()
         Y[k:k + n] = ys
-    return {name: Y[:, i].copy() for i, name in enumerate(names)}
+    return Y
 
 
 class Progress:

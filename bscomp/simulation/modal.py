@@ -15,8 +15,8 @@ import time
 import casadi as ca
 import numpy as np
 
-from bscomp.simulation.common import Progress, SampledLoop, evaluate_outputs
-from bscomp.simulation.modal_driver import ModalSimulator
+from bscomp.simulation.common import Progress, SampledLoop, evaluate_mapped
+from bscomp.simulation.modal_driver import ModalSimulator, block
 from bscomp.simulation.result import SimulationResult
 
 __all__ = ["simulate_modal", "ModalResult", "DEFAULTS"]
@@ -74,12 +74,15 @@ class Outputs:
             self._jac = ca.Function("yj", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
                                     [ea, ca.jacobian(ea, dae.xds), ca.jacobian(ea, dae.xs), ca.jacobian(ea, dae.zs),
                                      ca.jacobian(ea, dae.us)])
-        if self.other:
+        if self.other:           # evaluated on the few state columns they read (every symbol of the expression)
             eo = dae.output_expr(self.other)
-            dep = [ca.depends_on(eo, s) for s in (dae.xds, dae.xs, dae.zs, dae.us)]
-            sp = [ca.jacobian_sparsity(eo, s) for s in (dae.xds, dae.xs, dae.zs)]
-            self.cols = [np.unique(np.asarray(s.get_triplet()[1], int)) for s in sp]
-            self._dep = dep
+            used = {v.name() for v in ca.symvar(eo)}
+            vecs = (dae.xds, dae.xs, dae.zs)
+            self.cols = [np.array([i for i in range(v.numel()) if v[i].name() in used], int) for v in vecs]
+            sub = [ca.vertcat(*[v[int(i)] for i in c]) if c.size else ca.SX(0, 1) for v, c in zip(vecs, self.cols,
+                                                                                                strict=True)]
+            self._fo = ca.Function("y_other", [*sub, dae.us, dae.ps], [eo])
+            self._fo_key = ("modal_other", tuple(self.other), id(self))
 
     def rows(self, mp):
         """Modal rows of the affine outputs in one modal part."""
@@ -98,42 +101,44 @@ class Outputs:
         nt = len(XI)
         out = {n: np.zeros(nt) for n in self.names}
         bounds = [s for s, _ in segs] + [nt]
+        if self.other:        # the columns the other outputs read, filled per segment, evaluated in one call
+            cd, cx, cz = self.cols
+            ch = self.sim.ch
+            X, XD, Z = np.empty((nt, cx.size)), np.zeros((nt, cd.size)), np.empty((nt, cz.size))
+            X[:], Z[:] = ch.x_a[cx], ch.z_a[cz]
+        active = np.flatnonzero(np.any(G != 0.0, axis=0))       # channel forces ever non-zero in the run
         for (k0, mp), k1 in zip(segs, bounds[1:], strict=True):
             if k1 <= k0:
                 continue
-            xi = np.array(XI[k0:k1])
+            xi = block(XI, k0, k1, mp.lam.size)
             u, g = Uh[k0:k1], G[k0:k1]
             if self.affine:
                 Cxi, Du, Dg, yc = self.rows(mp)
-                Y = (xi @ Cxi.T).real + u @ Du.T + g @ Dg.T + yc
+                Y = (xi @ Cxi.T).real + u @ Du.T + g[:, active] @ Dg[:, active].T + yc
                 for i, n in enumerate(self.affine):
                     out[n][k0:k1] = Y[:, i]
             if self.other:
-                Y = self._nonaffine(mp, xi, u, g)
-                for i, n in enumerate(self.other):
-                    out[n][k0:k1] = Y[:, i]
+                self._nonaffine(mp, xi, u, g, X[k0:k1], XD[k0:k1], Z[k0:k1])
+        if self.other:
+            Y = evaluate_mapped(self.sim.dae, self._fo_key, lambda: self._fo, (XD, X, Z, Uh), self.sim.p)
+            for i, n in enumerate(self.other):
+                out[n] = Y[:, i].copy()
         return out
 
-    def _nonaffine(self, mp, xi, u, g):
-        sim, dae = self.sim, self.sim.dae
-        n = len(xi)
+    def _nonaffine(self, mp, xi, u, g, X, XD, Z):
+        """Fill ``(X, XD, Z)``: views of one segment on the columns the non-affine outputs read (X and Z holding
+        the rest point)."""
         cd, cx, cz = self.cols
-        X = np.zeros((n, dae.nx))
-        XD = np.zeros((n, dae.nx))
-        Z = np.zeros((n, dae.nz))
         if cx.size:
-            X[:, cx] = (xi @ mp.Vx[cx].T).real + u @ mp.Xu[cx].T + g @ mp.Xg[cx].T + mp.xc[cx]
-        X += sim.ch.x_a
+            X += (xi @ mp.Vx[cx].T).real + u @ mp.Xu[cx].T + g @ mp.Xg[cx].T + mp.xc[cx]
         if cd.size:
             Vr, Vrd = mp.rate_rows()
             rate = xi * mp.lam + u @ mp.Bu.T + g @ mp.Bg.T + mp.bc
-            XD[:, cd] = (xi @ Vr[cd].T + rate @ Vrd[cd].T).real
+            XD[:] = (xi @ Vr[cd].T + rate @ Vrd[cd].T).real
         if cz.size and mp.Z is not None:
             Zx, Zu, Zg, zc = mp.Z
             dx = mp.state(xi, u, g)
-            Z[:, cz] = sim.ch.z_a[cz] + dx @ Zx[cz].T + u @ Zu[cz].T + g @ Zg[cz].T + zc[cz]
-        Y = evaluate_outputs(dae, self.other, XD, X, Z, u, sim.p)
-        return np.column_stack([Y[o] for o in self.other])
+            Z += dx @ Zx[cz].T + u @ Zu[cz].T + g @ Zg[cz].T + zc[cz]
 
 
 def _states(sim, XI, G, segs, Uh):
@@ -204,7 +209,7 @@ def simulate_modal(problem, options):
                           progress=(lambda k: bar.update(0, k)) if problem.progress else None)
     keep = np.arange(0, len(ti), substeps)
     if substeps > 1:
-        XI = [XI[k] for k in keep]
+        XI = XI.thinned(keep)
         G = G[keep]
         segs = _thin_segments(segs, substeps)
     Uh = np.vstack([Ui[:1], Ui])[keep]

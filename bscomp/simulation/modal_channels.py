@@ -115,6 +115,20 @@ class Channels:
         for i in range(len(self.elements)):
             s0, v0 = y0.ravel()[2 * i], y0.ravel()[2 * i + 1]
             self.rest.append((s0, v0) + self.slopes(i, s0, v0))
+        self.rest_force = np.array([float(el.law(r[0], r[1], el.pvec)) for el, r in zip(self.elements, self.rest,
+                                                                                        strict=True)])
+
+    def element_columns(self):
+        """``G_el = S_bal D^T`` (dense, one column per element): where the elements' forces enter the balances."""
+        if getattr(self, "_Gel", None) is None:
+            self._Gel = np.asarray(self.Sbal @ self.D.T)
+        return self._Gel
+
+    def joint_columns(self):
+        """``S_bal P^T`` per joint (dense): where the joints' port forces enter the balances."""
+        if getattr(self, "_Gj", None) is None:
+            self._Gj = [dense(self.Sbal @ j.P.T, float) for j in self.joints]
+        return self._Gj
 
     def rest_jacobians(self, p):
         """``(F, Jxd, Jx, Jz, Ju)`` at rest for parameter vector ``p`` (cached: regimes share them)."""
@@ -170,22 +184,24 @@ class LinearPart:
         cols, F_L = [], F.copy()
         if ch.elements:
             _, Rxd, Rx, Rz, _ = ch.el_rows
-            for i, (k, d) in enumerate(regime):
-                s0, v0, k0, d0 = ch.rest[i]
-                G = np.asarray(ch.Sbal @ ch.D[i]).ravel()
-                dk, dd = k - k0, d - d0
-                Gs = sp.csr_matrix(G[:, None])
-                Jxd = Jxd + Gs @ sp.csr_matrix(dk * Rxd[2 * i] + dd * Rxd[2 * i + 1])
-                Jx = Jx + Gs @ sp.csr_matrix(dk * Rx[2 * i] + dd * Rx[2 * i + 1])
-                if dae.nz:
-                    Jz = Jz + Gs @ sp.csr_matrix(dk * Rz[2 * i] + dd * Rz[2 * i + 1])
-                g0 = float(ch.elements[i].law(s0, v0, ch.elements[i].pvec)) - k * s0 - d * v0
-                F_L = F_L - G * g0
-                cols.append(G[:, None])
+            Gel = ch.element_columns()
+            k_d = np.asarray(regime, float).reshape(-1, 2)
+            rest = np.asarray([r[:4] for r in ch.rest], float)           # s0, v0, k0, d0 per element
+            dk, dd = k_d[:, 0] - rest[:, 2], k_d[:, 1] - rest[:, 3]
+
+            def update(J, R):          # each element's slopes swapped: J + sum_i G_i (dk_i R_s,i + dd_i R_v,i)
+                D = dk[:, None] * R[0::2] + dd[:, None] * R[1::2]
+                return J + sp.csr_matrix(Gel @ D) if np.any(D) else J
+
+            Jxd, Jx = update(Jxd, Rxd), update(Jx, Rx)
+            if dae.nz:
+                Jz = update(Jz, Rz)
+            g0 = ch.rest_force - k_d[:, 0] * rest[:, 0] - k_d[:, 1] * rest[:, 1]
+            F_L = F_L - Gel @ g0
+            cols.append(Gel)
         self.n_el = len(ch.elements)
         self.joint_cols = []
-        for j in ch.joints:
-            Gj = dense(ch.Sbal @ j.P.T, float)
+        for Gj in ch.joint_columns():
             self.joint_cols.append((sum(c.shape[1] for c in cols), Gj.shape[1]))
             cols.append(Gj)
         self.G = np.hstack(cols) if cols else np.zeros((F.size, 0))

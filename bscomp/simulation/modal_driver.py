@@ -24,12 +24,12 @@ import casadi as ca
 import numpy as np
 
 from bscomp.simulation.modal_channels import Channels, LinearPart, ModalSimulationError
-from bscomp.simulation.modal_kernels import Kernel
+from bscomp.simulation.modal_kernels import SKIPPED, Kernel, NumpyCall
 from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec
 from bscomp.simulation.modal_parts import ModalPart
 from bscomp.simulation.modal_steps import THETAS, Stepper
 
-__all__ = ["ModalSimulator"]
+__all__ = ["ModalSimulator", "ModalHistory"]
 
 
 def _chunk_size(n):
@@ -46,6 +46,43 @@ CALM = 1              # clean chunks before the next one tries the coarser level
 CHUNK_ITERATIONS = -3  # chunks and batches: three chord iterations (a step that needs more is redone finer)
 FINE_ITERATIONS = 3   # the finest level: three Newton iterations
 FINE_LEVELS = 3       # refinement levels below a failed chunk's level, then single sub-steps
+
+
+class ModalHistory:
+    """The modal coordinates at the grid points: one complex row per point, as wide as the largest modal part
+    stored so far (a point of a part with ``m`` coordinates uses the first ``m`` columns)."""
+
+    def __init__(self, nt, m):
+        self.a = np.zeros((nt, m), complex)
+
+    def __len__(self):
+        return self.a.shape[0]
+
+    def _fit(self, m):
+        if m > self.a.shape[1]:
+            self.a = np.hstack([self.a, np.zeros((self.a.shape[0], m - self.a.shape[1]), complex)])
+
+    def put(self, k, xi):
+        self._fit(xi.size)
+        self.a[k, :xi.size] = xi
+
+    def put_rows(self, k, xs):
+        self._fit(xs.shape[1])
+        self.a[k:k + len(xs), :xs.shape[1]] = xs
+
+    def block(self, k0, k1, m):
+        """Rows ``k0:k1`` in a part of ``m`` coordinates."""
+        return self.a[k0:k1, :m]
+
+    def thinned(self, keep):
+        out = ModalHistory(0, 0)
+        out.a = self.a[keep]
+        return out
+
+
+def block(XI, k0, k1, m):
+    """Rows ``k0:k1`` of a :class:`ModalHistory` or of a list of coordinate vectors (m coordinates each)."""
+    return XI.block(k0, k1, m) if isinstance(XI, ModalHistory) else np.array(XI[k0:k1])
 
 
 class ModalSimulator:
@@ -70,6 +107,7 @@ class ModalSimulator:
         self.cands = [ch.candidate_regimes(i) for i in range(len(ch.elements))]
         self.parts, self.steppers, self.laws, self.kernels = {}, {}, {}, {}
         self._slopes = None
+        self._last_stepper = None
         self._pads = []
         self.outputs = {}     # names -> modal.Outputs (rows per modal part)
         self._checked = set()
@@ -107,10 +145,16 @@ class ModalSimulator:
             spec = LawSpec(self.ch, sizes, self.cands)
             spec.f = spec.function()
             spec.fs = spec.functions()
+            spec.fast = NumpyCall(spec.f)
             self.laws[sizes] = spec
         return spec
 
     def stepper(self, mp, cset):
+        """The :class:`~bscomp.simulation.modal_steps.Stepper` of a modal part and channel set (cached; the last
+        one is returned without building its key)."""
+        last = self._last_stepper
+        if last is not None and last[0] is mp and last[1] is cset:
+            return last[2]
         key = (id(mp), tuple((tuple(S), el) for S, el in cset))
         st = self.steppers.get(key)
         if st is None:
@@ -123,8 +167,9 @@ class ModalSimulator:
             if kern is None:
                 kern = self.kernels[shape] = Kernel(*shape[:4], spec.fs, 2 * len(self.ch.elements), THETAS,
                                                     jit=self.jit)
-            st = Stepper(mp, rows, gsel, spec.f, theta, kern)
+            st = Stepper(mp, rows, gsel, spec.fast, theta, kern)
             self.steppers[key] = st
+        self._last_stepper = (mp, cset, st)
         return st
 
     def _padded(self, m):
@@ -176,8 +221,8 @@ class ModalSimulator:
             v = ca.SX.sym("v", n)
             laws = [el.law(s[i], v[i], ca.DM(el.pvec)) for i, el in enumerate(self.ch.elements)]
             J = ca.vertcat(*[ca.horzcat(ca.jacobian(f, s[i]), ca.jacobian(f, v[i])) for i, f in enumerate(laws)])
-            self._slopes = ca.Function("slopes", [s, v], [J])
-        kd = self._slopes(y[0:2 * n:2], y[1:2 * n:2]).full()
+            self._slopes = NumpyCall(ca.Function("slopes", [s, v], [ca.densify(J)]))
+        kd = self._slopes(y[0:2 * n:2], y[1:2 * n:2])[0]
         out = []
         for i in range(n):
             c = np.abs(np.array(self.cands[i]))
@@ -201,17 +246,19 @@ class ModalSimulator:
         """Integrate over the grid ``t`` with inputs ``U`` (nt-1, nu) from the state ``xs``.
 
         Chunks of compiled steps run at a *level* ``L`` (``4^L`` equal sub-steps per grid step, ``L <= 2``):
-        a chunk that fails within its first two grid steps sends the level up, two clean chunks bring it
-        down. A grid step that fails is redone from its start by :meth:`_advance` one level finer.
+        a chunk that fails within its first two grid steps sends the level up, a clean chunk brings it
+        down. The sub-steps a chunk accepted inside the grid step where it failed are kept; the rest of that grid
+        step is done by :meth:`_advance` one level finer.
         ``sample(k, state)`` is called before the step from each grid index in ``breaks`` (sampled
         controllers: it may change ``U[k:]``); chunks end there.
         """
         nt = len(t)
         self.check(U)
         st = _State(self, xs, U[0])
-        XI = [None] * nt
+        XI = ModalHistory(nt, st.xi.size)
         G = np.zeros((nt, st.mp.lin.ng))
-        XI[0], G[0] = st.xi, st.g
+        XI.put(0, st.xi)
+        G[0] = st.g
         segs = [(0, st.mp)]
         self.scale = 1.0
         h_all = np.diff(t)
@@ -233,7 +280,8 @@ class ModalSimulator:
             if chunks:
                 cap = min(n_chunk, CHUNK // 4 ** level)
                 n = max(1, min(cap, int(stops[np.searchsorted(stops, k, side="right")]) - k))
-                done = self._chunk(st, U, k, n, h, tol, XI, G, level)
+                done, part = self._chunk(st, U, k, n, h, tol, XI, G, level)
+                per = 4 ** level
                 k += done
                 if st.mp is not segs[-1][1]:          # the chunk's last step switched the linear part:
                     segs.append((k + 1, st.mp))       # grid point k is stored in the old coordinates
@@ -248,10 +296,15 @@ class ModalSimulator:
                     level += 1
                 if k >= nt - 1:
                     break
-            self._advance(st, U[k], h, 4 ** (level + 1), h, tol, 0)
+                # the rest of grid step k one level finer (its first `part` sub-steps were accepted)
+                fine = 4 ** (level + 1) // per
+                self._advance(st, U[k], (per - part) * h / per, (per - part) * fine, h, tol, 0)
+            else:
+                self._advance(st, U[k], h, 4 ** (level + 1), h, tol, 0)
             if st.mp is not segs[-1][1]:
                 segs.append((k + 1, st.mp))
-            XI[k + 1], G[k + 1] = st.xi, st.g
+            XI.put(k + 1, st.xi)
+            G[k + 1] = st.g
             k += 1
         if progress is not None:
             progress(nt - 1)
@@ -278,55 +331,74 @@ class ModalSimulator:
                     "extremes; e.g. an amplifier current limit): use method='idas' or 'split'")
         self._checked.add(key)
 
+    def _ctl(self, tol):
+        """The kernel's stop rule (the one of :meth:`_flags`): ``[tol, running force scale, Newton acceptance]``."""
+        return np.array([tol, self.scale, NEWTON_ACCEPT * tol])
+
     def _flags(self, info, tol):
         """``(j, switch, scale)`` of a block of step infos: the first ``j`` steps are accepted; ``switch``: the
-        last of them ended in another regime (the linear part is switched there); ``scale`` the running force
-        scale. A step is bad if its interpolation error or last Newton update exceeds the tolerance or its
-        contact point left the element."""
-        scale = np.maximum.accumulate(np.maximum(info[:, 1], self.scale))
-        bad = (info[:, 0] > tol * scale) | (info[:, 3] < 0.5) | ~(info[:, 4] < NEWTON_ACCEPT * tol * scale)
-        j = int(np.argmax(bad)) if bad.any() else len(info)
-        new = info[:j, 2] < 0.5
-        if new.any():
-            j = int(np.argmax(new)) + 1
-        return j, bool(new.any()), scale
+        last of them ended in another regime (the linear part is switched there); ``scale(i)`` the running force
+        scale after step i. A step is bad if its interpolation error or last Newton update exceeds the tolerance
+        or its contact point left the element.
+
+        The kernel applies the same rule and skips every step after the first bad or regime-changing one
+        (:data:`~bscomp.simulation.modal_kernels.SKIPPED`), so only the last computed step is tested here."""
+        n = len(info)
+        skipped = info[:, 0] >= SKIPPED
+        c = int(np.argmax(skipped)) if skipped[n - 1] else n
+        scale0 = self.scale
+
+        def scale(i):
+            return max(scale0, float(info[:i + 1, 1].max())) if i >= 0 else scale0
+
+        if c == 0:
+            return 0, False, scale
+        err, fmax, okr, oke, upd = info[c - 1]
+        sc = scale(c - 1)
+        bad = err > tol * sc or oke < 0.5 or not upd < NEWTON_ACCEPT * tol * sc
+        if bad:
+            return c - 1, False, scale
+        return c, bool(okr < 0.5), scale
 
     def _chunk(self, st, U, k, n, h, tol, XI, G, level):
-        """Up to ``n`` grid steps (``4^level`` sub-steps each) in one compiled call; returns how many grid steps
-        were accepted (stored in XI, G)."""
+        """Up to ``n`` grid steps (``4^level`` sub-steps each) in one compiled call: ``(done, part)``, the grid
+        steps accepted (stored in XI, G) and the sub-steps accepted of the next one (the state is left after
+        them; the driver finishes that grid step finer)."""
         stp = self.stepper(st.mp, st.cset)
         per = 4 ** level
-        _, mats = stp.data(h / per)
+        tau = h / per
+        _, mats = stp.data(tau)
         run = stp.kernel.runner(_chunk_size(n * per), CHUNK_ITERATIONS)
         N = run.n
         Uc = np.repeat(U[k:k + n], per, axis=0)
         if N > len(Uc):
             Uc = np.vstack([Uc, np.repeat(Uc[-1:], N - len(Uc), axis=0)])
         x0 = stp.pack_state(st.xi, st.g[stp.gsel])
-        X, info = run(x0, Uc, mats, stp.theta)
+        X, info = run(x0, Uc, mats, stp.theta, self._ctl(tol))
         b, switch, scale = self._flags(info[:n * per], tol)
-        if switch and b % per:
-            b -= b % per                      # a switch inside a grid step: that grid step is redone finer
-            switch = False
-        done = b // per
+        done, part = divmod(b, per)
         self.counts["chunks"] += 1
+        if not b:
+            return 0, 0
+        self.scale = scale(b - 1)
+        m, mp_ = stp.m, stp.m_part
         if done:
-            self.scale = float(scale[done * per - 1])
-            m, mp_ = stp.m, stp.m_part
             Xa = X[per - 1:done * per:per]
             xs = Xa[:, :mp_] + 1j * Xa[:, m:m + mp_]
-            for i in range(done):
-                XI[k + 1 + i] = xs[i]
+            XI.put_rows(k + 1, xs)
             G[k + 1:k + 1 + done] = 0.0
             G[k + 1:k + 1 + done, stp.gsel] = Xa[:, 2 * m:]
-            st.xi, st.g = xs[-1], G[k + done].copy()
             self.counts["chunk_steps"] += done
-            if switch:                        # the last accepted step ended in another regime
-                x_before = X[done * per - 2] if done * per >= 2 else x0
-                xi0, g0 = stp.unpack_state(np.asarray(x_before))
-                uk = U[k + done - 1]
-                st.after(stp.end_values(xi0, g0, Xa[-1, 2 * m:], uk, h / per), uk)
-        return done
+        self.counts["substeps"] += part
+        xi, g = stp.unpack_state(X[b - 1])
+        st.xi = xi
+        st.g = np.zeros_like(st.g)
+        st.g[stp.gsel] = g
+        if switch:                        # the last accepted sub-step ended in another regime
+            xi0, g0 = stp.unpack_state(np.asarray(X[b - 2] if b >= 2 else x0))
+            uk = U[k + (b - 1) // per]
+            st.after(stp.end_values(xi0, g0, g, uk, tau), uk)
+        return done, part
 
     def _advance(self, st, u, T, n, h, tol, depth):
         """Advance the state by ``T`` in compiled batches of ``n`` equal sub-steps, refining every bad sub-step
@@ -341,14 +413,14 @@ class ModalSimulator:
             left = n - i
             x0 = stp.pack_state(st.xi, st.g[stp.gsel])
             run = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS if deepest else CHUNK_ITERATIONS)
-            X, info = run(x0, np.repeat(u[None, :], run.n, axis=0), mats, stp.theta)
+            X, info = run(x0, u, mats, stp.theta, self._ctl(tol))
             j, switch, scale = self._flags(info[:left], tol)
             self.counts["batches"] += 1
             forced = deepest and j < left and not switch
             if forced:
                 j += 1                                # the finest level: accept the flagged one, follow it
             if j:
-                self.scale = float(scale[j - 1])
+                self.scale = scale(j - 1)
                 self._accept(st, stp, X, j, u, tau, x0 if j == 1 else X[j - 2], switch or forced)
                 i += j
             if i < n and not (deepest or switch):
@@ -372,7 +444,7 @@ class ModalSimulator:
         total forces are continuous, so ``g`` changes by the change of the slopes times ``(s, v)`` (the start of
         a short Newton on the new part's static feedthrough)."""
         dx = old.state(xi[None, :], u[None, :], g[None, :])[0]
-        xi_new = new.W @ dx
+        xi_new = new.project(dx)
         stp = self.stepper(new, cset)
         g = g.copy()
         for i, ((k0, d0), (k1, d1)) in enumerate(zip(old.lin.regime, new.lin.regime, strict=True)):
@@ -393,7 +465,7 @@ class ModalSimulator:
         for (k0, mp), k1 in zip(segs, bounds[1:], strict=True):
             if k1 <= k0:
                 continue
-            xi = np.array(XI[k0:k1])
+            xi = block(XI, k0, k1, mp.lam.size)
             u, g = Uh[k0:k1], G[k0:k1]
             X[k0:k1] = mp.state(xi, u, g)
             Vr, Vrd = mp.rate_rows()

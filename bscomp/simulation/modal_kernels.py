@@ -10,6 +10,12 @@ state is ``[Re ξ; Im ξ; g]``; per step the Function returns the next state and
 ``[error, max |f|, regime ok at the end, element ok, last Newton update]`` (error and update in force units). A
 regime change inside a step shows in the error (the law is exact in any regime); at the end it only tells the
 driver to switch the linear part.
+
+A chunk stops computing after its first step the driver will not accept (the driver's own rule, evaluated in
+the kernel from ``ctl = [tol, force scale, Newton acceptance]``: error or last Newton update too large for the
+running force scale, contact point out of its element, or a regime change at the end): the remaining steps are
+skipped by a short-circuit conditional and report an error of ``SKIPPED``, so a chunk that fails early costs
+what it computed, not its length.
 """
 
 from __future__ import annotations
@@ -22,10 +28,13 @@ import numpy as np
 
 from bscomp.simulation.native import native_functions
 
-__all__ = ["pack_step", "Kernel"]
+__all__ = ["pack_step", "Kernel", "NumpyCall"]
 
 INFO = 5
-_SOURCE_KEY = hashlib.sha1(Path(__file__).read_bytes()).hexdigest()   # a change of this file recompiles
+SKIPPED = 1e300   # the error a skipped step reports (never accepted)
+# a change of this file or of the laws' construction recompiles
+_SOURCE_KEY = hashlib.sha1(Path(__file__).read_bytes()
+                           + (Path(__file__).parent / "modal_laws.py").read_bytes()).hexdigest()
 JIT_SCHEMES = (-3, 3)  # the chunks' chord and the batches' Newton iterations (bscomp.simulation.modal_driver)
 
 
@@ -150,44 +159,71 @@ class Kernel:
         self._f[n_newton] = f
         return f
 
-    def _solver(self):
-        """SX Function ``(L, H, b) -> (I - L H)^{-1} b`` (the Newton update in the channel forces)."""
+    def guarded(self, n_newton):
+        """``(x, aux, u, *matrices, theta, chord, ctl) -> (x1, info, aux1)``: :meth:`step` unless ``aux = [scale,
+        stop]`` says an earlier step of the chunk was not acceptable (then the state passes through and the info
+        reports :data:`SKIPPED`). ``aux1`` carries the running force scale and the stop flag by the driver's
+        rule (:meth:`bscomp.simulation.modal_driver.ModalSimulator._flags`)."""
+        key = ("guarded", n_newton)
+        F = self._f.get(key)
+        if F is not None:
+            return F
+        step = self.step(n_newton)
+        x, aux, u = ca.MX.sym("x", self.nx), ca.MX.sym("aux", 2), ca.MX.sym("u", self.nu)
+        P = self._matrix_symbols()
+        th, Mc, ctl = ca.MX.sym("theta", self.n_theta), ca.MX.sym("chord", self.r, self.r), ca.MX.sym("ctl", 3)
+        args = [x, aux, u, *P, th, Mc, ctl]
+        x1, info = step(x, u, *P, th, Mc)
+        sc = ca.fmax(aux[0], info[1])
+        bad = ca.logic_or(ca.logic_or(info[0] > ctl[0] * sc, info[3] < 0.5), ca.logic_not(info[4] < ctl[2] * sc))
+        stop = ca.logic_or(bad, info[2] < 0.5)
+        run = ca.Function(f"modal_run_{_tag(n_newton)}", args, [x1, info, ca.vertcat(sc, stop)])
+        skip = ca.Function(f"modal_skip_{_tag(n_newton)}", args,
+                           [x, ca.DM([SKIPPED, 0.0, 1.0, 0.0, SKIPPED]), aux])
+        F = ca.Function.if_else(f"modal_guarded_{_tag(n_newton)}", skip, run)
+        g = ca.Function(f"modal_gstep_{_tag(n_newton)}", args, F(aux[1], *args))
+        self._f[key] = g
+        return g
+
+    def _solver(self, cols=1):
+        """SX Function ``(L, H, b) -> (I - L H)^{-1} b`` for ``b`` of ``cols`` columns (the Newton update in the
+        channel forces; with the identity, the chord matrix in one factorisation)."""
         r, rm = self.r, self.rm
-        L, H, b = ca.SX.sym("L", r, rm), ca.SX.sym("H", rm, r), ca.SX.sym("b", r)
-        return ca.Function("newton_update", [L, H, b], [ca.solve(ca.SX.eye(r) - ca.mtimes(L, H), b)])
+        L, H, b = ca.SX.sym("L", r, rm), ca.SX.sym("H", rm, r), ca.SX.sym("b", r, cols)
+        return ca.Function(f"newton_update{cols}", [L, H, b], [ca.solve(ca.SX.eye(r) - ca.mtimes(L, H), b)])
 
     def _inner(self, n, n_newton):
-        """``n`` steps (a power of 4) taking the step matrices as separate arguments: four calls of the
-        one a quarter as long."""
+        """``n`` guarded steps (a power of 4) taking the step matrices as separate arguments: four calls of the
+        one a quarter as long, ``(x0, aux, U, *P, theta, chord, ctl) -> (X, INFO, aux)``."""
         key = ("inner", n, n_newton)
         F = self._f.get(key)
         if F is not None:
             return F
-        if n == 1:
-            F = self.step(n_newton)
-        else:
-            sub = self._inner(n // 4, n_newton)
-            x0 = ca.MX.sym("x", self.nx)
-            U = ca.MX.sym("U", self.nu, n)
-            P = self._matrix_symbols()
-            th = ca.MX.sym("theta", self.n_theta)
-            Mc = ca.MX.sym("chord", self.r, self.r)
-            Xs, Is, x = [], [], x0
-            q = n // 4
-            for j in range(4):
-                X, I = sub(x, U[:, j * q:(j + 1) * q], *P, th, Mc)
-                Xs.append(X)
-                Is.append(I)
-                x = X[:, -1]
-            F = ca.Function(f"modal_inner{n}_{_tag(n_newton)}", [x0, U, *P, th, Mc],
-                            [ca.horzcat(*Xs), ca.horzcat(*Is)])
+        x0 = ca.MX.sym("x", self.nx)
+        aux0 = ca.MX.sym("aux", 2)
+        U = ca.MX.sym("U", self.nu, n)
+        P = self._matrix_symbols()
+        th = ca.MX.sym("theta", self.n_theta)
+        Mc = ca.MX.sym("chord", self.r, self.r)
+        ctl = ca.MX.sym("ctl", 3)
+        sub = self.guarded(n_newton) if n == 1 else self._inner(n // 4, n_newton)
+        q = max(n // 4, 1)
+        Xs, Is, x, aux = [], [], x0, aux0
+        for j in range(n // q):
+            X, I, aux = sub(x, aux, U[:, j * q:(j + 1) * q], *P, th, Mc, ctl)
+            Xs.append(X)
+            Is.append(I)
+            x = X[:, -1]
+        F = ca.Function(f"modal_inner{n}_{_tag(n_newton)}", [x0, aux0, U, *P, th, Mc, ctl],
+                        [ca.horzcat(*Xs), ca.horzcat(*Is), aux])
         self._f[key] = F
         return F
 
     def chunk(self, n, n_newton):
-        """MX Function of ``n`` steps (n a power of 4), ``(x0, U, mats, theta) -> (X, INFO)`` with ``U``
+        """MX Function of ``n`` steps (n a power of 4), ``(x0, U, mats, theta, ctl) -> (X, INFO)`` with ``U``
         (nu, n), ``mats`` the packed step matrices (:func:`pack_step`; split once per call, passed on by
-        reference), ``X`` (nx, n) the states after each step and ``INFO`` (5, n). Chord iterations use the
+        reference), ``ctl = [tol, force scale, Newton acceptance]`` (the steps after the first unacceptable one
+        are skipped), ``X`` (nx, n) the states after each step and ``INFO`` (5, n). Chord iterations use the
         laws' Jacobian at the chunk's start (computed here, once per call)."""
         key = ("chunk", n, n_newton)
         F = self._f.get(key)
@@ -197,10 +233,11 @@ class Kernel:
         U = ca.MX.sym("U", self.nu, n)
         mats = ca.MX.sym("mats", self.n_mats)
         th = ca.MX.sym("theta", self.n_theta)
+        ctl = ca.MX.sym("ctl", 3)
         P = [ca.reshape(mats[a:b], *shape) for (a, b), shape in zip(self.offsets(), self.shapes, strict=True)]
         Mc = self._chord(x0, U[:, 0], P, th) if n_newton < 0 else ca.MX.zeros(self.r, self.r)
-        X, I = self._inner(n, n_newton)(x0, U, *P, th, Mc)
-        F = ca.Function(f"modal_chunk{n}_{_tag(n_newton)}", [x0, U, mats, th], [X, I])
+        X, I, _ = self._inner(n, n_newton)(x0, ca.vertcat(ctl[1], 0), U, *P, th, Mc, ctl)
+        F = ca.Function(f"modal_chunk{n}_{_tag(n_newton)}", [x0, U, mats, th, ctl], [X, I])
         self._f[key] = F
         return F
 
@@ -213,11 +250,10 @@ class Kernel:
             return ca.MX.zeros(0, 0)
         y0 = ca.mtimes(CEr, x0[:m]) - ca.mtimes(CEi, x0[m:2 * m]) + ca.mtimes(Du, u0) + ca.mtimes(Dg, x0[2 * m:]) + yc
         L = self.law_newton(y0, th)[1]
-        cols = [self._solver()(L, H, ca.MX(ca.DM.eye(r)[:, j])) for j in range(r)]
-        return ca.horzcat(*cols)
+        return self._solver(r)(L, H, ca.MX(ca.DM.eye(r)))
 
     def runner(self, n, n_newton=None):
-        """A buffered caller of ``n`` steps (a power of 4): ``call(x0, U (n, nu), mats, theta) -> (X, INFO)``."""
+        """A buffered caller of ``n`` steps (a power of 4): ``call(x0, U (n, nu), mats, theta, ctl) -> (X, INFO)``."""
         n_newton = self.n_newton if n_newton is None else n_newton
         key = (n, n_newton)
         run = self._runs.get(key)
@@ -232,9 +268,10 @@ class Kernel:
         if self._native is None:
             wanted = [(k, it) for it in JIT_SCHEMES for k in (1, 4, 16, 64, 256)]
             names = [f"modal_chunk{k}_{_tag(it)}" for k, it in wanted]
+            # the laws by their value and check Functions: the Newton one is the same expression and its Jacobian
+            # (modal_laws.LawSpec._build, in the source key), the largest to serialize
             key = "|".join([_SOURCE_KEY, repr((self.m, self.nu, self.r, self.rm, self.ne, self.thetas))]
-                           + [f.serialize() for f in (self.law_newton, self.law_value, self.law_check,
-                                                      self.law_elements)])
+                           + [f.serialize() for f in (self.law_check, self.law_elements)])
             funcs = native_functions(lambda: [self.chunk(k, it) for k, it in wanted], key=key, names=names)
             self._native = dict(zip(wanted, funcs, strict=True))
         if (n, n_newton) not in self._native:
@@ -251,24 +288,58 @@ class _Buffered:
 
     def __init__(self, F, nx, n):
         self.F, self.n = F, n
-        self._mats = self._theta = None
+        self._mats = self._theta = self._U = None
         self.buf, self.trigger = F.buffer()
         self.X = np.zeros((n, nx))           # row k: state after step k (C-order rows = CasADi columns)
         self.I = np.zeros((n, INFO))
         self.buf.set_res(0, memoryview(self.X.reshape(-1)))
         self.buf.set_res(1, memoryview(self.I.reshape(-1)))
 
-    def __call__(self, x0, U, mats, theta):
+    def __call__(self, x0, U, mats, theta, ctl):
+        """``U``: (n, nu) inputs per step, or one (nu,) input held over all of them."""
         x0 = np.ascontiguousarray(x0, float)
+        if np.ndim(U) == 1:
+            if self._U is None:
+                self._U = np.zeros((self.n, len(U)))
+            self._U[:] = U
+            U = self._U
         U = np.ascontiguousarray(U, float)            # (n, nu) rows = CasADi columns
+        ctl = np.ascontiguousarray(ctl, float)
         self.buf.set_arg(0, memoryview(x0))
         self.buf.set_arg(1, memoryview(U.reshape(-1)))
+        self.buf.set_arg(4, memoryview(ctl))
         if self._mats is not mats:
             self.buf.set_arg(2, memoryview(mats))
             self._mats = mats
         if self._theta is not theta:
             self.buf.set_arg(3, memoryview(theta))
             self._theta = theta
-        self._keep = (x0, U)
+        self._keep = (x0, U, ctl)
         self.trigger()
         return self.X, self.I
+
+
+class NumpyCall:
+    """A small Function called with numpy vectors through its buffer (no DM conversion: ~10x cheaper per call
+    than ``F(...)`` from Python). Returns the dense outputs as numpy arrays (reused between calls: copy what
+    is kept); a sparse output is densified first."""
+
+    def __init__(self, F):
+        if not all(F.sparsity_out(i).is_dense() for i in range(F.n_out())):
+            ins = F.sx_in()
+            F = ca.Function(F.name() + "_dense", ins, [ca.densify(o) for o in F.call(ins)])
+        self.F = F
+        self.buf, self.trigger = self.F.buffer()
+        self._out = [np.zeros((self.F.size1_out(i), self.F.size2_out(i)), order="F") for i in range(self.F.n_out())]
+        self._flat = [o.reshape(-1, order="F") for o in self._out]
+        for i, o in enumerate(self._flat):
+            self.buf.set_res(i, memoryview(o))
+        self._args = [np.zeros(self.F.nnz_in(i)) for i in range(self.F.n_in())]
+        for i, a in enumerate(self._args):
+            self.buf.set_arg(i, memoryview(a))
+
+    def __call__(self, *args):
+        for arg, a in zip(self._args, args, strict=True):
+            arg[:] = np.ravel(a)
+        self.trigger()
+        return self._out

@@ -182,24 +182,29 @@ class LawSpec:
 
     def function(self):
         """``(y, theta) -> (g, dg/dy, fmax, regime_ok, element_ok)`` (SX Function)."""
-        y = ca.SX.sym("y", self.ny)
-        th = ca.SX.sym("theta", self.n_theta)
-        g, fmax, okr, oke = self.expr(y, th)
-        return ca.Function("law", [y, th], [g, ca.jacobian(g, y), fmax, okr, oke])
+        return self._build()[0]
 
     def functions(self):
         """The four the compiled step uses: Newton ``(y, θ) -> (g, dg/dy)``, value ``(y, θ) -> (g, fmax,
         element_ok)``, check ``(y, θ) -> (g, fmax, regime_ok, element_ok)`` (at a step's end) and the elements'
         value on their rows ``(y_el, θ) -> (g_el, fmax)``."""
-        y = ca.SX.sym("y", self.ny)
-        th = ca.SX.sym("theta", self.n_theta)
-        g, fmax, _, oke = self.expr(y, th, check=False)
-        newton = ca.Function("law_newton", [y, th], [g, ca.jacobian(g, y)])
-        value = ca.Function("law_value", [y, th], [g, fmax, oke])
-        g, fmax, okr, oke = self.expr(y, th)
-        check = ca.Function("law_check", [y, th], [g, fmax, okr, oke])
-        ne = 2 * len(self.ch.elements)
-        ye = ca.SX.sym("y_el", ne)
-        g, fmax, _, _ = self.expr(ye, th, check=False, joints=False)
-        elements = ca.Function("law_elements", [ye, th], [g if ne else ca.SX(0, 1), fmax])
-        return newton, value, check, elements
+        return self._build()[1:]
+
+    def _build(self):
+        """Every Function of :meth:`function` and :meth:`functions` from one expression of the laws (the regime
+        test is the only part the others leave out), built once."""
+        if getattr(self, "_built", None) is None:
+            y = ca.SX.sym("y", self.ny)
+            th = ca.SX.sym("theta", self.n_theta)
+            g, fmax, okr, oke = self.expr(y, th)
+            J = ca.jacobian(g, y)
+            full = ca.Function("law", [y, th], [g, J, fmax, okr, oke])
+            newton = ca.Function("law_newton", [y, th], [g, J])
+            value = ca.Function("law_value", [y, th], [g, fmax, oke])
+            check = ca.Function("law_check", [y, th], [g, fmax, okr, oke])
+            ne = 2 * len(self.ch.elements)
+            ye = ca.SX.sym("y_el", ne)
+            ge, fe, _, _ = self.expr(ye, th, check=False, joints=False)
+            elements = ca.Function("law_elements", [ye, th], [ge if ne else ca.SX(0, 1), fe])
+            self._built = (full, newton, value, check, elements)
+        return self._built

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
-import scipy.sparse as sp
 
 from bscomp.linear.frf_engine import dense
 from bscomp.simulation.modal_channels import ModalSimulationError
@@ -58,8 +57,9 @@ class ModalPart:
         self.lin = lin
         dae = lin.ch.dae
         m = dae.mech
-        if dae.nz == 0 and not m.damped and not m.static and _mechanical_blocks(lin) is not None:
-            self._second_order(lin, f_keep)
+        mb = _mechanical_blocks(lin) if dae.nz == 0 and not m.damped and not m.static else None
+        if mb is not None:
+            self._second_order(lin, f_keep, mb)
             self.route = "second-order"
         else:
             self._first_order(lin)
@@ -86,10 +86,9 @@ class ModalPart:
         self.W = W[keep]
         self.Bu, self.Bg, self.bc = self.W @ B, self.W @ E, self.W @ c
 
-    def _second_order(self, lin, f_keep):
+    def _second_order(self, lin, f_keep, mb):
         dae = lin.ch.dae
-        mb = _mechanical_blocks(lin)
-        M, C, K, Kqi, Rb, Ri, Iq, Iv, Ii = mb
+        M, C, K, Kqi, Rb, Ri, Iq, Iv, Ii, Jxd_d, Jx_d = mb
         key = (K.tobytes(), M.tobytes())           # regimes that change only damping share the undamped modes
         cache = lin.ch.__dict__.setdefault("_eigh", {})
         if key not in cache:
@@ -118,9 +117,8 @@ class ModalPart:
         # q = pk eta + qs, qs = -Rt (Kqi x_i + Fb col)
         if ni:
             Ared[nk:2 * nk, 2 * nk:] = -pk.T @ Kqi
-            Jxd, Jx = lin.Jxd, lin.Jx
-            Eii = dense(Jxd[Ri][:, Ii], float)
-            Aiq, Aiv, Aii = dense(Jx[Ri][:, Iq], float), dense(Jx[Ri][:, Iv], float), dense(Jx[Ri][:, Ii], float)
+            Eii = Jxd_d[np.ix_(Ri, Ii)]
+            Aiq, Aiv, Aii = Jx_d[np.ix_(Ri, Iq)], Jx_d[np.ix_(Ri, Iv)], Jx_d[np.ix_(Ri, Ii)]
             Einv = np.linalg.inv(Eii)
             Ared[2 * nk:, :nk] = -Einv @ Aiq @ pk
             Ared[2 * nk:, nk:2 * nk] = -Einv @ Aiv @ pk
@@ -129,33 +127,34 @@ class ModalPart:
         mu, Y = sla.eig(Ared, check_finite=False)
         Yi = _inverse(Y, dae.name)
         nu, ng = lin.Ju.shape[1], lin.ng
-        # r -> Δx and r' -> ẋ in the Dae's state order
-        Tr = np.zeros((nx, n))
-        Td = np.zeros((nx, n))
-        Tdd = np.zeros((nx, n))
-        Tr[Iq, :nk], Tr[Iv, nk:2 * nk] = pk, pk
-        Td[Iq, nk:2 * nk] = pk                   # rate of a position: the velocity (in r)
-        Tdd[Iv, nk:2 * nk] = pk                  # rate of a velocity: the acceleration (in r')
-        if ni:
-            Tr[Iq, 2 * nk:] = -Rt @ Kqi
-            Tr[Ii, 2 * nk:] = np.eye(ni)
-            Tdd[Ii, 2 * nk:] = np.eye(ni)
         keepc = np.flatnonzero(mu.imag >= -1e-9 * np.maximum(np.abs(mu), 1.0))
         pair = np.abs(mu[keepc].imag) > 1e-9 * np.maximum(np.abs(mu[keepc]), 1.0)
         wgt = np.where(pair, 2.0, 1.0)
         self.lam = mu[keepc]
         Yk = Y[:, keepc] * wgt
-        self.Vx = Tr @ Yk
-        # ẋ = Td r + Tdd r' : the positions' rates are velocities (r), the velocities' rates accelerations (r')
-        self._Vd_r, self._Vd_rd = Td @ Yk, Tdd @ Yk
-        Wr = np.zeros((n, nx))
-        Mp = M @ pk
-        Wr[:nk][:, Iq] = Mp.T
-        Wr[nk:2 * nk][:, Iv] = Mp.T
+        m = keepc.size
+        # r = [eta; eta'; x_i] -> Δx, and r, r' -> ẋ, in the Dae's state order, block by block (the maps are
+        # block-sparse: positions = pk eta (+ the static part of x_i), velocities = pk eta')
+        P1, P2 = _rmul(pk, Yk[:nk]), _rmul(pk, Yk[nk:2 * nk])
+        self.Vx = np.zeros((nx, m), complex)
+        self.Vx[Iq], self.Vx[Iv] = P1, P2
+        self._Vd_r = np.zeros((nx, m), complex)      # rate of a position: the velocity (in r)
+        self._Vd_r[Iq] = P2
+        self._Vd_rd = np.zeros((nx, m), complex)     # rate of a velocity: the acceleration (in r')
+        self._Vd_rd[Iv] = P2
         if ni:
-            Wr[2 * nk:][:, Ii] = np.eye(ni)
-        self.W = Yi[keepc] @ Wr
-        Bm = Yi[keepc] @ Bred
+            self.Vx[Iq] += _rmul(-Rt @ Kqi, Yk[2 * nk:])
+            self.Vx[Ii] = Yk[2 * nk:]
+            self._Vd_rd[Ii] = Yk[2 * nk:]
+        # ξ = W Δx with W = Y^-1 [M pk on positions; M pk on velocities; I on x_i]
+        Yik = Yi[keepc]
+        Mp = M @ pk
+        self.W = np.zeros((m, nx), complex)
+        self.W[:, Iq] = _rmul(Yik[:, :nk], Mp.T, left=True)
+        self.W[:, Iv] = _rmul(Yik[:, nk:2 * nk], Mp.T, left=True)
+        if ni:
+            self.W[:, Ii] = Yik[:, 2 * nk:]
+        Bm = _rmul(Yik, Bred, left=True)
         self.Bu, self.Bg, self.bc = Bm[:, :nu], Bm[:, nu:nu + ng], Bm[:, -1]
         Xs = np.zeros((nx, Fb.shape[1]))
         Xs[Iq] = -Rt @ Fb
@@ -166,8 +165,25 @@ class ModalPart:
 
     # ---- use ------------------------------------------------------------------------------------------
     def state(self, xi, u, g):
-        """``Δx`` at modal coordinates ``xi`` (rows: time points allowed), input ``u`` and forces ``g``."""
-        return (xi @ self.Vx.T).real + u @ self.Xu.T + g @ self.Xg.T + self.xc
+        """``Δx`` at modal coordinates ``xi`` (rows: time points allowed), input ``u`` and forces ``g`` (only the
+        forces that are non-zero somewhere enter the product: a joint's channels are a few of its columns)."""
+        g = np.asarray(g)
+        act = np.flatnonzero(np.any(g != 0.0, axis=tuple(range(g.ndim - 1))))
+        Vr, Vi = self._split()
+        return xi.real @ Vr - xi.imag @ Vi + u @ self.Xu.T + g[..., act] @ self.Xg[:, act].T + self.xc
+
+    def project(self, dx):
+        """``ξ = W Δx`` for a real state ``dx`` (two real products)."""
+        if getattr(self, "_W_split", None) is None:
+            self._W_split = (np.ascontiguousarray(self.W.real), np.ascontiguousarray(self.W.imag))
+        Wr, Wi = self._W_split
+        return Wr @ dx + 1j * (Wi @ dx)
+
+    def _split(self):
+        """``(Re V_x^T, Im V_x^T)``, contiguous (``Re(ξ V_x^T)`` without the imaginary part)."""
+        if getattr(self, "_V_split", None) is None:
+            self._V_split = (np.ascontiguousarray(self.Vx.real.T), np.ascontiguousarray(self.Vx.imag.T))
+        return self._V_split
 
     def rate_rows(self):
         """``(Vr, Vrd)``: ``ẋ = Re(Vr ξ + Vrd ξ')`` (first-order route: ``Vr = 0``, ``Vrd = V``)."""
@@ -213,28 +229,40 @@ def _mechanical_blocks(lin):
     Ri = np.setdiff1d(np.arange(lin.Jx.shape[0]), np.r_[np.arange(len(m.inertial)), Rb])
     if Ii.size != Ri.size:
         return None
-    Jxd, Jx = sp.csr_matrix(lin.Jxd), sp.csr_matrix(lin.Jx)
-    M = dense(Jxd[Rb][:, Iv], float)
-    K = dense(Jx[Rb][:, Iq], float)
-    C = dense(Jx[Rb][:, Iv], float)
+    Jxd, Jx = dense(lin.Jxd, float), dense(lin.Jx, float)      # a few hundred rows: dense slicing is cheapest
+    M = Jxd[np.ix_(Rb, Iv)]
+    K = Jx[np.ix_(Rb, Iq)]
+    C = Jx[np.ix_(Rb, Iv)]
     if Ii.size:
-        if abs(Jxd[Rb][:, Ii]).sum() or abs(Jxd[Ri][:, Iv]).sum():
+        if np.abs(Jxd[np.ix_(Rb, Ii)]).sum() or np.abs(Jxd[np.ix_(Ri, Iv)]).sum():
             return None                       # rates of internal states in the balances, or accelerations fed back
-    other = Jxd[Rb][:, Iq]
-    if other.nnz and abs(other).max() > 0:
+    if np.abs(Jxd[np.ix_(Rb, Iq)]).max(initial=0.0) > 0:
         return None
     sym = max(np.abs(K - K.T).max(), np.abs(M - M.T).max())
     if sym > 1e-9 * max(np.abs(K).max(), 1e-300):
         return None
-    Kqi = dense(Jx[Rb][:, Ii], float) if Ii.size else np.zeros((nr, 0))
-    return M, C, 0.5 * (K + K.T), Kqi, Rb, Ri, Iq, Iv, Ii
+    Kqi = Jx[np.ix_(Rb, Ii)] if Ii.size else np.zeros((nr, 0))
+    return M, C, 0.5 * (K + K.T), Kqi, Rb, Ri, Iq, Iv, Ii, Jxd, Jx
+
+
+def _rmul(A, B, left=False):
+    """A real matrix times a complex one (``left``: complex times real) by two real products."""
+    if left:
+        return A.real @ B + 1j * (A.imag @ B)
+    return A @ B.real + 1j * (A @ B.imag)
 
 
 def _inverse(V, name):
-    cond = np.linalg.cond(V)
+    """``V^{-1}``, refused when ``V`` is (nearly) singular: its 1-norm condition number ``|V|_1 |V^{-1}|_1`` above
+    :data:`COND_MAX` (no SVD: the inverse is needed anyway)."""
+    try:
+        W = np.linalg.inv(V)
+        cond = np.linalg.norm(V, 1) * np.linalg.norm(W, 1)
+    except np.linalg.LinAlgError:
+        cond = np.inf
     if not np.isfinite(cond) or cond > COND_MAX:
         raise ModalSimulationError(
             f"'{name}': the linear part is not diagonalisable (eigenvector condition {cond:.2g}: a Jordan block, e.g. "
             "an undamped rigid-body mode): give the rigid-body motion some damping (viscous guide or motor "
             "damping), or use method='split' / 'idas'")
-    return np.linalg.inv(V)
+    return W

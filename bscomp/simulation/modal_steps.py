@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bscomp.simulation.modal_kernels import pack_step
+from bscomp.simulation.modal_kernels import NumpyCall, pack_step
 
 __all__ = ["phis", "StepData", "Stepper"]
 
@@ -94,25 +94,33 @@ class Stepper:
 
     def __init__(self, mp, rows, gsel, law, theta, kernel):
         self.mp, self.rows, self.law, self.theta, self.kernel = mp, rows, law, theta, kernel
+        self._law = law if isinstance(law, NumpyCall) else NumpyCall(law)
         self.gsel = np.asarray(gsel, int)
         self.r = self.gsel.size
         self.m = kernel.m                    # modal coordinates of the kernel (>= the part's: padded)
         self.m_part = mp.lam.size
         self._data = {}
+        self._last_tau = self._last_data = None
 
     def data(self, tau):
         """``(StepData, packed vector)`` for a sub-step length (cached)."""
-        key = round(tau, 16)
-        d = self._data.get(key)
+        if tau == self._last_tau:
+            return self._last_data
+        d = self._data.get(tau)
+        if d is None:
+            key = round(tau, 16)
+            d = self._data.get(key)
         if d is None:
             sd = StepData(self.mp, self.rows, self.gsel, tau)
             d = self._data[key] = (sd, pack_step(sd, self.kernel.ne, self.m))
+        self._data[tau] = d
+        self._last_tau, self._last_data = tau, d
         return d
 
     def evaluate(self, y):
         """``(g, dg/dy, fmax, regime_ok, element_ok)`` at channel values ``y``."""
-        g, L, fmax, okr, oke = self.law(y, self.theta)
-        return g.full().ravel(), L.full(), float(fmax), bool(float(okr)), bool(float(oke))
+        g, L, fmax, okr, oke = self._law(y, self.theta)
+        return g.ravel().copy(), L.copy(), float(fmax[0, 0]), bool(okr[0, 0]), bool(oke[0, 0])
 
     def consistent(self, xi, u, g):
         """Channel forces consistent with ``xi`` at zero step length (static feedthrough only)."""
@@ -126,12 +134,13 @@ class Stepper:
         if not self.r:
             return g, y_free, 0.0
         upd = np.inf
+        eye = np.eye(self.r)
         for _ in range(n_iter):
             y = y_free + H @ g
-            gl, L, *_ = self.evaluate(y)
-            dg = np.linalg.solve(np.eye(self.r) - L @ H, gl - g)
+            gl, L, *_ = self._law(y, self.theta)
+            dg = np.linalg.solve(eye - L @ H, gl.ravel() - g)
             g += dg
-            upd = np.max(np.abs(dg)) / (1.0 + np.max(np.abs(g)))
+            upd = np.abs(dg).max() / (1.0 + np.abs(g).max())
             if upd < NEWTON_TOL:
                 break
         return g, y_free + H @ g, upd

@@ -118,7 +118,7 @@ class MovingJoint:
     def element_of(self, z: float) -> int:
         """Element holding position ``z`` (clamped to the screw, as the component does)."""
         zn = self.z_nodes
-        return int(np.clip(np.searchsorted(zn, z, side="right") - 1, 0, len(zn) - 2))
+        return min(max(int(np.searchsorted(zn, z, side="right")) - 1, 0), len(zn) - 2)
 
     def position(self, d_slow: float) -> float:
         """Contact-point position ``z = z0 + d_s`` [m]."""

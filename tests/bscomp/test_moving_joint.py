@@ -101,6 +101,30 @@ def test_compiled_law_equals_the_joint_force(moving):
         assert np.abs(np.delete(ref, S)).max() <= 1e-12 * np.abs(ref).max()   # nothing outside S
 
 
+def test_kernel_skips_the_steps_after_the_first_unacceptable_one(moving):
+    """A compiled chunk stops computing after the first step the driver would not accept (tolerance 0: the first
+    step) and reports the rest as skipped; the step it computed is the one of an unstopped chunk."""
+    from bscomp.simulation.modal_driver import _State
+    from bscomp.simulation.modal_kernels import SKIPPED
+
+    sim = ModalSimulator(moving, moving.p0)
+    u = np.zeros(moving.nu)
+    u[moving.u_names.index("amp.u")] = AMP
+    st = _State(sim, moving.x_start, u)
+    stp = sim.stepper(st.mp, st.cset)
+    _, mats = stp.data(1e-4)
+    run = stp.kernel.runner(16, -3)
+    x0 = stp.pack_state(st.xi, st.g[stp.gsel])
+    X_all, I_all = (a.copy() for a in run(x0, u, mats, stp.theta, np.array([1e300, 1.0, 1e300])))
+    X0, I0 = (a.copy() for a in run(x0, u, mats, stp.theta, np.array([0.0, 1.0, 0.0])))
+    assert np.all(I0[1:, 0] == SKIPPED) and np.all(X0[1:] == X0[0])       # nothing computed after step 0
+    np.testing.assert_array_equal(X0[0], X_all[0])
+    computed = np.flatnonzero(I_all[:, 0] < SKIPPED)
+    assert computed[0] == 0 and np.array_equal(computed, np.arange(computed.size))
+    if computed.size < 16:                               # an unstopped chunk only stops at a regime change
+        assert I_all[computed[-1], 2] < 0.5
+
+
 def test_moving_nut_with_friction_and_backlash_matches_idas_at_rtol_1e9(moving):
     """0.03 s from rest: the nut crosses its gap, hits the table (backlash), the table breaks away against
     Table 5.2 friction and the nut leaves its start node. Table acceleration, velocity, motor angle and the
