@@ -103,7 +103,9 @@ def test_callable_analysis_and_exports(tmp_path):
     d = json.loads(tab.to_json(tmp_path / "t.json"))
     assert d["columns"] == tab.columns and len(d["rows"]) == 2
     pd = pytest.importorskip("pandas", reason="to_pandas needs pandas")
-    assert isinstance(tab.to_pandas(), pd.DataFrame)
+    df = tab.to_pandas()
+    assert isinstance(df, pd.DataFrame) and list(df.columns) == tab.columns
+    np.testing.assert_array_equal(df.to_numpy(), tab.data)
 
 
 def _first_mode(spec):
