@@ -100,6 +100,13 @@ class _Element:
         return {} if lin is None else {k: float(v) for k, v in lin._values.items() if v is not None}
 
 
+def _affine(A0, A1, A2, rtol) -> bool:
+    """True if the matrices at ``v0``, ``1.1 v0`` and ``0.9 v0`` lie on a line: ``(A1 + A2)/2 = A0`` to
+    ``rtol`` of ``max |A0|``."""
+    mid = sp.csr_matrix(0.5 * (sp.csr_matrix(A1) + sp.csr_matrix(A2)) - sp.csr_matrix(A0))
+    return not (mid.nnz and abs(mid).max() > rtol * max(abs(sp.csr_matrix(A0)).max(), 1e-300))
+
+
 def _cut_nonlinear(system, elements):
     """The linear system: each nonlinear element -> small-signal equivalent + ForceBetween ``<path>``."""
     lin = system.copy()
@@ -251,8 +258,7 @@ class CompiledModel(TimeSeriesMixin):
         for attr in ("M", "K", "C"):
             A0, A1, A2 = (sp.csr_matrix(getattr(b, attr)) if getattr(b, attr) is not None
                           else sp.csr_matrix((len(rows), len(rows))) for b in blocks)
-            mid = 0.5 * (A1 + A2) - A0
-            if mid.nnz and abs(mid).max() > 1e-9 * max(abs(A0).max(), 1e-300):
+            if not _affine(A0, A1, A2, 1e-9):
                 return None                                   # not affine in the parameter
             out.append(sp.csr_matrix(P.T @ ((A1 - A2) / (0.2 * v0)) @ P))
         dM, dK, dC = out
@@ -289,8 +295,7 @@ class CompiledModel(TimeSeriesMixin):
         (s1, C1), (s2, C2) = mats
         dv = (steps[0] - steps[1]) * v0
         for A0, A1, A2 in ((self.so0.M, s1.M, s2.M), (self.so0.K, s1.K, s2.K), (C0, C1, C2)):
-            mid = sp.csr_matrix(0.5 * (A1 + A2) - A0)
-            if mid.nnz and abs(mid).max() > 1e-8 * max(abs(A0).max(), 1e-300):
+            if not _affine(A0, A1, A2, 1e-8):
                 return None
         for attr in ("B", "Cq", "Cv", "Ca", "D"):
             diff = sp.csr_matrix(getattr(s1, attr) - getattr(self.so0, attr))
@@ -352,9 +357,7 @@ class CompiledModel(TimeSeriesMixin):
             so0 = self.so0
             affine = so1.coordinates == so0.coordinates == so2.coordinates
             for attr in ("M", "K", "C"):
-                A0, A1, A2 = (sp.csr_matrix(getattr(x, attr)) for x in (so0, so1, so2))
-                mid = sp.csr_matrix(0.5 * (A1 + A2) - A0)
-                affine &= not (mid.nnz and abs(mid).max() > 1e-9 * max(abs(A0).max(), 1e-300))
+                affine &= _affine(*(getattr(x, attr) for x in (so0, so1, so2)), 1e-9)
             for attr in ("B", "Cq", "Cv", "Ca", "D"):
                 for x in (so1, so2):
                     diff = sp.csr_matrix(getattr(x, attr) - getattr(so0, attr))
