@@ -51,6 +51,11 @@ class ModalSimulationError(BscompError):
     """The model cannot be simulated by ``method="modal"``: what is unsupported and what to use instead."""
 
 
+class DefectiveLinearPart(ModalSimulationError):
+    """A regime's linear part has a Jordan block (e.g. a mass left free by a sliding friction and an open
+    clearance): no modal coordinates for it."""
+
+
 
 class Channels:
     """The nonlinear force channels of a flattened model: cut elements and moving joints.

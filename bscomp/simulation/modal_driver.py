@@ -23,7 +23,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from bscomp.simulation.modal_channels import Channels, LinearPart, ModalSimulationError
+from bscomp.simulation.modal_channels import Channels, DefectiveLinearPart, LinearPart, ModalSimulationError
 from bscomp.simulation.modal_kernels import SKIPPED, Kernel, NumpyCall
 from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec
 from bscomp.simulation.modal_parts import ModalPart
@@ -46,6 +46,7 @@ CALM = 1              # clean chunks before the next one tries the coarser level
 CHUNK_ITERATIONS = -3  # chunks and batches: three chord iterations (a step that needs more is redone finer)
 FINE_ITERATIONS = 3   # the finest level: three Newton iterations
 FINE_LEVELS = 3       # refinement levels below a failed chunk's level, then single sub-steps
+DEFECT_DAMPING = 1e-6  # damping slope given to a free mass in a defective regime, x the element's largest one
 
 
 class ModalHistory:
@@ -120,7 +121,14 @@ class ModalSimulator:
         mp = self.parts.get(key)
         if mp is None:
             t0 = time.perf_counter()
-            mp = ModalPart(LinearPart(self.ch, self.slopes(regime), z_ref), self.f_keep)
+            slopes = self.slopes(regime)
+            try:
+                mp = ModalPart(LinearPart(self.ch, slopes, z_ref), self.f_keep)
+            except DefectiveLinearPart:          # e.g. a mass left free (sliding, clearance open): see damped()
+                damped = self.damped(slopes)
+                if damped is None:
+                    raise
+                mp = ModalPart(LinearPart(self.ch, damped, z_ref), self.f_keep)
             mp.regime, mp.z_ref = tuple(regime), tuple(z_ref)
             self.parts[key] = mp
             self.stats["modal_parts"] += 1
@@ -129,6 +137,23 @@ class ModalSimulator:
 
     def slopes(self, regime):
         return [self.cands[i][r] for i, r in enumerate(regime)]
+
+    def damped(self, slopes):
+        """The slopes with every zero damping slope raised to ``DEFECT_DAMPING`` x the element's largest
+        candidate one (an element with no damping at all: its zero stiffness slope likewise): a regime that
+        leaves a mass free (friction sliding, clearance open) has a Jordan block and no modal coordinates; a
+        small slope in the linear part removes it, and the correction of that element carries the difference,
+        so the equations stay exact (only the split between linear part and correction changes). None when no
+        element has a slope to give."""
+        out = []
+        for (k, d), cand in zip(slopes, self.cands, strict=True):
+            k_max, d_max = (max(abs(c[j]) for c in cand) for j in (0, 1))
+            if d == 0.0 and d_max > 0.0:
+                d = DEFECT_DAMPING * d_max
+            elif k == 0.0 and d == 0.0 and k_max > 0.0:      # an undamped clearance: a weak spring instead
+                k = DEFECT_DAMPING * k_max
+            out.append((k, d))
+        return None if out == list(slopes) else out
 
     def channel_set(self, z, z_ref):
         """Per joint ``(S, elements)``: the potentials the correction touches with the contact point at ``z``."""
@@ -159,7 +184,7 @@ class ModalSimulator:
         st = self.steppers.get(key)
         if st is None:
             spec = self.law(cset)
-            theta = spec.pack(mp.regime, self.slopes(mp.regime), mp.z_ref, cset)
+            theta = spec.pack(mp.regime, mp.lin.regime, mp.z_ref, cset)      # the slopes the part was built with
             S_list = [S for S, _ in cset]
             rows, gsel = self.rows(mp, S_list), self.gsel(mp, S_list)
             shape = (self._padded(mp.lam.size), self.dae.nu, gsel.size, rows[0].shape[0], spec.sizes)

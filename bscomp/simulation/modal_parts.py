@@ -23,7 +23,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from bscomp.linear.frf_engine import dense
-from bscomp.simulation.modal_channels import ModalSimulationError
+from bscomp.simulation.modal_channels import DefectiveLinearPart
 
 __all__ = ["ModalPart"]
 
@@ -261,7 +261,7 @@ def _inverse(V, name):
     except np.linalg.LinAlgError:
         cond = np.inf
     if not np.isfinite(cond) or cond > COND_MAX:
-        raise ModalSimulationError(
+        raise DefectiveLinearPart(
             f"'{name}': the linear part is not diagonalisable (eigenvector condition {cond:.2g}: a Jordan block, e.g. "
             "an undamped rigid-body mode): give the rigid-body motion some damping (viscous guide or motor "
             "damping), or use method='split' / 'idas'")

@@ -7,8 +7,8 @@ tests/components/test_moving_nut.py."""
 import numpy as np
 import pytest
 
-from bscomp import flatten
-from bscomp.components import Backlash, CoulombFriction, Fixed
+from bscomp import System, flatten
+from bscomp.components import Backlash, CoulombFriction, Damper, Fixed, Force, Mass
 from bscomp.simulation import SampledController, simulate
 from bscomp.simulation.modal_channels import Channels, LinearPart, ModalSimulationError
 from bscomp.simulation.modal_driver import ModalSimulator
@@ -183,3 +183,37 @@ def test_bad_input_raises_named_errors(moving):
     with pytest.raises(ModalSimulationError, match="amp"):
         simulate(moving, t, inputs={"amp.u": AMP}, params={"amp.i_max": 1.0}, method="modal")
     simulate(moving, t, inputs={"amp.u": AMP}, params={"amp.i_max": 100.0}, method="modal")   # inactive: fine
+
+
+def test_a_mass_sliding_free_in_an_open_clearance():
+    """A pushed mass hits a second one through a clearance; the second slides on under Coulomb friction with the
+    clearance open: in that regime (friction sliding, no contact) it is a free mass, a Jordan block of the
+    linear part. The driver gives the friction a tiny viscous slope there (the correction carries it back), so
+    the run equals IDAS rtol 1e-10 on the same equations."""
+    s = System("free_in_gap")
+    s.add("wall", Fixed())
+    s.add("m1", Mass(m=1.0))
+    s.add("m2", Mass(m=1.0))
+    s.add("push", Force())
+    s.connect("push.flange", "m1.flange_a")
+    s.add("d1", Damper(d=20.0))
+    s.connect("d1.flange_a", "wall.flange")
+    s.connect("d1.flange_b", "m1.flange_a")
+    s.add("gap", Backlash(b=1e-3, c=1e7, d=50.0))
+    s.connect("gap.flange_a", "m1.flange_b")
+    s.connect("gap.flange_b", "m2.flange_a")
+    s.add("fr", CoulombFriction(F_c=5.0, v_reg=1e-4))
+    s.connect("fr.flange_a", "wall.flange")
+    s.connect("fr.flange_b", "m2.flange_b")
+    dae = flatten(s)
+    t = 1e-4 * np.arange(1001)
+
+    def push(tt):
+        return 100.0 if tt < 0.01 else 0.0
+
+    outs = ["m1.s", "m2.s", "m2.v"]
+    r = simulate(dae, t, inputs={"push.f": push}, outputs=outs, method="modal")
+    ref = simulate(dae, t, inputs={"push.f": push}, outputs=outs, rtol=1e-10, atol=1e-13, max_num_steps=10**7)
+    assert ref["m2.v"][-1] > 0.03 and abs(ref["m1.s"][-1] - ref["m2.s"][-1]) < 0.5e-3   # sliding, clearance open
+    for o in outs:
+        assert _nrmse(r[o], ref[o]) < 1e-3, o
