@@ -67,17 +67,26 @@ class _Reduced:
     T: Any
     massive: np.ndarray
     notes: list
+    symmetric: bool = True
+    Ta: Any = None          # non-symmetric: q_full gains Ta q'' (massless rows holding inertia loads)
 
 
 def _condense(so) -> _Reduced:
-    """Static (Guyan) condensation of the massless coordinates of a SecondOrderModel."""
+    """Static (Guyan) condensation of the massless coordinates of a SecondOrderModel.
+
+    A coordinate is massless when no acceleration of it enters any row (a zero *column* of ``M``). In a
+    symmetric model its row is zero too; a model whose massless rows carry inertia loads (a CMS superelement
+    with Modal-Acceleration recovery, :class:`~components.reduced_substructure.ReducedSubstructure`, Eq 5.18) or
+    whose ``K`` is not symmetric is condensed row by row (:func:`_condense_general`)."""
     M, C, K = (sp.csr_matrix(m) for m in (so.M, so.C, so.K))
     B, Cq, Cv, Ca, D = (dense(m, float) for m in (so.B, so.Cq, so.Cv, so.Ca, so.D))
     n = M.shape[0]
-    row = np.asarray(abs(M).sum(axis=1)).ravel()
-    scale = row.max() if n else 0.0
-    massless = np.flatnonzero(row <= 1e-14 * scale) if scale > 0 else np.arange(n)
+    col = np.asarray(abs(M).sum(axis=0)).ravel()
+    scale = col.max() if n else 0.0
+    massless = np.flatnonzero(col <= 1e-14 * scale) if scale > 0 else np.arange(n)
     massive = np.setdiff1d(np.arange(n), massless)
+    if _asymmetric(M, scale) or _asymmetric(K, abs(K).max() if K.nnz else 0.0):
+        return _condense_general(so, M, C, K, B, Cq, Cv, Ca, D, massless, massive)
     notes = []
     if massive.size == 0:
         raise SingularSystemError(f"the model has no coordinate with mass ({so.coordinates}): no modes")
@@ -107,6 +116,81 @@ def _condense(so) -> _Reduced:
     return _Reduced(M=sp.csr_matrix(M[massive][:, massive]), C=sp.csr_matrix(T.T @ C @ T), K=Kr,
                     B=np.asarray(T.T @ B), Cq=np.asarray(Cq @ T), Cv=np.asarray(Cv @ T),
                     Ca=np.asarray(Ca @ T), D=D + Cq @ tu, T=T, massive=massive, notes=notes)
+
+
+def _asymmetric(A, scale) -> bool:
+    return bool(scale > 0 and A.nnz and abs(A - A.T).max() > 1e-9 * scale)
+
+
+def _condense_general(so, M, C, K, B, Cq, Cv, Ca, D, massless, massive) -> _Reduced:
+    """Row-wise static condensation of a non-symmetric model: the massless rows give
+    ``q_0 = -X q_m - Y q_m'' - Z q_m' + t u`` (``X, Y, Z, t = K_00^{-1} (K_0m, M_0m, C_0m - C_00 X, B_0)``), and the
+    rows with mass keep ``M_mm - K_m0 Y``, ``C_mm - C_m0 X - K_m0 Z``, ``K_mm - K_m0 X``, ``B_m - K_m0 t``."""
+    ml, ma = massless, massive
+    if ma.size == 0:
+        raise SingularSystemError(f"the model has no coordinate with mass ({so.coordinates}): no modes")
+    notes = ["non-symmetric model (e.g. a CMS superelement with MA recovery, thesis Eq 5.18): modes from the "
+             "general eigenproblem, with left and right eigenvectors (W^T M V = I)"]
+    Md, Cd, Kd = M.toarray(), C.toarray(), K.toarray()
+    if ml.size:
+        try:
+            lu = sla.lu_factor(Kd[np.ix_(ml, ml)], check_finite=False)
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            raise SingularSystemError(f"massless coordinates {[so.coordinates[i] for i in ml][:10]} are not held by "
+                                      "any stiffness (a mechanism without mass): add a mass or a spring") from exc
+        X = sla.lu_solve(lu, Kd[np.ix_(ml, ma)])
+        Y = sla.lu_solve(lu, Md[np.ix_(ml, ma)])
+        Z = sla.lu_solve(lu, Cd[np.ix_(ml, ma)] - Cd[np.ix_(ml, ml)] @ X)
+        t = sla.lu_solve(lu, B[ml]) if B.size else np.zeros((ml.size, B.shape[1]))
+    else:
+        X = Y = Z = np.zeros((0, ma.size))
+        t = np.zeros((0, B.shape[1]))
+    Km0 = Kd[np.ix_(ma, ml)]
+    n = Md.shape[0]
+    T, Ta, Tv = (np.zeros((n, ma.size)) for _ in range(3))
+    T[ma, np.arange(ma.size)] = 1.0
+    T[ml], Ta[ml], Tv[ml] = -X, -Y, -Z
+    tu = np.zeros((n, B.shape[1]))
+    tu[ml] = t
+    return _Reduced(M=sp.csr_matrix(Md[np.ix_(ma, ma)] - Km0 @ Y),
+                    C=sp.csr_matrix(Cd[np.ix_(ma, ma)] - Cd[np.ix_(ma, ml)] @ X - Km0 @ Z),
+                    K=sp.csr_matrix(Kd[np.ix_(ma, ma)] - Km0 @ X), B=np.asarray(B[ma] - Km0 @ t),
+                    Cq=np.asarray(Cq @ T), Cv=np.asarray(Cv @ T + Cq @ Tv), Ca=np.asarray(Ca @ T + Cq @ Ta),
+                    D=D + Cq @ tu, T=sp.csr_matrix(T), massive=ma, notes=notes, symmetric=False, Ta=Ta)
+
+
+def _undamped_general(red: _Reduced, n=None, fmax=None):
+    """``K V = M V Λ`` of a non-symmetric pair: right eigenvectors ``V`` (``v^T M_s v = 1``, ``M_s`` the symmetric
+    part) and left ones ``W = (V^{-1} M^{-1})^T`` (``W^T M V = I``, ``W^T K V = Λ``)."""
+    Md, Kd = red.M.toarray(), red.K.toarray()
+    try:
+        lam, V = sla.eig(Kd, Md, check_finite=False)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise SingularSystemError("the general eigenproblem K v = w^2 M v failed (singular M?)") from exc
+    if not np.all(np.isfinite(lam)):
+        raise SingularSystemError("the mass matrix is singular after condensing the massless coordinates")
+    scale = max(float(np.max(np.abs(lam))), 1e-300)
+    if np.max(np.abs(lam.imag)) > 1e-6 * scale:
+        raise SingularSystemError("the non-symmetric model has complex undamped eigenvalues (a flutter-like "
+                                  "coupling): its modes are not real; use frf() or the first-order linearize()")
+    order = np.argsort(lam.real)
+    lam, V = lam.real[order], V[:, order].real
+    rigid = lam <= 1e-8 * scale
+    lam = np.where(rigid, 0.0, lam)
+    if np.any(lam < 0):
+        raise SingularSystemError("negative eigenvalue of K v = w^2 M v (an unstable operating point?)")
+    Ms = 0.5 * (Md + Md.T)
+    V = V / np.sqrt(np.abs(np.einsum("ik,ik->k", V, Ms @ V)))
+    big = np.argmax(np.abs(V), axis=0)
+    V = V * np.sign(V[big, np.arange(V.shape[1])])
+    W = np.linalg.solve(Md.T, np.linalg.inv(V).T)
+    keep = np.ones(lam.size, bool)
+    if fmax is not None:
+        keep &= np.sqrt(lam) <= 2 * np.pi * fmax
+    idx = np.flatnonzero(keep)
+    if n is not None:
+        idx = idx[:n]
+    return lam[idx], V[:, idx], W[:, idx], rigid[idx], "dense eig (non-symmetric)"
 
 
 # ---- undamped eigenproblem ---------------------------------------------------------------------------
@@ -447,11 +531,16 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
     warn_linearized(so.linearized if warn else (), "modes", "its modes are those of small motions about that point; "
                     "for the behaviour at a real amplitude simulate with bscomp.simulate(..., method='idas')")
     red = _condense(so)
-    lam, phi, rigid, method = _undamped(red, n=n, fmax=fmax)
+    if red.symmetric:
+        lam, phi, rigid, method = _undamped(red, n=n, fmax=fmax)
+        left = phi
+    else:
+        lam, phi, left, rigid, method = _undamped_general(red, n=n, fmax=fmax)
     omega = np.sqrt(lam)
     m = omega.size
-    Cm = phi.T @ (red.C @ phi)
-    Cm = 0.5 * (Cm + Cm.T)
+    Cm = left.T @ (red.C @ phi)
+    if red.symmetric:
+        Cm = 0.5 * (Cm + Cm.T)
     decay = np.diag(Cm).copy()
     if damping == "auto":
         damping = "complex" if m <= DENSE_LIMIT else "projection"
@@ -475,9 +564,11 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
                 notes.append(f"mode {k + 1}: {p.size} damped poles (strongly coupled by damping); "
                              "its ratio is the projection phi^T C phi / (2 omega)")
     shapes = np.asarray(red.T @ phi)
+    if red.Ta is not None:                                 # massless rows carrying inertia: q_0 += -Y q''
+        shapes = shapes - np.asarray(red.Ta @ phi) * lam
     big = np.max(np.abs(shapes), axis=0) if m else np.zeros(0)
     modal_masses = 1.0 / big**2
-    b = phi.T @ red.B
+    b = left.T @ red.B
     Cy = red.Cq + red.Cv + red.Ca
     c = Cy @ phi
     order = []

@@ -173,3 +173,26 @@ def test_computing_does_not_import_matplotlib():
             "print('matplotlib' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_non_symmetric_model_left_and_right_modes():
+    """A non-symmetric pair (as a CMS superelement with MA recovery makes, Eq 5.18): ``K = [[2, -1], [-0.5, 1]]``,
+    ``M = I``: ``w^2 = (3 -+ sqrt 3) / 2``; with proportional damping ``C = 0.02 K`` the ratios are ``0.01 w``,
+    and the residues rebuild the FRF ``(K + i w C - w^2 M)^{-1} B`` exactly (left and right vectors)."""
+    K = np.array([[2.0, -1.0], [-0.5, 1.0]])
+    M, C = np.eye(2), 0.02 * K
+    B = np.array([[1.0], [0.0]])
+    so = SecondOrderModel(M=sp.csr_matrix(M), C=sp.csr_matrix(C), K=sp.csr_matrix(K), B=sp.csr_matrix(B),
+                          Cq=sp.identity(2, format="csr"), Cv=sp.csr_matrix((2, 2)), Ca=sp.csr_matrix((2, 2)),
+                          D=sp.csr_matrix((2, 1)), coordinates=["a", "b"], units=["m", "m"], inputs=["F"],
+                          outputs=["a", "b"])
+    md = modes(so)
+    lam = np.array([(3 - math.sqrt(3)) / 2, (3 + math.sqrt(3)) / 2])
+    assert md.omega**2 == pytest.approx(lam, rel=1e-12)
+    assert md.damping == pytest.approx(0.01 * np.sqrt(lam), rel=1e-9)
+    assert any("non-symmetric" in n for n in md.notes)
+    for w in (0.3, 1.1, 2.7):
+        H = np.linalg.solve(K + 1j * w * C - w**2 * M, B)[:, 0]
+        Hm = sum(md.residues[k][:, 0] / (md.omega[k]**2 + 2j * md.damping[k] * md.omega[k] * w - w**2)
+                 for k in range(2))
+        assert Hm == pytest.approx(H, rel=1e-9)
