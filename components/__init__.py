@@ -36,6 +36,7 @@ from .notch_filter import NotchFilter  # noqa: E402
 from .pade_delay import PadeDelay
 from .pi_controller import PIController  # noqa: E402
 from .position_sensor import PositionSensor
+from .reduced_substructure import ReducedSubstructure
 from .rigid_body import RigidBody
 from .rotational_backlash import RotationalBacklash  # noqa: E402
 from .rst_controller import RSTController  # noqa: E402
@@ -47,6 +48,7 @@ from .speed_sensor import SpeedSensor
 from .spring import Spring
 from .spring_damper import SpringDamper
 from .stribeck_friction import StribeckFriction  # noqa: E402
+from .structural_block import StructuralBlock
 from .tachometer import Tachometer  # noqa: E402
 from .torque import Torque
 from .torsional_damper import TorsionalDamper
@@ -56,6 +58,8 @@ from .velocity_sensor import VelocitySensor
 __all__ = [
     "ScrewNutShapeFunction",
     "SecondOrderBlock",
+    "ReducedSubstructure",
+    "StructuralBlock",
     "MovingNutJoint",
     "MovingScrewNut",
     "AccelerationSensor", "AngleSensor", "Damper", "Fixed", "FixedRotational", "Force", "Gain",
