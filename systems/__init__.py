@@ -23,6 +23,7 @@ REGISTRY = {
 }
 
 # ---- the thesis test bed (systems/testbed.py): one entry per verification step / model variant ------------
+from .reduced_testbed import testbed_reduced  # noqa: E402
 from .testbed import (  # noqa: E402
     testbed_appendix_c,
     testbed_axial_torsional,
@@ -43,6 +44,7 @@ REGISTRY.update({
     "testbed_submodel1": testbed_submodel1,           # Table 5.3
     "testbed_bellows": testbed_bellows,               # Sec 4.4.1 (Table 4.2)
     "testbed_appendix_c": testbed_appendix_c,         # App C (Table C.1)
+    "testbed_reduced": testbed_reduced,               # Sec 5.2.3 / 5.3.2 (CMS + MA, Table 5.3)
 })
 
 __all__ = ["small_drive", "validation_drive", "get", "available", "REGISTRY"]  # test beds: bscomp.systems.testbed
