@@ -34,6 +34,7 @@ import numpy as np
 
 from bscomp import __version__
 from bscomp._fmu_meta import input_meta, output_meta, parameter_meta, state_meta
+from bscomp._fmu_wrap import TIME_VR, patch_wrapper, state_nominals
 from bscomp._fmu_xml import FmuVariable, derivative_name, derivative_unit, structured_name, write_model_description
 from bscomp.errors import CompilerNotFoundError, FmuExportError, UnknownNameError
 from bscomp.files import atomic_path, writable_path
@@ -46,7 +47,7 @@ FMI3_HEADERS = Path(__file__).with_name("fmi3")
 
 
 def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overrides: dict | None = None,
-               compiler: str | None = None, flags=("-O2",)) -> Path:
+               compiler: str | None = None, flags=("-O2",), nominal=None) -> Path:
     """Write a drive as an FMI 3.0 model-exchange FMU.
 
     Parameters
@@ -70,6 +71,12 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
         C compiler executable (default ``gcc``; ``cl.exe`` on Windows).
     flags : sequence of str
         Compiler flags (default ``-O2``: ~5x faster derivatives than CasADi's default ``-O0``).
+    nominal : float or dict, optional
+        Nominal of the continuous states (``modelDescription.xml`` and ``fmi3GetNominalsOfContinuousStates``),
+        which importers scale their absolute tolerance by (FMPy: ``atol = rtol * nominal``). Default: 1e-3 for
+        every state, the ``atol / rtol`` ratio of :func:`bscomp.simulate`'s defaults, so an importer at
+        ``rtol = r`` controls the error as ``bscomp.simulate(rtol=r)`` does; a dict sets chosen states
+        (``{"table.s": 1e-4}``), the others keep the default. See :mod:`bscomp._fmu_wrap`.
 
     Returns
     -------
@@ -95,6 +102,7 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
     outputs = _default_outputs(dae) if outputs is None else list(outputs)
     dae.output_expr(outputs)  # unknown names raise UnknownNameError here
     tunable = _check_parameters(dae, parameters)
+    nominals = state_nominals(dae.x_names, nominal)
     ident = re.sub(r"\W", "_", dae.name) or "model"
     ident = ident if not ident[0].isdigit() else "m_" + ident
     builder, plan = _builder(dae, ident, inputs, outputs, tunable)
@@ -103,7 +111,8 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
         try:
             os.chdir(tmp)                    # DaeBuilder writes and compiles in the current directory
             files = builder.export_fmu({"no_warning": True, "with_serialization": False})
-            _describe(dae, builder, plan, Path(tmp) / "modelDescription.xml")
+            x_vr = _describe(dae, builder, plan, nominals, Path(tmp) / "modelDescription.xml")
+            patch_wrapper(Path(tmp) / f"{ident}_wrap.c", x_vr, nominals)   # files: local name -> FMU path
             opts = {"include_dirs": [str(FMI3_HEADERS)],
                     "compiler_options": {"compiler": cc, "compiler_flags": list(flags)}}
             try:
@@ -231,7 +240,7 @@ def _dependencies(expr, known):
     return cols
 
 
-def _describe(dae, b, plan, xml_path):
+def _describe(dae, b, plan, nominals, xml_path):
     """Rewrite CasADi's model description with public names, units and the model structure."""
     system = dae.system
     vr = b.value_reference
@@ -244,7 +253,7 @@ def _describe(dae, b, plan, xml_path):
     for i, n in enumerate(dae.x_names):
         unit, desc = state_meta(dae, i)
         v = FmuVariable(structured_name(n), x_vr[i], initial="exact", start=float(dae.x_start[i]), unit=unit,
-                        description=desc)
+                        description=desc, nominal=float(nominals[i]))
         state_vars.append(v)
         public[v.name] = "state"
     for i, n in enumerate(dae.x_names):
@@ -291,6 +300,6 @@ def _describe(dae, b, plan, xml_path):
     der_entries = [(v, sorted({known_vr[c] for c in plan["dep_xd"][i]})) for v, i in derivs]
     initial = sorted(v.vr for v in variables if v.initial == "calculated")
     write_model_description(xml_path, state_vars + variables, out_entries, der_entries, initial,
-                            description=getattr(system, "description", "") or dae.name,
+                            description=getattr(system, "description", "") or dae.name, time_vr=TIME_VR,
                             generation_tool=f"bscomp {__version__} (CasADi {ca.__version__} DaeBuilder)")
     return np.asarray(x_vr)
