@@ -33,6 +33,7 @@ import casadi as ca
 import numpy as np
 
 from bscomp import __version__
+from bscomp._fmu_damping import check_damping_parameters, rayleigh_term
 from bscomp._fmu_meta import input_meta, output_meta, parameter_meta, state_meta
 from bscomp._fmu_wrap import TIME_VR, patch_wrapper, state_nominals
 from bscomp._fmu_xml import FmuVariable, derivative_name, derivative_unit, structured_name, write_model_description
@@ -105,7 +106,8 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
     nominals = state_nominals(dae.x_names, nominal)
     ident = re.sub(r"\W", "_", dae.name) or "model"
     ident = ident if not ident[0].isdigit() else "m_" + ident
-    builder, plan = _builder(dae, ident, inputs, outputs, tunable)
+    rayleigh = check_damping_parameters(dae, tunable)
+    builder, plan = _builder(dae, ident, inputs, outputs, tunable, rayleigh)
     cwd = os.getcwd()
     with tempfile.TemporaryDirectory(prefix="bscomp_fmu_") as tmp, atomic_path(path) as target:
         try:
@@ -171,31 +173,12 @@ def _check_parameters(dae, parameters):
             close = [p for p in dae.p_names if p.split(".")[0] == n.split(".")[0]][:12]
             raise UnknownNameError(f"export_fmu: '{dae.name}' has no parameter '{n}' (parameters of that "
                                    f"component: {close})")
-    _check_damping_parameters(dae, names)
     return names
 
 
-def _check_damping_parameters(dae, names):
-    """Refuse tunable masses / stiffnesses when the system's damping matrix is computed from M and K.
-
-    ``System.set`` re-flattens and recomputes such a damping matrix (modal damping), while a parameter of the
-    FMU could only change the mass or stiffness under the damping matrix of the export.
-    """
-    damping = getattr(dae, "system_damping", None) or getattr(dae.system, "damping", None)
-    if damping is None or not names:
-        return
-    q = [dae.xs[i] for i in dae.mech.q_in_x.values()]
-    J = ca.jacobian(dae.F_sx, ca.vertcat(dae.xds, *q)) if q else ca.jacobian(dae.F_sx, dae.xds)
-    for n in names:
-        if ca.depends_on(J, dae.ps[dae.p_names.index(n)]):
-            raise FmuExportError(
-                f"export_fmu: parameter '{n}' enters the mass or stiffness of '{dae.name}', whose damping matrix "
-                f"({type(damping).__name__}) is computed from M and K at flattening: System.set would "
-                "recompute it, an FMU parameter cannot. Fix the value at export instead (overrides=, CLI --set)")
-
-
-def _builder(dae, ident, inputs, outputs, tunable):
-    """The DaeBuilder of the explicit ODE (internal names ``x3``, ``u0``, ``p1``, ``y2``) and the naming plan."""
+def _builder(dae, ident, inputs, outputs, tunable, rayleigh=False):
+    """The DaeBuilder of the explicit ODE (internal names ``x3``, ``u0``, ``p1``, ``y2``) and the naming plan;
+    ``rayleigh``: the system's Rayleigh damping evaluated from the tunable parameters (:mod:`bscomp._fmu_damping`)."""
     w_all = ca.vertcat(dae.xds, dae.zs)
     if w_all.numel() and ca.depends_on(ca.jacobian(dae.F_sx, w_all), w_all):
         rows = [dae.eq_origin[i] for i in range(dae.F_sx.numel())
@@ -213,6 +196,8 @@ def _builder(dae, ident, inputs, outputs, tunable):
     u = ca.vertcat(*[U.get(n, ca.MX(0.0)) for n in dae.u_names]) if dae.nu else ca.MX(0, 1)
     p = ca.vertcat(*[T.get(n, ca.MX(float(v))) for n, v in zip(dae.p_names, dae.p0)]) if dae.np else ca.MX(0, 1)
     res, Jxd, _, Jz, _ = dae.jacobians(ca.MX.zeros(dae.nx), x, ca.MX.zeros(dae.nz), u, p)
+    if rayleigh:
+        res = res + rayleigh_term(dae, x, p)
     w = -ca.solve(ca.horzcat(Jxd, Jz), res, "qr") if dae.nx + dae.nz else ca.MX(0, 1)
     xd, z = w[:dae.nx], w[dae.nx:]
     y = dae.output_function(outputs)(xd, x, z, u, p) if outputs else ca.MX(0, 1)
