@@ -7,10 +7,11 @@ recomputes it. An FMU parameter that changes ``M`` or ``K`` can only do the same
 
 * **Rayleigh** (:class:`~bscomp.kernel.damping.RayleighDamping`), ``C_add = alpha M + beta K`` with
   ``alpha, beta`` fixed (given, or from ratios at two given frequencies): exact. The FMU evaluates
-  ``C_add(p) v = alpha M(p) v + beta K(p) v`` from the Jacobians of the residual at the start point, the
-  internal algebraic variables eliminated as in :func:`bscomp.kernel.mechanics.start_matrices`
-  (``M v = R_a v - R_w G_w^-1 G_a v``, ``K`` likewise) -- a few sparse products and one sparse solve per
-  call, no eigenvalue problem.
+  ``C_add(p) v = alpha M(p) v + beta K(p) v`` from the Jacobians of the residual's force balances at the
+  start point, as :func:`bscomp.kernel.mechanics.start_matrices` reads ``M`` and ``K`` -- a few sparse
+  products per call, no eigenvalue problem. A drive whose ``M, K`` need internal algebraic variables
+  eliminated (a Schur complement; none of the shipped drives, whose signals flattening substitutes) is
+  refused rather than handled by an untested path.
 * **Modal** (:class:`~bscomp.kernel.damping.ModalDamping`, the test bed's ``DriveModalDamping``),
   ``C_add = M Phi diag(2 zeta_k omega_k) Phi^T M``: needs the modes ``Phi, omega`` of ``(K, M)``. With one
   ratio for every elastic mode it is ``2 zeta M (M^-1 K)^(1/2)``, still a matrix square root; with ratios by
@@ -61,11 +62,13 @@ def check_damping_parameters(dae, names) -> bool:
             "and an FMU cannot (the modes need an eigensolver the generated code does not have; docs/fmu.md). "
             "Fix the value at export instead (overrides=, CLI --set), or give the drive RayleighDamping (C = "
             "alpha M + beta K), which the FMU evaluates exactly from its parameters")
-    if dae.mech.has_internal_states:
+    internal = [dae.z_names[i] for i in range(dae.nz) if i not in set(dae.mech.q_in_z.values())]
+    if dae.mech.has_internal_states or internal:
         raise FmuExportError(
             f"export_fmu: parameter '{hit[0]}' enters the mass or stiffness of '{dae.name}', which has internal "
-            "differential states besides its mechanical coordinates: the FMU cannot evaluate its Rayleigh damping "
-            "from the parameters; fix the value at export instead (overrides=, CLI --set)")
+            f"{'differential states' if dae.mech.has_internal_states else 'algebraic variables ' + str(internal[:4])} "
+            "besides its mechanical coordinates: the FMU does not evaluate its Rayleigh damping from the parameters "
+            "there; fix the value at export instead (overrides=, CLI --set)")
     return True
 
 
@@ -74,13 +77,12 @@ def rayleigh_term(dae, x, p):
 
     ``x, p`` are the FMU's symbols (``p`` with the tunable entries symbolic). The Jacobians are taken where
     :func:`~bscomp.kernel.mechanics.start_matrices` takes them: at the start state with zero input and its
-    consistent ``(x', z)`` -- which matter only when the Jacobians depend on them, and are then solved for
-    (``w = -W^-1 F(0)``, exact for the affine ``w`` the FMU requires).
+    consistent ``(x', z)`` -- which matter only when the Jacobians depend on them (none of the shipped drives),
+    and are then solved for (``w = -W^-1 F(0)``, exact for the affine ``w`` the FMU requires).
     """
     m = dae.mech
     damping = dae.system_damping
     nr, nx, nz = len(m.coordinate_names), dae.nx, dae.nz
-    ni = len(m.inertial)
     x0, u0 = ca.DM(dae.x_start), ca.DM.zeros(dae.nu)
     xd_s, z_s = ca.MX.sym("xd", nx), ca.MX.sym("z", nz)
     jac = dae.jacobians(xd_s, x0, z_s, u0, p)
@@ -90,18 +92,12 @@ def rayleigh_term(dae, x, p):
         jac = dae.jacobians(w[:nx], x0, w[nx:], u0, p)
     else:
         jac = dae.jacobians(ca.MX.zeros(nx), x0, ca.MX.zeros(nz), u0, p)
-    _, Jxd, Jx, Jz, _ = jac
+    _, Jxd, Jx, _, _ = jac
     Sq = _selector(m.q_in_x, nx, nr)
     Sa = _selector(m.a_in_xd, nx, nr)
     v = ca.mtimes(_selector(m.v_in_x, nx, nr).T, x)
-    R = list(m.balance_rows)
-    G = list(range(ni + nr, dae.F_sx.numel()))
-    zint = [i for i in range(nz) if i not in set(m.q_in_z.values())]
+    R = list(m.balance_rows)                     # no internal algebraic variables (check_damping_parameters)
     Cv = damping.alpha * ca.mtimes(ca.mtimes(Jxd[R, :], Sa), v) + damping.beta * ca.mtimes(ca.mtimes(Jx[R, :], Sq), v)
-    if zint and G:
-        Gv = (damping.alpha * ca.mtimes(ca.mtimes(Jxd[G, :], Sa), v)
-              + damping.beta * ca.mtimes(ca.mtimes(Jx[G, :], Sq), v))
-        Cv = Cv - ca.mtimes(Jz[R, zint], ca.solve(Jz[G, zint], Gv, "qr"))
     Cv0 = ca.mtimes(dm_sparse(dae.system_damping_basis[2]), v)
     place = ca.DM(ca.Sparsity.triplet(dae.F_sx.numel(), nr, R, list(range(nr))), 1.0)
     return ca.mtimes(place, Cv - Cv0)
