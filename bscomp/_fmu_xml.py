@@ -125,6 +125,7 @@ class FmuVariable:
     derivative: int | None = None
     min: float | None = None
     max: float | None = None
+    nominal: float | None = None
     extra: dict = field(default_factory=dict)
 
     def element(self, known_units) -> ET.Element:
@@ -141,7 +142,7 @@ class FmuVariable:
             a["unit"] = self.unit
         if self.derivative is not None:
             a["derivative"] = str(self.derivative)
-        for key in ("min", "max"):
+        for key in ("min", "max", "nominal"):
             v = getattr(self, key)
             if v is not None:
                 a[key] = repr(float(v))
@@ -168,7 +169,7 @@ def _unit_definitions(units) -> tuple[ET.Element, set]:
 
 
 def write_model_description(path, variables, outputs, derivatives, initial_unknowns, description: str = "",
-                            generation_tool: str = "") -> None:
+                            generation_tool: str = "", time_vr: int = 4294967295) -> None:
     """Rewrite the ``modelDescription.xml`` at ``path`` (written by CasADi) with bscomp's variables.
 
     Parameters
@@ -181,6 +182,8 @@ def write_model_description(path, variables, outputs, derivatives, initial_unkno
         ``ModelStructure/Output`` and ``ContinuousStateDerivative`` entries, in state order for the latter.
     initial_unknowns : list of int
         Value references of the ``InitialUnknown`` entries (no dependency list: all knowns).
+    time_vr : int
+        Value reference of the independent variable ``time``.
     """
     tree = ET.parse(path)
     root = tree.getroot()
@@ -202,7 +205,8 @@ def write_model_description(path, variables, outputs, derivatives, initial_unkno
         root.insert(pos[-1] + 1 if pos else 0, units_el)
     mv = ET.SubElement(root, "ModelVariables")
     if time_el is None:
-        time_el = ET.Element("Float64", {"name": "time", "valueReference": "4294967295", "causality": "independent"})
+        time_el = ET.Element("Float64", {"name": "time", "causality": "independent"})
+    time_el.set("valueReference", str(time_vr))
     time_el.set("description", "simulation time [s]")
     mv.append(time_el)
     for v in variables:

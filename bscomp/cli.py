@@ -274,7 +274,7 @@ def _fmu(args) -> int:
     params = args.parameter or ()
     params = "all" if list(params) == ["all"] else params
     path = export_fmu(args.system, args.output_file, inputs=args.input or None, outputs=args.output or None,
-                      parameters=params, overrides=_parse_set(args.set) or None)
+                      parameters=params, overrides=_parse_set(args.set) or None, nominal=args.nominal)
     print(f"written {path}")
     return 0
 
@@ -397,6 +397,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="parameter exposed as a tunable FMU parameter (repeatable; 'all': every non-structural one)")
     p.add_argument("--input", action="append", help="input exposed (repeatable; default all)")
     p.add_argument("--output", action="append", help="output exposed (repeatable; default the measured outputs)")
+    p.add_argument("--nominal", type=float, metavar="VALUE",
+                   help="nominal of every state, which importers scale their absolute tolerance by (default 1e-3 = "
+                        "atol/rtol of bscomp.simulate's defaults)")
     p.set_defaults(func=_fmu)
     return parser
 

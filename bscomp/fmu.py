@@ -33,7 +33,9 @@ import casadi as ca
 import numpy as np
 
 from bscomp import __version__
+from bscomp._fmu_damping import check_damping_parameters, rayleigh_term
 from bscomp._fmu_meta import input_meta, output_meta, parameter_meta, state_meta
+from bscomp._fmu_wrap import TIME_VR, patch_wrapper, state_nominals
 from bscomp._fmu_xml import FmuVariable, derivative_name, derivative_unit, structured_name, write_model_description
 from bscomp.errors import CompilerNotFoundError, FmuExportError, UnknownNameError
 from bscomp.files import atomic_path, writable_path
@@ -46,7 +48,7 @@ FMI3_HEADERS = Path(__file__).with_name("fmi3")
 
 
 def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overrides: dict | None = None,
-               compiler: str | None = None, flags=("-O2",)) -> Path:
+               compiler: str | None = None, flags=("-O2",), nominal=None) -> Path:
     """Write a drive as an FMI 3.0 model-exchange FMU.
 
     Parameters
@@ -70,6 +72,12 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
         C compiler executable (default ``gcc``; ``cl.exe`` on Windows).
     flags : sequence of str
         Compiler flags (default ``-O2``: ~5x faster derivatives than CasADi's default ``-O0``).
+    nominal : float or dict, optional
+        Nominal of the continuous states (``modelDescription.xml`` and ``fmi3GetNominalsOfContinuousStates``),
+        which importers scale their absolute tolerance by (FMPy: ``atol = rtol * nominal``). Default: 1e-3 for
+        every state, the ``atol / rtol`` ratio of :func:`bscomp.simulate`'s defaults, so an importer at
+        ``rtol = r`` controls the error as ``bscomp.simulate(rtol=r)`` does; a dict sets chosen states
+        (``{"table.s": 1e-4}``), the others keep the default. See :mod:`bscomp._fmu_wrap`.
 
     Returns
     -------
@@ -95,15 +103,18 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
     outputs = _default_outputs(dae) if outputs is None else list(outputs)
     dae.output_expr(outputs)  # unknown names raise UnknownNameError here
     tunable = _check_parameters(dae, parameters)
+    nominals = state_nominals(dae.x_names, nominal)
     ident = re.sub(r"\W", "_", dae.name) or "model"
     ident = ident if not ident[0].isdigit() else "m_" + ident
-    builder, plan = _builder(dae, ident, inputs, outputs, tunable)
+    rayleigh = check_damping_parameters(dae, tunable)
+    builder, plan = _builder(dae, ident, inputs, outputs, tunable, rayleigh)
     cwd = os.getcwd()
     with tempfile.TemporaryDirectory(prefix="bscomp_fmu_") as tmp, atomic_path(path) as target:
         try:
             os.chdir(tmp)                    # DaeBuilder writes and compiles in the current directory
             files = builder.export_fmu({"no_warning": True, "with_serialization": False})
-            _describe(dae, builder, plan, Path(tmp) / "modelDescription.xml")
+            x_vr = _describe(dae, builder, plan, nominals, Path(tmp) / "modelDescription.xml")
+            patch_wrapper(Path(tmp) / f"{ident}_wrap.c", x_vr, nominals)   # files: local name -> FMU path
             opts = {"include_dirs": [str(FMI3_HEADERS)],
                     "compiler_options": {"compiler": cc, "compiler_flags": list(flags)}}
             try:
@@ -162,31 +173,12 @@ def _check_parameters(dae, parameters):
             close = [p for p in dae.p_names if p.split(".")[0] == n.split(".")[0]][:12]
             raise UnknownNameError(f"export_fmu: '{dae.name}' has no parameter '{n}' (parameters of that "
                                    f"component: {close})")
-    _check_damping_parameters(dae, names)
     return names
 
 
-def _check_damping_parameters(dae, names):
-    """Refuse tunable masses / stiffnesses when the system's damping matrix is computed from M and K.
-
-    ``System.set`` re-flattens and recomputes such a damping matrix (modal damping), while a parameter of the
-    FMU could only change the mass or stiffness under the damping matrix of the export.
-    """
-    damping = getattr(dae, "system_damping", None) or getattr(dae.system, "damping", None)
-    if damping is None or not names:
-        return
-    q = [dae.xs[i] for i in dae.mech.q_in_x.values()]
-    J = ca.jacobian(dae.F_sx, ca.vertcat(dae.xds, *q)) if q else ca.jacobian(dae.F_sx, dae.xds)
-    for n in names:
-        if ca.depends_on(J, dae.ps[dae.p_names.index(n)]):
-            raise FmuExportError(
-                f"export_fmu: parameter '{n}' enters the mass or stiffness of '{dae.name}', whose damping matrix "
-                f"({type(damping).__name__}) is computed from M and K at flattening: System.set would "
-                "recompute it, an FMU parameter cannot. Fix the value at export instead (overrides=, CLI --set)")
-
-
-def _builder(dae, ident, inputs, outputs, tunable):
-    """The DaeBuilder of the explicit ODE (internal names ``x3``, ``u0``, ``p1``, ``y2``) and the naming plan."""
+def _builder(dae, ident, inputs, outputs, tunable, rayleigh=False):
+    """The DaeBuilder of the explicit ODE (internal names ``x3``, ``u0``, ``p1``, ``y2``) and the naming plan;
+    ``rayleigh``: the system's Rayleigh damping evaluated from the tunable parameters (:mod:`bscomp._fmu_damping`)."""
     w_all = ca.vertcat(dae.xds, dae.zs)
     if w_all.numel() and ca.depends_on(ca.jacobian(dae.F_sx, w_all), w_all):
         rows = [dae.eq_origin[i] for i in range(dae.F_sx.numel())
@@ -204,6 +196,8 @@ def _builder(dae, ident, inputs, outputs, tunable):
     u = ca.vertcat(*[U.get(n, ca.MX(0.0)) for n in dae.u_names]) if dae.nu else ca.MX(0, 1)
     p = ca.vertcat(*[T.get(n, ca.MX(float(v))) for n, v in zip(dae.p_names, dae.p0)]) if dae.np else ca.MX(0, 1)
     res, Jxd, _, Jz, _ = dae.jacobians(ca.MX.zeros(dae.nx), x, ca.MX.zeros(dae.nz), u, p)
+    if rayleigh:
+        res = res + rayleigh_term(dae, x, p)
     w = -ca.solve(ca.horzcat(Jxd, Jz), res, "qr") if dae.nx + dae.nz else ca.MX(0, 1)
     xd, z = w[:dae.nx], w[dae.nx:]
     y = dae.output_function(outputs)(xd, x, z, u, p) if outputs else ca.MX(0, 1)
@@ -231,7 +225,7 @@ def _dependencies(expr, known):
     return cols
 
 
-def _describe(dae, b, plan, xml_path):
+def _describe(dae, b, plan, nominals, xml_path):
     """Rewrite CasADi's model description with public names, units and the model structure."""
     system = dae.system
     vr = b.value_reference
@@ -244,7 +238,7 @@ def _describe(dae, b, plan, xml_path):
     for i, n in enumerate(dae.x_names):
         unit, desc = state_meta(dae, i)
         v = FmuVariable(structured_name(n), x_vr[i], initial="exact", start=float(dae.x_start[i]), unit=unit,
-                        description=desc)
+                        description=desc, nominal=float(nominals[i]))
         state_vars.append(v)
         public[v.name] = "state"
     for i, n in enumerate(dae.x_names):
@@ -291,6 +285,6 @@ def _describe(dae, b, plan, xml_path):
     der_entries = [(v, sorted({known_vr[c] for c in plan["dep_xd"][i]})) for v, i in derivs]
     initial = sorted(v.vr for v in variables if v.initial == "calculated")
     write_model_description(xml_path, state_vars + variables, out_entries, der_entries, initial,
-                            description=getattr(system, "description", "") or dae.name,
+                            description=getattr(system, "description", "") or dae.name, time_vr=TIME_VR,
                             generation_tool=f"bscomp {__version__} (CasADi {ca.__version__} DaeBuilder)")
     return np.asarray(x_vr)

@@ -30,6 +30,7 @@ from bscomp.cli import main  # noqa: E402
 from bscomp.components import CoulombFriction, Fixed  # noqa: E402
 from bscomp.errors import CompilerNotFoundError, FmuExportError, OutputFileError, UnknownNameError  # noqa: E402
 from bscomp.fmu import export_fmu  # noqa: E402
+from bscomp.kernel.damping import RayleighDamping  # noqa: E402
 from bscomp.simulation import simulate  # noqa: E402
 from bscomp.systems import get  # noqa: E402
 from bscomp.systems.parameters import load_parameters  # noqa: E402
@@ -169,16 +170,22 @@ def test_testbed_square_wave_matches_simulate(fmus):
 
 
 def test_testbed_friction_matches_idas(fmus):
-    # 20 ms of a 50 Hz square wave (the table slides: the thrust 4.1 kN exceeds F_c = 2066 N, and reverses
-    # at 10 ms). Both integrators at rtol 1e-8: FMPy is within 7e-7 of IDAS at rtol 1e-10, IDAS at 1e-8
-    # itself within 8e-6 (table.a, the elastic part; docs/fmu.md), so they agree to ~1e-5
+    # 20 ms of a 50 Hz square wave (the table slides: the thrust 4.1 kN exceeds F_c = 2066 N, reverses at 10 ms,
+    # and the table sticks at 13.45 ms, where table.a falls from -4.8 to 0 m/s^2 within ~0.1 ms). The reference
+    # is IDAS at rtol 1e-10 (3e-7 from rtol 1e-11 in table.a), so the error measured is FMPy's own at rtol 1e-8
+    # with the FMU's state nominals (1e-3: atol 1e-11, as simulate(rtol=1e-8) by default). Its largest error is
+    # at the 13.5 ms sample on the stick transient, where round-off moves it: over 64 runs perturbed at
+    # round-off level (exports under 1 and 2 BLAS threads, friction forces x (1 + k 1e-13), k < 32) it was
+    # 3.3e-7 to 8.6e-6,
+    # so 3e-5 holds with a margin of 3.5. Without nominals (atol 1e-8) 6 of 16 such runs exceeded 3e-5, up to
+    # 3e-4 (docs/fmu.md).
     T, f = 0.02, 50.0
     outs = TB_OUT + ["table.v"]
     t = DT * np.arange(int(round(T / DT)) + 1)
-    ref = simulate(friction_drive(), t, inputs={"amp.u": square(2.125, f)}, outputs=outs, rtol=1e-8, atol=1e-11)
+    ref = simulate(friction_drive(), t, inputs={"amp.u": square(2.125, f)}, outputs=outs, rtol=1e-10, atol=1e-13)
     res = run_fmu(fmus["friction"], "amp.u", 2.125, f, T, 1e-8, outs)
     err = rel_errors(res, ref, t, outs, f)
-    assert max(err.values()) < 5e-5, err
+    assert max(err.values()) < 3e-5, err
     # the friction acts: without it the table runs measurably faster
     free = run_fmu(fmus["friction"], "amp.u", 2.125, f, 0.005, 1e-6, ["table.v"],
                    start_values={"friction.F_c_pos": 0.0, "friction.F_c_neg": 0.0})
@@ -198,6 +205,32 @@ def test_tunable_parameters_act_like_system_set(fmus):
     res = run_fmu(fmus["small"], "motor.tau", 1.0, f, T, 1e-12, SMALL_OUT, start_values=changed)
     err = rel_errors(res, ref, t, SMALL_OUT, f)
     assert max(err.values()) < 1e-6, err
+    assert min(rel_errors(res, base, t, ["table.a", "coupling.tau"], f).values()) > 1e-2   # it did change
+
+
+def rayleigh_small_drive():
+    """The small drive with a Rayleigh damping (5 % at 20 Hz, 8 % at 200 Hz) instead of its own dampers' only."""
+    s = get("small_drive")
+    s.damping = RayleighDamping(zeta=(0.05, 0.08), f1=20.0, f2=200.0)
+    return s
+
+
+def test_rayleigh_damping_follows_tunable_mass_and_stiffness(tmp_path):
+    """With C = alpha M + beta K the FMU evaluates the damping from its parameters: a changed mass and stiffness
+    act like System.set (which recomputes C) to 1e-6; with the flattening's C frozen they were 1-29 % off."""
+    path = export_fmu(rayleigh_small_drive(), tmp_path / "r.fmu", outputs=SMALL_OUT,
+                      parameters=["table.m", "coupling.c"])
+    T, f = 0.2, 5.0
+    t = DT * np.arange(int(round(T / DT)) + 1)
+    changed = {"table.m": 320.0, "coupling.c": 2.5 * 3938.0}
+    system = rayleigh_small_drive()
+    for k, v in changed.items():
+        system.set(k, v)
+    ref = simulate(system, t, inputs={"motor.tau": square(1.0, f)}, outputs=SMALL_OUT, method="lti")
+    res = run_fmu(path, "motor.tau", 1.0, f, T, 1e-12, SMALL_OUT, start_values=changed)
+    err = rel_errors(res, ref, t, SMALL_OUT, f)
+    assert max(err.values()) < 1e-6, err
+    base = simulate(rayleigh_small_drive(), t, inputs={"motor.tau": square(1.0, f)}, outputs=SMALL_OUT, method="lti")
     assert min(rel_errors(res, base, t, ["table.a", "coupling.tau"], f).values()) > 1e-2   # it did change
 
 
@@ -234,13 +267,83 @@ def test_start_values_and_derivatives_consistent(fmus, case):
     np.testing.assert_allclose(y_fmu, y, rtol=1e-9, atol=1e-12)
 
 
+def _instance(path, name="check"):
+    md = read_model_description(str(path))
+    fmu = FMU3Model(guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.modelExchange.modelIdentifier,
+                    instanceName=name)
+    fmu.instantiate()
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    return md, fmu
+
+
+def test_state_nominals_reach_the_importer(fmus, tmp_path):
+    """Every state's nominal is simulate's atol/rtol (1e-3), in the description and from the FMU itself
+    (CasADi's wrapper answered 1), and a nominal given at export replaces it."""
+    from bscomp._fmu_wrap import DEFAULT_NOMINAL
+    from bscomp.simulation.common import SimulationOptions
+
+    assert DEFAULT_NOMINAL == SimulationOptions().atol / SimulationOptions().rtol == pytest.approx(1e-3)
+    md, fmu = _instance(fmus["testbed"])
+    n = np.zeros(md.numberOfContinuousStates)
+    fmu.getNominalsOfContinuousStates(n.ctypes.data_as(POINTER(c_double)), n.size)
+    xml = [float(v.nominal) for v in md.modelVariables if v.nominal is not None]     # the states only
+    fmu.terminate()
+    fmu.freeInstance()
+    assert n.size == 196 and np.all(n == 1e-3) and xml == [1e-3] * 196
+    path = export_fmu("small_drive", tmp_path / "n.fmu", nominal={"table.s": 2e-6, "der(table.s)": 5e-4})
+    md, fmu = _instance(path)
+    n = np.zeros(md.numberOfContinuousStates)
+    fmu.getNominalsOfContinuousStates(n.ctypes.data_as(POINTER(c_double)), n.size)
+    fmu.terminate()
+    fmu.freeInstance()
+    names = bscomp.flatten(get("small_drive")).x_names         # the FMU's continuous states, in this order
+    assert dict(zip(names, n)) == {"rotor.phi": 1e-3, "screw.phi": 1e-3, "table.s": 2e-6, "der(rotor.phi)": 1e-3,
+                                   "der(screw.phi)": 1e-3, "der(table.s)": 5e-4}
+    with pytest.raises(FmuExportError, match="positive"):
+        export_fmu("small_drive", tmp_path / "x.fmu", nominal=0.0)
+    with pytest.raises(UnknownNameError, match="not a state"):
+        export_fmu("small_drive", tmp_path / "x.fmu", nominal={"table.a": 1.0})
+
+
+def test_wrapper_time_value_references_and_restart_flag(fmus):
+    """The patched wrapper: ``time`` readable (fmusim samples it; it crashed the unpatched FMU), an unknown
+    value reference an error, not a read out of bounds, and an input changed in Event Mode reported as a
+    restart (``valuesOfContinuousStatesChanged``), unchanged ones not."""
+    from fmpy.fmi1 import FMICallException
+
+    md, fmu = _instance(fmus["small"])
+    v = {x.name: x.valueReference for x in md.modelVariables}
+    fmu.setTime(0.125)
+    assert fmu.getFloat64([v["time"], v["table.s"]]) == [0.125, 0.0]
+    with pytest.raises(FMICallException):
+        fmu.getFloat64([10 ** 6])
+    with pytest.raises(FMICallException):
+        fmu.setFloat64([10 ** 6], [1.0])
+    assert fmu.updateDiscreteStates()[3] is False        # the initial event iteration
+    fmu.enterContinuousTimeMode()
+    assert fmu.completedIntegratorStep() == (False, False)
+    fmu.setFloat64([v["motor.tau"]], [0.5])              # a continuous-time change: no restart asked
+    fmu.enterEventMode()
+    assert fmu.updateDiscreteStates()[3] is False
+    fmu.setFloat64([v["motor.tau"]], [-0.5])             # the square wave's edge
+    assert fmu.updateDiscreteStates()[3] is True
+    assert fmu.updateDiscreteStates()[3] is False        # reported once
+    fmu.setFloat64([v["coupling.c"]], [3938.0])          # a parameter set to its own value: no jump
+    assert fmu.updateDiscreteStates()[3] is False
+    fmu.enterContinuousTimeMode()
+    fmu.terminate()
+    fmu.freeInstance()
+
+
 def test_cli_fmu_with_set_and_parameter(tmp_path, capsys):
     out = tmp_path / "drive.fmu"
     assert main(["fmu", "small_drive", "-o", str(out), "--set", "table.m=300", "--parameter", "coupling.c",
-                 "--output", "table.a"]) == 0
+                 "--output", "table.a", "--nominal", "1e-4"]) == 0
     assert out.is_file() and validate_fmu(str(out)) == []
     v = {x.name: x for x in fmpy.read_model_description(str(out)).modelVariables}
     assert float(v["coupling.c"].start) == 3938.0 and "table.m" not in v
+    assert float(v["table.s"].nominal) == 1e-4 and float(v["der(rotor.phi)"].nominal) == 1e-4
     assert [n for n, x in v.items() if x.causality == "output"] == ["table.a"]
     # default outputs: the drive's measured outputs, else its states (exposed as the states themselves)
     assert main(["fmu", "small_drive", "-o", str(tmp_path / "states.fmu")]) == 0
@@ -255,7 +358,7 @@ def test_named_errors_and_no_half_written_file(tmp_path):
         export_fmu("small_drive", tmp_path / "x.zip")
     with pytest.raises(FmuExportError, match="structural"):
         export_fmu("small_drive", tmp_path / "x.fmu", parameters=["lead.lead"])
-    with pytest.raises(FmuExportError, match="damping matrix"):
+    with pytest.raises(FmuExportError, match="damping matrix.*eigensolver.*RayleighDamping"):
         export_fmu("testbed_axial_torsional", tmp_path / "x.fmu", parameters=["table.m"])
     with pytest.raises(UnknownNameError, match="no parameter"):
         export_fmu("small_drive", tmp_path / "x.fmu", parameters=["table.mass"])
