@@ -99,3 +99,30 @@ def test_structural_block_adds_its_matrix_between_ports():
         StructuralBlock({"a": "Flange"}, ["b.s"], K=[[1.0]])
     with pytest.raises(ModelDefinitionError, match=r"\(1, 1\)"):
         StructuralBlock({"a": "Flange"}, ["a.s"], K=np.eye(2))
+
+
+def test_node_ports_give_the_ma_port_of_the_reduction(sub1):
+    """At any nut position z, the superelement's interior equations recover ``N(z) d`` exactly as
+    ``ReducedModel.port(N(z))`` does (Eq 5.18: ``C_x x + C_a x'' + D f``, ``D = N K_ii^{-1} N^T``) for random
+    reduced states, accelerations and joint forces."""
+    M, K, names, red, sm1 = sub1
+    se = ReducedSubstructure.from_reduction(red, M, K, names, beam=sm1.component("screw").beam_model())
+    blk = se.structure()
+    m = red.n_reduced
+    Kb, Mb = blk.K.toarray(), blk.M.toarray()
+    Kii, Kix, Mix = Kb[m:, m:], Kb[m:, :m], Mb[m:, :m]          # interior rows: F_i = K_ii d_i + K_ix x + M_ix x''
+    beam = sm1.component("screw").beam_model()
+    rng = np.random.default_rng(3)
+    for z in (0.2113, 0.4325, 0.70):
+        S = beam.shape_matrix(z).toarray()[[2, 5]]                # (w, tz) rows of N(z) over the 6-DOF nodes
+        cols = {f"screw.n{k}.{d}": 6 * k + j for k in range(beam.n_nodes) for j, d in ((2, "w"), (5, "tz"))}
+        N = np.zeros((2, len(names)))
+        for c, name in enumerate(names):
+            if name in cols:
+                N[:, c] = S[:, cols[name]]
+        port = red.port(N)
+        x, xdd, f = rng.normal(size=m), rng.normal(size=m), rng.normal(size=2) * [1e3, 10.0]
+        F_i = (N.T @ f)[red.interior]
+        d_i = np.linalg.solve(Kii, F_i - Kix @ x - Mix @ xdd)
+        y = N[:, red.interior] @ d_i + N[:, red.exterior] @ x[:red.n_exterior]
+        assert y == pytest.approx(port.output(x, xdd, f), rel=1e-9, abs=1e-15)
