@@ -15,19 +15,20 @@ Here the interior DOF are **ports** (their potentials are quasi-static unknowns 
 the moving screw-nut interface of Sec 5.2.2.3 (:class:`~components.moving_screw_nut.MovingScrewNut`) or a
 fixed point joint -- attaches to them exactly as to the FE model's nodes, and the row ``N(z)`` of the joint
 picks the MA-recovered displacement at the contact point: ``N d_i = C_x x + C_a \ddot x + D F`` with
-``D = N K_ii^{-1} N^T`` (what :meth:`bscomp.linear.reduction.ReducedModel.port` computes for one row). Written
-as port flows (the loads the other parts apply), with ``T_{1,i} = -K_{ii}^{-1} (M\Psi)_i`` (Eq 5.18):
+``D = N K_ii^{-1} N^T`` (what :meth:`bscomp.linear.reduction.ReducedModel.port` computes for one row). The
+interior loads ``λ = F_i`` are unknowns of their own (carried by unconnected ``load_*`` ports), and with
+``T_{1,i} = -K_{ii}^{-1} (M\Psi)_i`` (Eq 5.18) the whole superelement is one sparse block over ``[x; d_i; λ]``:
 
 .. math::
-    F_i = K_{ii} (d_i - \varphi_{ie} d_e) + (M\Psi)_i\, \ddot x ,\qquad
-    F_x = (M^{red} - \Psi_i^T (M\Psi)_i)\, \ddot x + C^{red} \dot x
-          + (K^{red} + \Psi_i^T K_{ii} T_{2,i})\, x - \Psi_i^T K_{ii}\, d_i ,
+    M^{red} \ddot x + C^{red} \dot x + K^{red} x - \Psi_i^T \lambda = F_x ,\qquad
+    \lambda = F_i ,\qquad
+    \lambda - K_{ii} (d_i - \varphi_{ie} d_e) - (M\Psi)_i\, \ddot x = 0 ,
 
-one sparse structural block over ``[x; d_i]`` (``K_ii`` is the FE model's banded interior stiffness; no
-inverse is formed). The block is *not* symmetric: MA recovers displacements with ``T_2, T_1, T_3`` but
-applies forces with ``Ψ^T`` (Eq 5.14 and 5.18 are the thesis's pair), so the coupled model is not exactly
-conservative; its static response at any interior DOF equals the full model's, and its modes converge to
-the full model's with the number of kept modes (``tests/components/test_reduced_substructure.py``).
+(``K_ii`` the FE model's banded interior stiffness; no inverse is formed). The block is *not* symmetric: MA
+recovers displacements with ``T_2, T_1, T_3`` but applies forces with ``Ψ^T`` (Eq 5.14 and 5.18 are the
+thesis's pair), so the coupled model is not exactly conservative; its static response at any interior DOF
+equals the full model's, and its modes converge to the full model's with the number of kept modes
+(``tests/components/test_reduced_substructure.py``, ``tests/systems/test_reduced_testbed.py``).
 
 Build one with :meth:`ReducedSubstructure.from_reduction` from the full matrices and a
 :class:`bscomp.linear.reduction.ReducedModel` (``cms_reduce``).
@@ -87,7 +88,10 @@ class ReducedSubstructure(Component):
         One port per DOF prefix (``screw.n10`` -> ``screw_n10``; ``rotor`` for ``rotor.phi``); Node6 ports
         keep the potentials named in the DOF lists and pin the others.
     <modal coordinate> : Generalized
-        One port per modal coordinate (``q_rb1``, ``q1``, ...), normally left unconnected.
+        One port per reduced coordinate (``q_rb1``, ``q1``, ...; the exterior ones tied to their physical ports),
+        normally left unconnected.
+    load_<interior DOF> : Generalized
+        The load on each interior DOF (an unknown of the DAE); leave unconnected.
     """
 
     def __init__(self, M_r, K_r, coordinates, n_exterior, interior, K_ii, Psi_i, MPsi_i, C_r=None, beam=None):
@@ -133,6 +137,9 @@ class ReducedSubstructure(Component):
                 raise ModelDefinitionError(f"ReducedSubstructure: coordinate '{self.coordinates[k]}' clashes with "
                                            "a port name")
             self.add_port(qp, Generalized(f"reduced coordinate {self.coordinates[k]}"))
+        self.load_ports = [f"load_{c.replace('.', '_')}" for c in self.interior]
+        for lp, c in zip(self.load_ports, self.interior, strict=True):
+            self.add_port(lp, Generalized(f"load on interior DOF {c} (leave unconnected)"))
 
     @classmethod
     def from_reduction(cls, red, M, K, dof_names, C_r=None, beam=None, M_r=None) -> "ReducedSubstructure":
@@ -177,23 +184,31 @@ class ReducedSubstructure(Component):
         return f"{port}.{pot}" if kind == "Node6" else f"{port}.{'phi' if kind == 'RotFlange' else 's'}"
 
     def structure(self):
-        """The block of the module docstring over ``[x; d_i]`` (x: the Generalized ports)."""
+        """The block of the module docstring over ``[x; d_i; λ]`` (``x``: the Generalized ports; ``λ = F_i``: the
+        interior loads, carried by the unconnected ``load*`` ports, whose balance is their defining row)::
+
+            x rows:  M_r x'' + C_r x' + K_r x - Ψ_i^T λ
+            d rows:  λ                                        (the load each interior port receives)
+            λ rows:  λ - K_ii (d_i - φ_ie d_e) - (MΨ)_i x''    (= 0: MA recovery, Eq 5.18)
+
+        Keeping the loads as unknowns gives every reduced coordinate its own inertia ``M_r`` (substituting them
+        would leave the modal rows with ``K_ii``-sized terms whose difference carries it: integrators at tight
+        tolerances then cannot converge their Newton iterations)."""
         a = self._m
-        m, E = len(self.coordinates), self.n_exterior
+        m, E, I = len(self.coordinates), self.n_exterior, len(self.interior)
         Kii = sp.csr_matrix(a["K_ii"])
         T2 = np.zeros_like(a["Psi_i"])
         T2[:, :E] = a["Psi_i"][:, :E]                      # φ_ie on the exterior columns (Eq 5.18)
-        PtK = (Kii.T @ a["Psi_i"]).T                       # Ψ_i^T K_ii
-        K = sp.bmat([[a["K_r"] + PtK @ T2, -PtK], [-(Kii @ T2), Kii]], format="csr")
-        Mx = a["M_r"] - a["Psi_i"].T @ a["MPsi_i"]
-        M = sp.bmat([[Mx, None], [a["MPsi_i"], sp.csr_matrix((len(self.interior), len(self.interior)))]],
-                    format="csr")
+        eye = sp.identity(I, format="csr")
+        K = sp.bmat([[a["K_r"], None, -a["Psi_i"].T], [None, None, eye], [Kii @ T2, -Kii, eye]], format="csr")
+        M = sp.bmat([[a["M_r"], None, None], [None, sp.csr_matrix((I, I)), None],
+                     [-a["MPsi_i"], None, sp.csr_matrix((I, I))]], format="csr")
         C = None
         if a["C_r"] is not None:
-            C = sp.bmat([[a["C_r"], None], [None, sp.csr_matrix((len(self.interior), len(self.interior)))]],
-                        format="csr")
-        dofs = [f"{qp}.q" for qp in self.q_ports] + [self._dof(n) for n in self.interior]
-        assert len(dofs) == m + len(self.interior)
+            C = sp.bmat([[a["C_r"], None, None], [None, sp.csr_matrix((I, I)), None],
+                         [None, None, sp.csr_matrix((I, I))]], format="csr")
+        dofs = ([f"{qp}.q" for qp in self.q_ports] + [self._dof(n) for n in self.interior]
+                + [f"{lp}.q" for lp in self.load_ports])
         return LinearStructure(dofs=dofs, M=M, C=C, K=K)
 
     def constraints(self):

@@ -108,9 +108,10 @@ def test_node_ports_give_the_ma_port_of_the_reduction(sub1):
     M, K, names, red, sm1 = sub1
     se = ReducedSubstructure.from_reduction(red, M, K, names, beam=sm1.component("screw").beam_model())
     blk = se.structure()
-    m = red.n_reduced
+    m, n_i = red.n_reduced, red.interior.size
     Kb, Mb = blk.K.toarray(), blk.M.toarray()
-    Kii, Kix, Mix = Kb[m:, m:], Kb[m:, :m], Mb[m:, :m]          # interior rows: F_i = K_ii d_i + K_ix x + M_ix x''
+    rows = slice(m + n_i, m + 2 * n_i)                         # the load rows: F_i - K_ii d_i + ... = 0
+    Kii, Kix, Mix = -Kb[rows, m:m + n_i], -Kb[rows, :m], -Mb[rows, :m]   # F_i = K_ii d_i + K_ix x + M_ix x''
     beam = sm1.component("screw").beam_model()
     rng = np.random.default_rng(3)
     for z in (0.2113, 0.4325, 0.70):
