@@ -43,11 +43,11 @@ def refine_candidate(cand, effects, ev, st, sigmas, scores, pr, frf_only, rnd):
     budget = (12 if rnd > 1 else 6) if slow else 20
     th, sl = pr.fit(np.r_[th_prev, th0], max_nfev=budget)
     # a parameter the candidate-alone fit drove to a bound of its prior (where the uncertain parameters are
-    # still at their start values it may stand in for one of them) often sits there on a plateau: the cost
-    # does not depend on it (a joint damper of 1 N s/m), so the joint fit sees no gradient and whether it
-    # leaves within its budget is decided by round-off. The joint fit is then also started from the
-    # screening value of that parameter, and the better of the two ends is kept.
-    moved = _to_bound(pr0, th0) & ~_to_bound(pr0, th_screen)
+    # still at their start values it may stand in for one of them) can sit there on a plateau: the cost does
+    # not depend on it (a joint damper of 1 N s/m), so the joint fit sees no gradient, and whether it leaves
+    # within its budget is decided by round-off. Where the joint fit ended with it still at that bound, the
+    # joint fit is also started from the parameter's screening value, and the better of the two ends kept.
+    moved = _to_bound(pr0, th0) & ~_to_bound(pr0, th_screen) & _to_bound(pr0, th[len(th_prev):])
     if np.any(moved):
         th_alt = np.where(moved, th_screen, th0)
         th2, sl2 = pr.fit(np.r_[th_prev, th_alt], max_nfev=budget)
