@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from bscomp.files import atomic_write, json_default
 from bscomp.plotting.validate import plot_diagnosis
+from bscomp.validate.equivalence import Z_CRIT
 
 __all__ = ["EffectFit", "Diagnosis", "Skipped"]
 
@@ -49,7 +50,9 @@ class EffectFit:
         False when only screened (not fitted by least squares).
     equivalent : dict
         The other candidates of the round that the data cannot tell apart from this one
-        (:mod:`bscomp.validate.equivalence`): ``{name: {"z", "dchi2", "shared", "n", "tell_apart"}}``.
+        (:mod:`bscomp.validate.equivalence`): ``{name: {"D", "z", "dchi2", "shared", "n", "tell_apart"}}``.
+    compared : dict
+        The same test numbers for every other refined candidate of the round, with ``indistinguishable``.
     """
 
     candidate: object
@@ -69,6 +72,7 @@ class EffectFit:
     user_before: dict = field(default_factory=dict)
     user_after: dict = field(default_factory=dict)
     equivalent: dict = field(default_factory=dict)
+    compared: dict = field(default_factory=dict)
     _start: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -92,7 +96,8 @@ class EffectFit:
                 "heldout_before": self.heldout_before, "heldout_after": self.heldout_after,
                 "accepted": self.accepted, "verdict": self.verdict, "refined": self.refined, "round": self.round,
                 "evidence": self.evidence, "signature": self.candidate.signature,
-                "user_before": self.user_before, "user_after": self.user_after, "equivalent": self.equivalent}
+                "user_before": self.user_before, "user_after": self.user_after, "equivalent": self.equivalent,
+                "compared": self.compared}
 
     def equivalence_lines(self, indent: str = "     ", skip=()) -> list:
         """The candidates this one cannot be told apart from (but those in ``skip``), with the numbers and
@@ -101,10 +106,14 @@ class EffectFit:
         for other, st in self.equivalent.items():
             if other in skip:
                 continue
-            out.append(f"{indent}{self.name} ~ {other}: indistinguishable on this model and data (predictions "
-                       f"{st['D']:.3g} apart in chi^2, within noise below 15.4; Vuong z = {st['z']:+.2f}, neither "
-                       f"better while |z| < 1.96; {100 * st['shared']:.2f} % of the improvements shared); both "
-                       f"explain the data; to tell them apart: {st['tell_apart']}")
+            d_noise = (2 * Z_CRIT) ** 2
+            why = (f"predictions within noise of each other, D = {st['D']:.3g} < {d_noise:.3g}"
+                   if st["D"] < d_noise else
+                   f"predictions D = {st['D']:.3g} apart in chi^2, but neither fits better: Vuong z = "
+                   f"{st['z']:+.2f}, |z| < {Z_CRIT:.2f}")
+            out.append(f"{indent}{self.name} ~ {other}: indistinguishable on this model and data ({why}; "
+                       f"{100 * st['shared']:.2f} % of the improvements shared); both explain the data; to tell "
+                       f"them apart: {st['tell_apart']}")
         return out
 
 

@@ -138,7 +138,8 @@ def mark_equivalent(results, current, datasets, sigmas, system=None, z_crit: flo
     -----
     ``r.equivalent`` maps each other candidate that ``r`` cannot be told apart from to the test numbers
     (seen from ``r``: ``z > 0`` when ``r`` fits better) and the words of :func:`tell_apart`. The relation is
-    symmetric and not transitive: each candidate lists its own.
+    symmetric and not transitive: each candidate lists its own. ``r.compared`` holds the numbers of every
+    pair, grouped or not (why a candidate is named alone).
     """
     fits = [r for r in results if r.refined and getattr(r, "_after", None) is not None]
     if len(fits) < 2:
@@ -149,6 +150,8 @@ def mark_equivalent(results, current, datasets, sigmas, system=None, z_crit: flo
         for b in fits[i + 1:]:
             ka, kb = len(a.candidate.parameters), len(b.candidate.parameters)
             st = compare_fits(vec[id(a)], vec[id(b)], r_0, ka, kb, z_crit, shared)
+            a.compared[b.name] = dict(st)
+            b.compared[a.name] = {**st, "z": -st["z"], "dchi2": -st["dchi2"]}
             if not st.pop("indistinguishable"):
                 continue
             how = tell_apart(a.candidate, b.candidate, system)
