@@ -125,6 +125,10 @@ def test_mark_equivalent_is_symmetric_and_skips_unrefined(monkeypatch):
     assert list(a.equivalent) == ["b"] and list(b.equivalent) == ["a"]
     assert a.equivalent["b"]["z"] == -b.equivalent["a"]["z"]
     assert a.group_names == ("a", "b") and worse.group_names == ("worse",) and not screened.equivalent
+    # every refined pair is compared (why one is named alone): a against the worse fit, z > 1.96 for a
+    assert set(a.compared) == {"b", "worse"} and not screened.compared
+    assert a.compared["worse"]["z"] > Z_CRIT and not a.compared["worse"]["indistinguishable"]
+    assert a.compared["b"]["indistinguishable"]
     # both at the same role and no system to name the ports: only their laws can differ
     assert a.equivalent["b"]["tell_apart"].startswith("both act at the 'nut_table' point")
 
