@@ -138,3 +138,35 @@ def test_joint_group_is_reported_with_what_to_measure():
     assert f"(~ {other}: indistinguishable on this model" in diag.message
     d = json.loads(diag.to_json())
     assert d["accepted"][0]["equivalent"][other]["tell_apart"] == st["tell_apart"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("eps, seed", [(1e-12, 3), (1e-11, 4), (1e-11, 5)])
+def test_joint_case_does_not_turn_on_round_off(monkeypatch, eps, seed):
+    """Last round's knife edge: the compiled time series' modal basis changed by ~1e-13 and the joint case
+    named bearing_housing first. Here the basis is perturbed on purpose (T -> T (I + eps R), the block form
+    recomputed: outputs off by ~eps); without the refinement's restart these three named bearing_housing
+    first (nut_table_joint stalled with d on its 1 N s/m bound: error 28.5 or 21.14 against 21.00). The
+    diagnosis must not change: same group, same accepted effect, same fit."""
+    from bscomp.simulation import compiled_time
+
+    real = compiled_time.real_modal_form
+
+    def perturbed(A, *args, **kwargs):
+        form = real(A, *args, **kwargs)
+        if form is None:
+            return None
+        T, _, _, blocks = form
+        T = T @ (np.eye(T.shape[0]) + eps * np.random.default_rng(seed).standard_normal(T.shape))
+        Tinv = np.linalg.inv(T)
+        return T, (Tinv @ A @ T) * compiled_time._block_mask(blocks), Tinv, blocks
+
+    data, ref = run_case("joint", CASES["joint"][0])
+    monkeypatch.setattr(compiled_time, "real_modal_form", perturbed)
+    diag = diagnose(validation_drive(), data.datasets, max_effects=1)
+    assert set(diag.ranked[0].group_names) == GROUPS["joint"] and diag.accepted, diag.table()
+    assert diag.accepted[0].name == ref.accepted[0].name, diag.table()
+    for r in diag.ranked[:2]:
+        r0 = next(q for q in ref.ranked if q.name == r.name)
+        assert abs(r.error_after / r0.error_after - 1) < 1e-4, (r.name, r.error_after, r0.error_after)
+        assert all(abs(r.values[p] / r0.values[p] - 1) < 1e-3 for p in r.values), (r.values, r0.values)
