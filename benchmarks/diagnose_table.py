@@ -3,9 +3,11 @@
 For each model (``axial_torsional`` -> ``testbed_axial_torsional``, ``full`` -> ``testbed``) and case of
 ``systems/data/truths/<model>/`` (made by :mod:`bscomp.systems.truths`: another FE mesh, the moving nut,
 mis-set uncertain parameters, hidden effects of their own structure, noise), one ``diagnose(..., max_effects=2)``
-of the case's FRF file and 0.6 s time series; printed: the candidate named first, the accepted ones, their
-main parameters against the truth's hidden values (relative error), the error after re-calibration and at the
-end (mean chi^2, 1 = noise floor) with the drop, and the wall clock.
+of the case's FRF file and 0.6 s time series; printed: the candidate named first (with those the data cannot
+tell apart from it, :mod:`bscomp.validate.equivalence`), the best other refined one with Vuong's z against it
+and the share of their improvements in common, the accepted ones, their main parameters against the truth's
+hidden values (relative error), the error after re-calibration and at the end (mean chi^2, 1 = noise floor)
+with the drop, and the wall clock.
 
     python benchmarks/diagnose_table.py [--model axial_torsional|full] [--case joint ...] [--json out.json]
 """
@@ -49,9 +51,23 @@ def run(model: str, case: str) -> dict:
             t = truth["hidden"].get(hidden, {}).get(tn)
             if t is not None and n in a.values:
                 params.append(f"{a.name}.{n} {a.values[n] / t - 1:+.1%}")
-    return {"model": model, "case": case, "first": d.ranked[0].name if d.ranked else "-",
-            "accepted": [a.name for a in d.accepted], "params": params, "recalibrated": recal, "final": final,
+    # named first: with the candidates the data cannot tell apart from it (bscomp.validate.equivalence)
+    return {"model": model, "case": case, "first": " ~ ".join(d.ranked[0].group_names) if d.ranked else "-",
+            "runner_up": _runner_up(d), "accepted": [a.name for a in d.accepted], "params": params,
+            "recalibrated": recal, "final": final, "values": {k: v for k, (v, _) in d.recalibrated.items()},
             "drop": 1 - final / recal if recal > 0 else 0.0, "wall_s": wall}
+
+
+def _runner_up(d) -> str:
+    """The best refined candidate outside the first one's group, with the test that tells them apart."""
+    if not d.ranked:
+        return "-"
+    lead = d.ranked[0]
+    for r in d.ranked[1:]:
+        if r.refined and r.name not in lead.group_names and r.name in lead.compared:
+            st = lead.compared[r.name]
+            return f"{r.name} (z {st['z']:+.1f}, shared {st['shared']:.2f})"
+    return "-"
 
 
 def main(argv=None) -> int:
@@ -61,13 +77,13 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="also write the rows to this JSON file")
     args = ap.parse_args(argv)
     rows = []
-    print("| model | case | named first | accepted | main parameters vs truth | error re-calibrated -> final "
-          "| wall |\n|---|---|---|---|---|---|---:|")
+    print("| model | case | named first | runner-up (Vuong z, shared) | accepted | main parameters vs truth | "
+          "error re-calibrated -> final | wall |\n|---|---|---|---|---|---|---|---:|")
     for model in args.model or list(MODELS):
         for case in args.case or CASES:
             r = run(model, case)
             rows.append(r)
-            print(f"| {model} | {case} | {r['first']} | {', '.join(r['accepted']) or 'nothing'} | "
+            print(f"| {model} | {case} | {r['first']} | {r['runner_up']} | {', '.join(r['accepted']) or 'nothing'} | "
                   f"{', '.join(r['params']) or '-'} | {r['recalibrated']:.3g} -> {r['final']:.3g} "
                   f"({-r['drop']:+.0%}) | {r['wall_s']:.0f} s |", flush=True)
     if args.json:

@@ -1,4 +1,5 @@
-"""Linear analysis of a Dae: linearization, second-order form, modes, FRFs, sweeps, damping, reduction."""
+"""Linear analysis of a Dae: linearization, second-order form, modes, real modal form, FRFs, sweeps, damping,
+reduction."""
 
 from bscomp.kernel.damping import (  # damping models live in the kernel (flattening applies them)
     ModalDamping,
@@ -18,6 +19,7 @@ from bscomp.linear.linearization import (
     second_order,
 )
 from bscomp.linear.modal import Modes, modal_poles, modes
+from bscomp.linear.real_form import ModalError, modal_basis
 from bscomp.linear.reduction import ReducedModel, ReducedPort, cms_reduce, reduce_second_order
 from bscomp.linear.response import Frf, ModalSection, frf, transfer_function
 from bscomp.linear.sweeps import PositionSweep, build_system, position_sweep
@@ -27,4 +29,4 @@ __all__ = ["ModalDamping", "RayleighDamping", "damped_modal_properties", "modal_
            "system_damping_matrix", "OperatingPoint", "SecondOrderModel", "control_labels", "linearize",
            "resolve_model", "second_order", "Modes", "modal_poles", "modes", "ReducedModel", "ReducedPort",
            "cms_reduce", "reduce_second_order", "Frf", "ModalSection", "frf", "transfer_function",
-           "PositionSweep", "build_system", "position_sweep"]
+           "PositionSweep", "build_system", "position_sweep", "ModalError", "modal_basis"]

@@ -3,12 +3,12 @@
 One real block-diagonalisation of the state matrix of ``x' = xd0 + A (x - x0) + B u``
 (:func:`affine_model`, the index-1 explicit form of :func:`bscomp.linear.linearization.explicit_form`):
 
-* :func:`modal_basis`: ``A P = P Λ`` with ``Λ`` block diagonal -- a 2 x 2 block ``[[σ, ω], [-ω, σ]]`` per
-  oscillating mode (eigenvalues ``σ ± jω``; ``σ = -ζω_n`` for a viscously damped mode), 1 x 1 blocks for
-  real eigenvalues (e.g. ``-B/J`` of a rigid body on a viscous bearing) and one dense block for the
-  eigenvalues at zero (a free rigid body: a Jordan block when undamped). It is exact for any damping
-  (modal, a discrete motor damper, non-proportional): the damping is part of ``A`` and ends up in the
-  blocks, not in an approximation of it.
+* :func:`~bscomp.linear.real_form.modal_basis`: ``A P = P Λ`` with ``Λ`` block diagonal -- a 2 x 2
+  block ``[[σ, ω], [-ω, σ]]`` per oscillating mode (eigenvalues ``σ ± jω``; ``σ = -ζω_n`` for a viscously
+  damped mode), 1 x 1 blocks for real eigenvalues (e.g. ``-B/J`` of a rigid body on a viscous bearing) and
+  one dense block for the eigenvalues at zero (a free rigid body: a Jordan block when undamped). It is
+  exact for any damping (modal, a discrete motor damper, non-proportional): the damping is part of ``A``
+  and ends up in the blocks, not in an approximation of it.
 * :class:`ModalDae`: the model in those coordinates, ``ξ' = Λ ξ + P⁻¹ (x'0 + B u)`` with ``x = x0 + P ξ``;
   outputs and original states are linear maps of ξ. :mod:`bscomp.optimal.modal` transcribes it.
 * :func:`residual_rows`: rows ``L`` such that ``||L (x_T - x0) + l|| <= a`` guarantees that the free
@@ -19,103 +19,12 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
-import scipy.linalg as sla
 
-from bscomp.errors import BscompError
 from bscomp.kernel.dae import _sp
 from bscomp.linear.linearization import explicit_form
+from bscomp.linear.real_form import ModalError, modal_basis
 
 __all__ = ["ModalError", "ModalDae", "modal_basis", "affine_model", "output_rows", "check_linear", "residual_rows"]
-
-
-class ModalError(BscompError):
-    """The model cannot be put in modal coordinates (not linear, or not block-diagonalisable)."""
-
-
-def modal_basis(A, zero_tol: float = 1e-7):
-    """Real block-diagonalising transform of ``A``.
-
-    Parameters
-    ----------
-    A : (n, n) array
-    zero_tol : float
-        Eigenvalues with ``|λ| <= zero_tol * max|λ|`` form the zero (rigid-body) block.
-
-    Returns
-    -------
-    dict with ``P``, ``Pinv``, ``Lam`` (block diagonal, ``Pinv A P``) and ``blocks``: list of
-    ``(columns, kind, λ)``, kind ``"zero"`` (one block for all zero eigenvalues), ``"real"`` or ``"pair"``
-    (λ with ω > 0). Columns are normalised to unit 2-norm (a pair: ``|a|² + |b|² = 1``).
-    """
-    A = np.asarray(A, float)
-    n = A.shape[0]
-    if n == 0:
-        return {"P": np.zeros((0, 0)), "Pinv": np.zeros((0, 0)), "Lam": np.zeros((0, 0)), "blocks": []}
-    # balance first (states in rad, m, rad/s, m/s differ by decades; a balanced A has well-conditioned
-    # eigenvectors): A = D Ab D⁻¹, the basis of Ab is mapped back by D
-    Ab, (scl, _) = sla.matrix_balance(A, permute=False, separate=True)
-    bb = _block_basis(Ab, zero_tol)
-    P = scl[:, None] * bb["P"]
-    Pinv = bb["Pinv"] / scl[None, :]
-    return {"P": P, "Pinv": Pinv, "Lam": bb["Lam"], "blocks": bb["blocks"], "cond": bb["cond"]}
-
-
-def _block_basis(A, zero_tol):
-    n = A.shape[0]
-    lam_all = np.linalg.eigvals(A)
-    tol = zero_tol * max(float(np.max(np.abs(lam_all))), 1e-300)
-    # Schur form with the non-zero eigenvalues first, then decouple the zero cluster (Sylvester)
-    T, Z, sdim = sla.schur(A, output="real", sort=lambda x, y: abs(complex(x, y)) > tol)
-    T11, T12, T22 = T[:sdim, :sdim], T[:sdim, sdim:], T[sdim:, sdim:]
-    S = np.eye(n)
-    if 0 < sdim < n:
-        Y = sla.solve_sylvester(T11, -T22, -T12)
-        S[:sdim, sdim:] = Y
-    lam, V = np.linalg.eig(T11) if sdim else (np.zeros(0), np.zeros((0, 0)))
-    cols, blocks, k = [], [], 0
-    done = np.zeros(len(lam), bool)
-    for i in np.argsort(np.abs(lam), kind="stable"):
-        if done[i]:
-            continue
-        li, v = lam[i], V[:, i]
-        if abs(li.imag) <= 1e-12 * abs(li):
-            v = v.real / np.linalg.norm(v.real)
-            cols.append(v[:, None])
-            blocks.append((np.array([k]), "real", complex(li.real, 0.0)))
-            done[i] = True
-            k += 1
-            continue
-        j = [m for m in range(len(lam)) if not done[m] and m != i and abs(lam[m] - np.conj(li)) <= 1e-9 * abs(li)]
-        if not j:
-            raise ModalError(f"eigenvalue {li} has no complex conjugate (A not real?)")
-        done[i] = done[j[0]] = True
-        if li.imag < 0:
-            li, v = np.conj(li), np.conj(v)
-        v = v / np.linalg.norm(v)
-        cols.append(np.column_stack([v.real, v.imag]))
-        blocks.append((np.array([k, k + 1]), "pair", complex(li)))
-        k += 2
-    V1 = np.hstack(cols) if cols else np.zeros((sdim, 0))
-    W = np.zeros((n, n))
-    W[:sdim, :sdim] = V1
-    W[sdim:, sdim:] = np.eye(n - sdim)
-    if n - sdim:
-        blocks.append((np.arange(sdim, n), "zero", 0j))
-    P = Z @ S @ W
-    try:
-        Pinv = np.linalg.solve(P, np.eye(n))
-    except np.linalg.LinAlgError as exc:
-        raise ModalError("the modal transform is singular (repeated, defective non-zero eigenvalues)") from exc
-    Lam_full = Pinv @ A @ P
-    Lam = np.zeros_like(Lam_full)
-    for idx, _, _ in blocks:
-        Lam[np.ix_(idx, idx)] = Lam_full[np.ix_(idx, idx)]
-    off = float(np.max(np.abs(Lam_full - Lam))) if n else 0.0
-    scale = max(float(np.max(np.abs(Lam))), 1e-300)
-    if off > 1e-6 * scale:
-        raise ModalError(f"modal transform inaccurate: off-block residue {off:.3g} vs |Λ| {scale:.3g} "
-                         f"(cond(P) = {np.linalg.cond(P):.3g})")
-    return {"P": P, "Pinv": Pinv, "Lam": Lam, "blocks": blocks, "cond": float(np.linalg.cond(P))}
 
 
 def affine_model(dae, p, x0, u0=None) -> dict:

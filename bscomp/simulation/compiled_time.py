@@ -11,6 +11,7 @@ import scipy.linalg as sla
 
 from bscomp.errors import BscompError
 from bscomp.linear.frf_engine import dense
+from bscomp.linear.real_form import ModalError, modal_basis
 
 __all__ = ["CompiledModelError", "TimeSeriesMixin"]
 
@@ -115,7 +116,7 @@ class TimeSeriesMixin:
         Bu = np.vstack([np.zeros((nk, nu)), pk.T @ Ball[:, :nu]])
         Bw = np.vstack([np.zeros((nk, r)), pk.T @ Ball[:, nu:]]) if r else np.zeros((n2, 1))
         # the state in the real modal form z = T^-1 x (exact similarity; dense A when ill-conditioned)
-        form = real_modal_form(A, lk)
+        form = real_modal_form(A)
         blocks = None
         if form is not None:
             T, J, Tinv, blocks = form
@@ -216,46 +217,22 @@ class TimeSeriesMixin:
         return {o: Y[i] for i, o in enumerate(outputs)}
 
 
-def real_modal_form(A, lk, max_cond: float = 1e6, tol: float = 1e-10):
-    """``(T, J, T^-1, blocks)`` with ``A = T J T^-1`` and ``J`` real block-diagonal: a 2x2 block
-    ``[[s, w], [-w, s]]`` per complex pair ``s +- jw`` (an underdamped mode) and a 1x1 block per real
-    eigenvalue, or ``None`` when the eigenvector basis is ill-conditioned (``cond > max_cond``: a nearly
-    defective pair such as an undamped rigid-body mode) or does not reproduce ``A`` to ``tol``.
-
-    ``A = [[0, I], [-diag(lk), -Ckk]]`` is the modal first-order matrix; its rows are scaled by the modal
-    frequencies before the eigen-decomposition (displacements and velocities of one size), so the basis
-    stays well conditioned up to the highest kept mode.
-    """
-    n = lk.size
-    om = np.sqrt(np.maximum(lk, 0.0))
-    S = np.r_[np.where(om > 1.0, om, 1.0), np.ones(n)]
-    w, V = np.linalg.eig((S[:, None] * A) / S[None, :])
-    cols, blocks, Jb = [], [], []
-    pending = list(np.argsort(np.abs(w), kind="stable"))
-    while pending:
-        i = pending.pop(0)
-        if abs(w[i].imag) <= 1e-12 * max(1.0, abs(w[i])):
-            cols.append(V[:, i].real)
-            blocks.append(1)
-            Jb.append(np.array([[w[i].real]]))
-            continue
-        j = min(pending, key=lambda k: abs(w[k] - np.conj(w[i])), default=None)
-        if j is None or abs(w[j] - np.conj(w[i])) > 1e-8 * abs(w[i]):
-            return None
-        pending.remove(j)
-        k = i if w[i].imag > 0 else j
-        cols += [V[:, k].real, V[:, k].imag]
-        blocks.append(2)
-        Jb.append(np.array([[w[k].real, w[k].imag], [-w[k].imag, w[k].real]]))
-    Ts = np.column_stack(cols)
-    if not np.all(np.isfinite(Ts)) or np.linalg.cond(Ts) > max_cond:
+def real_modal_form(A, max_cond: float = 1e6, tol: float = 1e-10):
+    """``(T, J, T^-1, blocks)`` with ``A = T J T^-1`` in the real block-diagonal form of
+    :func:`bscomp.linear.real_form.modal_basis`, ``blocks`` its block sizes (2 per oscillating mode, 1 per
+    real eigenvalue, one block for the zero cluster: an undamped rigid body), or ``None`` where that basis is
+    unavailable, ill-conditioned (``cond > max_cond``) or does not reproduce ``A`` to ``tol`` (relative to
+    ``max|A|``): the caller then steps the dense ``A``."""
+    try:
+        basis = modal_basis(A)
+    except ModalError:
         return None
-    J = sla.block_diag(*Jb)
-    T = Ts / S[:, None]
-    Tinv = np.linalg.solve(Ts, np.diag(S))
+    T, J, Tinv = basis["P"], basis["Lam"], basis["Pinv"]
+    if not np.isfinite(basis["cond"]) or basis["cond"] > max_cond:
+        return None
     if np.max(np.abs(T @ J @ Tinv - A)) > tol * np.max(np.abs(A)):
         return None
-    return T, J, Tinv, tuple(blocks)
+    return T, J, Tinv, tuple(len(idx) for idx, _, _ in basis["blocks"])    # blocks are contiguous, in order
 
 
 def _block_mask(blocks) -> np.ndarray:

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from bscomp.files import atomic_write, json_default
 from bscomp.plotting.validate import plot_diagnosis
+from bscomp.validate.equivalence import Z_CRIT
 
 __all__ = ["EffectFit", "Diagnosis", "Skipped"]
 
@@ -47,6 +48,11 @@ class EffectFit:
         The errors as the user reads them (FRF magnitude/phase per pair, fit % per time channel).
     refined : bool
         False when only screened (not fitted by least squares).
+    equivalent : dict
+        The other candidates of the round that the data cannot tell apart from this one
+        (:mod:`bscomp.validate.equivalence`): ``{name: {"D", "z", "dchi2", "shared", "n", "tell_apart"}}``.
+    compared : dict
+        The same test numbers for every other refined candidate of the round, with ``indistinguishable``.
     """
 
     candidate: object
@@ -65,11 +71,18 @@ class EffectFit:
     round: int = 1
     user_before: dict = field(default_factory=dict)
     user_after: dict = field(default_factory=dict)
+    equivalent: dict = field(default_factory=dict)
+    compared: dict = field(default_factory=dict)
     _start: dict = field(default_factory=dict, repr=False)
 
     @property
     def name(self):
         return self.candidate.name
+
+    @property
+    def group_names(self) -> tuple:
+        """This candidate and those the data cannot tell apart from it (ranking order of the round)."""
+        return (self.name, *self.equivalent)
 
     @property
     def drop(self) -> float:
@@ -83,7 +96,25 @@ class EffectFit:
                 "heldout_before": self.heldout_before, "heldout_after": self.heldout_after,
                 "accepted": self.accepted, "verdict": self.verdict, "refined": self.refined, "round": self.round,
                 "evidence": self.evidence, "signature": self.candidate.signature,
-                "user_before": self.user_before, "user_after": self.user_after}
+                "user_before": self.user_before, "user_after": self.user_after, "equivalent": self.equivalent,
+                "compared": self.compared}
+
+    def equivalence_lines(self, indent: str = "     ", skip=()) -> list:
+        """The candidates this one cannot be told apart from (but those in ``skip``), with the numbers and
+        what would separate them."""
+        out = []
+        for other, st in self.equivalent.items():
+            if other in skip:
+                continue
+            d_noise = (2 * Z_CRIT) ** 2
+            why = (f"predictions within noise of each other, D = {st['D']:.3g} < {d_noise:.3g}"
+                   if st["D"] < d_noise else
+                   f"predictions D = {st['D']:.3g} apart in chi^2, but neither fits better: Vuong z = "
+                   f"{st['z']:+.2f}, |z| < {Z_CRIT:.2f}")
+            out.append(f"{indent}{self.name} ~ {other}: indistinguishable on this model and data ({why}; "
+                       f"{100 * st['shared']:.2f} % of the improvements shared); both explain the data; to tell "
+                       f"them apart: {st['tell_apart']}")
+        return out
 
 
 def _fmt_user(u: dict) -> str:
@@ -154,6 +185,7 @@ class Diagnosis:
             lines.append(f"  {i:>2} {r.name:<26} {r.error_after:9.4g} {held} {r.delta_bic:10.1f}  {vals}{flag}")
             if r.verdict and not r.accepted:
                 lines.append(f"     not accepted: {r.verdict}")
+            lines += r.equivalence_lines(skip=[q.name for q in self.ranked[:i - 1]])   # each pair once
         for k, rr in enumerate(self.rounds[1:], 2):
             lines += ["", f"round {k} (with the effects accepted before), best three:"]
             for r in [r for r in rr if r.refined][:3]:
@@ -173,6 +205,7 @@ class Diagnosis:
                 lines.append(f"  {r.round}. {r.candidate.title}: {vals}; error {r.error_before:.4g} -> "
                              f"{r.error_after:.4g} ({100 * r.drop:.1f} % less)")
                 lines.append(f"     why: {r.evidence}")
+                lines += r.equivalence_lines()
         lines += ["", "error staircase: " + " -> ".join(f"{lbl} {e:.4g}" for lbl, e in self.staircase)]
         if self.user_errors:
             lines += ["", "errors as measured (magnitude: mean |log10 error| [decades], phase rms, fit %):"]

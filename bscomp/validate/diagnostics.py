@@ -21,7 +21,10 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    time series), (d) makes no dataset clearly worse (normalised error up more than 10 %) and no error
    the user reads clearly worse (FRF magnitude or phase error of a pair, fit % of a channel), and (e)
    does not sit at a bound of its prior (a stand-in for something else). The report says which of
-   these held. Repeat (greedy) up to ``max_effects``.
+   these held. Candidates the data cannot tell apart (Vuong's test prefers neither, and they remove the
+   same error: :mod:`~bscomp.validate.equivalence`) are reported as **one group** with the one accepted
+   (``EffectFit.equivalent``, with what to measure to separate them), not one picked by round-off.
+   Repeat (greedy) up to ``max_effects``.
 
 The model is evaluated by the library's shared engine (:class:`bscomp.simulation.compiled.CompiledModel`, through
 :class:`~bscomp.validate.evaluation.Evaluator`): one flattening per model structure and measurement
@@ -46,6 +49,7 @@ from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bound
 from bscomp.validate.candidates import default_candidates
 from bscomp.validate.datasets import FrfData
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
+from bscomp.validate.equivalence import mark_equivalent
 from bscomp.validate.evaluation import Problem
 from bscomp.validate.readers import load_all
 from bscomp.validate.refinement import job_base, refine_candidate, refine_task
@@ -237,6 +241,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         results, n = _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, **ctx)
         n_evals += n
         results.sort(key=lambda r: (not r.refined, _score(r), r.delta_bic))
+        mark_equivalent(results, current, datasets, sigmas, ref)   # one group where the data cannot tell
         rounds.append(results)
         log(f"round {rnd}: " + ", ".join(f"{r.name} {r.error_after:.3g} dBIC {r.delta_bic:.0f}" for r in results))
         chosen = _choose(results, current, datasets, thresholds)
@@ -279,7 +284,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
             for attr in ("_after", "_problem", "_theta"):
                 r.__dict__.pop(attr, None)
     if accepted:
-        message = f"{len(accepted)} missing effect(s) found: " + ", ".join(a.candidate.title for a in accepted)
+        message = f"{len(accepted)} missing effect(s) found: " + ", ".join(_titles(a) for a in accepted)
     elif not message:
         message = ("no missing effect found: no candidate explains the remaining error well enough (see why "
                    "each was not accepted)")
@@ -290,6 +295,13 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                      noise=[list(map(float, s)) for s in sigmas],
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
                             "conditions": len(setup.systems)}, calibration=calibration)
+
+
+def _titles(r) -> str:
+    """An accepted effect's title, with those the data cannot tell apart from it (one group)."""
+    if not r.equivalent:
+        return r.candidate.title
+    return f"{r.candidate.title} (~ {' ~ '.join(r.equivalent)}: indistinguishable on this model, see the table)"
 
 
 def _applicable(candidates, ref, unc):

@@ -36,11 +36,31 @@ def refine_candidate(cand, effects, ev, st, sigmas, scores, pr, frf_only, rnd):
     th0 = scores[0][1]
     if cand.nonlinear:
         th0 = _line_search(pr0, th0, [sc for sc in scores if sc[2] == scores[0][2]])
+    th_screen = np.array(th0, float)
     th0, _ = pr0.fit(th0, max_nfev=8 if cand.nonlinear else 15)
     th_prev = pr.theta0()[:len(pr.free) - len(cand.parameters)]   # uncertain + earlier effects
     slow = cand.nonlinear or any(c.nonlinear for c, _, _ in effects)
-    th, sl = pr.fit(np.r_[th_prev, th0], max_nfev=(12 if rnd > 1 else 6) if slow else 20)
+    budget = (12 if rnd > 1 else 6) if slow else 20
+    th, sl = pr.fit(np.r_[th_prev, th0], max_nfev=budget)
+    # a parameter the candidate-alone fit drove to a bound of its prior (where the uncertain parameters are
+    # still at their start values it may stand in for one of them) can sit there on a plateau: the cost does
+    # not depend on it (a joint damper of 1 N s/m), so the joint fit sees no gradient, and whether it leaves
+    # within its budget is decided by round-off. Where the joint fit ended with it still at that bound, the
+    # joint fit is also started from the parameter's screening value, and the better of the two ends kept.
+    moved = _to_bound(pr0, th0) & ~_to_bound(pr0, th_screen) & _to_bound(pr0, th[len(th_prev):])
+    if np.any(moved):
+        th_alt = np.where(moved, th_screen, th0)
+        th2, sl2 = pr.fit(np.r_[th_prev, th_alt], max_nfev=budget)
+        if sl is None or (sl2 is not None and sl2.cost < sl.cost):
+            th, sl = th2, sl2
     return th, sl, pr.nfev + pr0.nfev
+
+
+def _to_bound(pr, th, tol: float = 0.02) -> np.ndarray:
+    """Which entries of ``th`` (log space) are within ``tol`` of a bound of ``pr``'s free parameters."""
+    lo, hi = pr.bounds()
+    th = np.asarray(th, float)
+    return (th - lo < tol) | (hi - th < tol)
 
 
 def _line_search(pr, th0, scores):

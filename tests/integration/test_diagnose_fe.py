@@ -71,6 +71,12 @@ def test_hidden_effect_found_on_the_axial_torsional_fe_bed(case, groups, min_dro
         _check_report_carries_user_errors_and_skips(diag)
     assert {a.candidate.group for a in diag.accepted} == groups, diag.table()
     assert diag.ranked[0].candidate.group in groups, diag.table()           # named first
+    # ... alone: on the FE bed the data tell it from every other candidate (bscomp.validate.equivalence);
+    # a mate could only be of its own kind (Coulomb ~ Stribeck friction)
+    by_name = {r.name: r for r in diag.ranked}
+    assert {by_name[n].candidate.group for n in diag.ranked[0].group_names} <= groups, diag.table()
+    for a in diag.accepted:
+        assert {by_name[n].candidate.group for n in a.group_names if n in by_name} <= groups, diag.table()
     for a in diag.accepted:
         _check_values(a, truth["hidden"])
     final = diag.staircase[-1][1]
