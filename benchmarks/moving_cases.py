@@ -3,7 +3,8 @@
 friction and screw-nut backlash -- with the nut frozen at C or moving along the screw (Sec 5.2.2.3).
 
 * :func:`drive` builds the models (examples/nonlinear_scenarios.py with ``nut_joint`` and the mesh as
-  options); :func:`six_dof` the full 6-DOF test bed with the same effects.
+  options); :func:`six_dof` the full 6-DOF test bed with the same effects; :func:`reduced` the CMS-reduced
+  test bed (Sec 5.2.3) with them.
 * :func:`reference` is IDAS at rtol 1e-9, atol 1e-12 on the same equations, cached in
   ``benchmarks/.cache`` (about an hour per case on the 2-core machine) with the wall time it took.
 * :func:`sundae` is scikit-sundae's IDA on the same residual and Jacobian (CasADi Functions of the Dae),
@@ -50,6 +51,16 @@ def _effects(s):
 def drive(nut_joint="moving", n_elements=None):
     """Axial + torsional test bed at C with friction and backlash (the issue-16 case), flattened."""
     return flatten(_effects(testbed("axial_torsional", "C", nut_joint=nut_joint, n_elements=n_elements)))
+
+
+def reduced(n_modes=3, effects=True):
+    """The CMS-reduced twin of :func:`drive` (thesis Sec 5.2.3 / 5.3.2: sub-model 1 to 2 exterior DOF, ``n_modes``
+    free-interface modes and the rigid-body mode, MA recovery at the moving nut; ``systems/reduced_testbed.py``),
+    flattened; ``effects=False``: the moving nut alone."""
+    from bscomp.systems.reduced_testbed import reduce_testbed
+
+    full = testbed("axial_torsional", "C", nut_joint="moving")
+    return flatten(reduce_testbed(_effects(full) if effects else full, n_modes)[0])
 
 
 def six_dof(nut_joint="moving"):

@@ -195,7 +195,7 @@ class ReducedSubstructure(Component):
         would leave the modal rows with ``K_ii``-sized terms whose difference carries it: integrators at tight
         tolerances then cannot converge their Newton iterations)."""
         a = self._m
-        m, E, I = len(self.coordinates), self.n_exterior, len(self.interior)
+        E, I = self.n_exterior, len(self.interior)
         Kii = sp.csr_matrix(a["K_ii"])
         T2 = np.zeros_like(a["Psi_i"])
         T2[:, :E] = a["Psi_i"][:, :E]                      # φ_ie on the exterior columns (Eq 5.18)
