@@ -309,13 +309,13 @@ def moving(reference_again=False, parts=("table", "steps", "mesh", "six", "reduc
         for P in (3, 10):                      # the thesis's CMS-reduced model (Sec 5.2.3 / 5.3.2): P = 3
             red = mc.reduced(P)
             simulate(red, t[:3], inputs={"amp.u": mc.square}, outputs=mc.OUTS)
-            ref_r, w_r = mc.reference(red, f"reduced{P}", t)
             print(f"  CMS P={P}: {red.nx} states, {red.nz} algebraic; errors below against the FULL model's reference "
-                  f"(reduction + integration); IDAS rtol 1e-9 on the reduced equations took {w_r:.0f} s", flush=True)
+                  "(reduction + integration)", flush=True)
             y = modal_runs(f"CMS P={P}", red, ref)
-            print("           modal against IDAS rtol 1e-9 on the same reduced equations: "
-                  + " ".join(f"{o} {mc.nrmse(y[o], ref_r[o]):.1e}" for o in mc.OUTS), flush=True)
-            if P == 3:
+            if P == 3:                         # IDAS rtol 1e-9 on P = 10 (modes to 8.8 kHz) did not end in 20 min
+                ref_r, w_r = mc.reference(red, f"reduced{P}", t)
+                print(f"           modal against IDAS rtol 1e-9 on the same reduced equations ({w_r:.0f} s): "
+                      + " ".join(f"{o} {mc.nrmse(y[o], ref_r[o]):.1e}" for o in mc.OUTS), flush=True)
                 (r, w, c) = mc.timed(lambda red=red: simulate(red, t, inputs={"amp.u": mc.square}, outputs=mc.OUTS,
                                                                max_num_steps=10**7))
                 row(f"CMS P={P}", "idas rtol 1e-6 (vs the full reference)", r, w, c, ref)

@@ -104,32 +104,34 @@ def sundae(dae, t, rtol=1e-6, atol=1e-9):
     nx, nz = dae.nx, dae.nz
     iu = dae.u_names.index("amp.u")
     u = np.zeros(dae.nu)
-    z = np.zeros(nz)
 
-    def res(tt, y, yp, r):
-        r[:] = np.asarray(F(yp, y, z, u, p)).ravel()
+    def res(tt, y, yp, r):                # unknowns [x; z]; the algebraic z's rates do not enter
+        r[:] = np.asarray(F(yp[:nx], y[:nx], y[nx:], u, p)).ravel()
 
     def jac(tt, y, yp, r, cj, JJ):
-        _, Jxd, Jx, _, _ = Jac(yp, y, z, u, p)
-        JJ[:, :] = np.asarray(Jx) + cj * np.asarray(Jxd)
+        _, Jxd, Jx, Jz, _ = Jac(yp[:nx], y[:nx], y[nx:], u, p)
+        JJ[:, :nx] = np.asarray(Jx) + cj * np.asarray(Jxd)
+        if nz:
+            JJ[:, nx:] = np.asarray(Jz)
 
     t0 = time.perf_counter()
     switches = np.r_[np.arange(0.0, t[-1], 0.5 / F_SQ), t[-1]]
-    X, XD = np.zeros((len(t), nx)), np.zeros((len(t), nx))
-    x = dae.x_start.copy()
+    X, XD, Z = np.zeros((len(t), nx)), np.zeros((len(t), nx)), np.zeros((len(t), nz))
+    x, z = dae.x_start.copy(), np.zeros(nz)
+    alg = list(range(nx, nx + nz)) or None
     for a, b in zip(switches[:-1], switches[1:], strict=True):
         u[iu] = square(0.5 * (a + b))
-        xd, _ = dae.initialize(x, u, p, store=False)
+        xd, z = dae.initialize(x, u, p, z_guess=z, store=False)
         sel = np.flatnonzero((t >= a - 1e-12) & (t <= b + 1e-12))
-        solver = IDA(res, jacfn=jac, rtol=rtol, atol=atol, max_order=2, max_num_steps=10**6)
-        sol = solver.solve(t[sel], x, xd)
-        X[sel], XD[sel] = sol.y, sol.yp
-        x = sol.y[-1]
+        solver = IDA(res, jacfn=jac, rtol=rtol, atol=atol, max_order=2, max_num_steps=10**6, algebraic_idx=alg)
+        sol = solver.solve(t[sel], np.r_[x, z], np.r_[xd, np.zeros(nz)])
+        X[sel], XD[sel], Z[sel] = sol.y[:, :nx], sol.yp[:, :nx], sol.y[:, nx:]
+        x, z = sol.y[-1, :nx], sol.y[-1, nx:]
     U = np.tile(u, (len(t), 1))
     for a, b in zip(switches[:-1], switches[1:], strict=True):
         U[(t > a + 1e-12) & (t <= b + 1e-12), iu] = square(0.5 * (a + b))
     U[0, iu] = square(0.0)
-    y = evaluate_outputs(dae, OUTS, XD, X, np.zeros((len(t), nz)), U, p)
+    y = evaluate_outputs(dae, OUTS, XD, X, Z, U, p)
     return y, time.perf_counter() - t0
 
 
