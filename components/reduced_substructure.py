@@ -16,15 +16,16 @@ the moving screw-nut interface of Sec 5.2.2.3 (:class:`~components.moving_screw_
 fixed point joint -- attaches to them exactly as to the FE model's nodes, and the row ``N(z)`` of the joint
 picks the MA-recovered displacement at the contact point: ``N d_i = C_x x + C_a \ddot x + D F`` with
 ``D = N K_ii^{-1} N^T`` (what :meth:`bscomp.linear.reduction.ReducedModel.port` computes for one row). The
-interior loads ``λ = F_i`` are unknowns of their own (carried by unconnected ``load_*`` ports), and with
-``T_{1,i} = -K_{ii}^{-1} (M\Psi)_i`` (Eq 5.18) the whole superelement is one sparse block over ``[x; d_i; λ]``:
+static correction ``μ = K_ii^{-1} F_i`` of the interior loads is an unknown of its own (carried by unconnected
+``corr_*`` ports, in the DOF's units), and with ``T_{1,i} = -K_{ii}^{-1} (M\Psi)_i`` (Eq 5.18) the whole
+superelement is one sparse block over ``[x; d_i; μ]``:
 
 .. math::
-    M^{red} \ddot x + C^{red} \dot x + K^{red} x - \Psi_i^T \lambda = F_x ,\qquad
-    \lambda = F_i ,\qquad
-    \lambda - K_{ii} (d_i - \varphi_{ie} d_e) - (M\Psi)_i\, \ddot x = 0 ,
+    M^{red} \ddot x + C^{red} \dot x + K^{red} x - \Psi_i^T K_{ii} \mu = F_x ,\qquad
+    K_{ii} \mu = F_i ,\qquad
+    d_i - \varphi_{ie} d_e - T_{1,i}\, \ddot x - \mu = 0
 
-(``K_ii`` the FE model's banded interior stiffness; no inverse is formed). The block is *not* symmetric: MA
+(``K_ii`` the FE model's banded interior stiffness, factorised once for ``T_1``). The block is *not* symmetric: MA
 recovers displacements with ``T_2, T_1, T_3`` but applies forces with ``Ψ^T`` (Eq 5.14 and 5.18 are the
 thesis's pair), so the coupled model is not exactly conservative; its static response at any interior DOF
 equals the full model's, and its modes converge to the full model's with the number of kept modes
@@ -38,6 +39,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from bscomp.errors import ModelDefinitionError
 from bscomp.kernel.component import Component, LinearStructure
@@ -90,8 +92,9 @@ class ReducedSubstructure(Component):
     <modal coordinate> : Generalized
         One port per reduced coordinate (``q_rb1``, ``q1``, ...; the exterior ones tied to their physical ports),
         normally left unconnected.
-    load_<interior DOF> : Generalized
-        The load on each interior DOF (an unknown of the DAE); leave unconnected.
+    corr_<interior DOF> : Generalized
+        The MA static correction ``μ = K_ii^{-1} F_i`` of each interior DOF (an unknown of the DAE, in the DOF's
+        unit); leave unconnected.
     """
 
     def __init__(self, M_r, K_r, coordinates, n_exterior, interior, K_ii, Psi_i, MPsi_i, C_r=None, beam=None):
@@ -137,9 +140,9 @@ class ReducedSubstructure(Component):
                 raise ModelDefinitionError(f"ReducedSubstructure: coordinate '{self.coordinates[k]}' clashes with "
                                            "a port name")
             self.add_port(qp, Generalized(f"reduced coordinate {self.coordinates[k]}"))
-        self.load_ports = [f"load_{c.replace('.', '_')}" for c in self.interior]
-        for lp, c in zip(self.load_ports, self.interior, strict=True):
-            self.add_port(lp, Generalized(f"load on interior DOF {c} (leave unconnected)"))
+        self.corr_ports = [f"corr_{c.replace('.', '_')}" for c in self.interior]
+        for cp, c in zip(self.corr_ports, self.interior, strict=True):
+            self.add_port(cp, Generalized(f"MA static correction of interior DOF {c} (leave unconnected)"))
 
     @classmethod
     def from_reduction(cls, red, M, K, dof_names, C_r=None, beam=None, M_r=None) -> "ReducedSubstructure":
@@ -184,31 +187,35 @@ class ReducedSubstructure(Component):
         return f"{port}.{pot}" if kind == "Node6" else f"{port}.{'phi' if kind == 'RotFlange' else 's'}"
 
     def structure(self):
-        """The block of the module docstring over ``[x; d_i; λ]`` (``x``: the Generalized ports; ``λ = F_i``: the
-        interior loads, carried by the unconnected ``load*`` ports, whose balance is their defining row)::
+        """The block of the module docstring over ``[x; d_i; μ]`` (``x``: the Generalized ports; ``μ = K_ii^{-1}
+        F_i``: the static correction of MA, carried by the unconnected ``corr_*`` ports, whose balance is their
+        defining row)::
 
-            x rows:  M_r x'' + C_r x' + K_r x - Ψ_i^T λ
-            d rows:  λ                                        (the load each interior port receives)
-            λ rows:  λ - K_ii (d_i - φ_ie d_e) - (MΨ)_i x''    (= 0: MA recovery, Eq 5.18)
+            x rows:  M_r x'' + C_r x' + K_r x - Ψ_i^T K_ii μ
+            d rows:  K_ii μ                                  (the load each interior port receives)
+            μ rows:  d_i - φ_ie d_e - T_1,i x'' - μ           (= 0: MA recovery, Eq 5.18)
 
-        Keeping the loads as unknowns gives every reduced coordinate its own inertia ``M_r`` (substituting them
-        would leave the modal rows with ``K_ii``-sized terms whose difference carries it: integrators at tight
-        tolerances then cannot converge their Newton iterations)."""
+        With the correction as an unknown every reduced coordinate keeps its own inertia ``M_r`` and no row
+        takes a difference of total displacements times ``K_ii`` (writing the loads as ``K_ii (d_i - φ_ie d_e)``
+        left the modal rows without inertia of their own and with that cancellation: IDAS could not converge
+        its Newton iterations at rtol <= 1e-8)."""
         a = self._m
         E, I = self.n_exterior, len(self.interior)
-        Kii = sp.csr_matrix(a["K_ii"])
+        Kii = sp.csc_matrix(a["K_ii"])
         T2 = np.zeros_like(a["Psi_i"])
         T2[:, :E] = a["Psi_i"][:, :E]                      # φ_ie on the exterior columns (Eq 5.18)
+        mT1 = spla.splu(Kii).solve(a["MPsi_i"])            # -T_1,i = K_ii^{-1} (M Ψ)_i
         eye = sp.identity(I, format="csr")
-        K = sp.bmat([[a["K_r"], None, -a["Psi_i"].T], [None, None, eye], [Kii @ T2, -Kii, eye]], format="csr")
+        PtK = sp.csr_matrix((Kii.T @ a["Psi_i"]).T)        # Ψ_i^T K_ii
+        K = sp.bmat([[a["K_r"], None, -PtK], [None, None, Kii], [-T2, eye, -eye]], format="csr")
         M = sp.bmat([[a["M_r"], None, None], [None, sp.csr_matrix((I, I)), None],
-                     [-a["MPsi_i"], None, sp.csr_matrix((I, I))]], format="csr")
+                     [mT1, None, sp.csr_matrix((I, I))]], format="csr")
         C = None
         if a["C_r"] is not None:
             C = sp.bmat([[a["C_r"], None, None], [None, sp.csr_matrix((I, I)), None],
                          [None, None, sp.csr_matrix((I, I))]], format="csr")
         dofs = ([f"{qp}.q" for qp in self.q_ports] + [self._dof(n) for n in self.interior]
-                + [f"{lp}.q" for lp in self.load_ports])
+                + [f"{cp}.q" for cp in self.corr_ports])
         return LinearStructure(dofs=dofs, M=M, C=C, K=K)
 
     def constraints(self):
