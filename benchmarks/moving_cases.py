@@ -19,11 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from bscomp.components import Backlash, CoulombFriction, Fixed
 from bscomp.kernel.flattening import flatten
 from bscomp.simulation.dispatch import simulate
-from bscomp.systems.parameters import load_parameters
 from bscomp.systems.testbed import testbed
+from bscomp.systems.thesis_effects import with_friction_backlash
 
 AMP, F_SQ, T_END, DT = 2.125, 5.0, 0.6, 1e-4
 OUTS = ["table.a", "table.v", "rotor.phi", "backlash.f"]
@@ -36,16 +35,9 @@ def square(t):
 
 
 def _effects(s):
-    p = load_parameters()["friction_backlash"]
-    s.add("guide_ground", Fixed())
-    s.add("friction", CoulombFriction(F_c_pos=p["F_coul_pos"]["value"], F_c_neg=abs(p["F_coul_neg"]["value"]),
-                                      v_reg=1e-4))
-    s.connect("friction.flange_a", "guide_ground.flange")
-    s.connect("friction.flange_b", "table.flange_b")
-    r_g = 0.010 / (2 * np.pi)
-    s.insert("backlash", Backlash(b=p["backlash_L"]["value"] * r_g, c=1.7e10),
-             between=("table_joint.flange", "table.flange_a"))
-    return s
+    """Table 5.2 guideway friction and screw-nut backlash
+    (:func:`bscomp.systems.thesis_effects.with_friction_backlash`)."""
+    return with_friction_backlash(s)
 
 
 def drive(nut_joint="moving", n_elements=None):

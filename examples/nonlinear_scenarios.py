@@ -21,11 +21,11 @@ import numpy as np
 
 import bscomp
 from bscomp import System
-from bscomp.components import Backlash, CoulombFriction, Fixed, SecondOrderBlock
+from bscomp.components import SecondOrderBlock
 from bscomp.linear.reduction import reduce_second_order
 from bscomp.simulation.dispatch import simulate
-from bscomp.systems.parameters import load_parameters
 from bscomp.systems.testbed import testbed_axial_torsional
+from bscomp.systems.thesis_effects import with_friction_backlash
 
 
 def square_wave(t, pp=4.25, f=5.0):
@@ -35,20 +35,9 @@ def square_wave(t, pp=4.25, f=5.0):
 
 
 def drive(position="C", friction=False, backlash=False) -> System:
-    """The Ch 5 model with optional nonlinear effects (section: model)."""
-    p = load_parameters()["friction_backlash"]
-    s = testbed_axial_torsional(nut_position=position)
-    if friction:
-        s.add("guide_ground", Fixed())
-        s.add("friction", CoulombFriction(F_c_pos=p["F_coul_pos"]["value"], F_c_neg=abs(p["F_coul_neg"]["value"]),
-                                          v_reg=1e-4))
-        s.connect("friction.flange_a", "guide_ground.flange")
-        s.connect("friction.flange_b", "table.flange_b")
-    if backlash:
-        r_g = 0.010 / (2 * np.pi)
-        s.insert("backlash", Backlash(b=p["backlash_L"]["value"] * r_g, c=1.7e10),
-                 between=("table_joint.flange", "table.flange_a"))
-    return s
+    """The Ch 5 model with optional nonlinear effects (section: model; Table 5.2 values,
+    :func:`bscomp.systems.thesis_effects.with_friction_backlash`)."""
+    return with_friction_backlash(testbed_axial_torsional(nut_position=position), friction=friction, backlash=backlash)
 
 
 def run(system, t, outputs=("table.v", "table.a", "rotor.w")):

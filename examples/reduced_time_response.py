@@ -21,11 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from bscomp import flatten
-from bscomp.components import Backlash, CoulombFriction, Fixed
 from bscomp.simulation import simulate
-from bscomp.systems.parameters import load_parameters
 from bscomp.systems.reduced_testbed import reduce_testbed
 from bscomp.systems.testbed import testbed
+from bscomp.systems.thesis_effects import with_friction_backlash
 
 AMP, F_SQ, T_END, DT = 2.125, 5.0, 0.6, 1e-4
 OUTS = ["table.v", "table.a", "rotor.phi", "backlash.f", "sn.z"]
@@ -39,16 +38,7 @@ def square(t):
 
 def full_drive():
     """The axial + torsional test bed at C, moving nut, Table 5.2 friction (Eq 5.7) and backlash (Eq 5.8)."""
-    p = load_parameters()["friction_backlash"]
-    s = testbed("axial_torsional", "C", nut_joint="moving")
-    s.add("guide_ground", Fixed())
-    s.add("friction", CoulombFriction(F_c_pos=p["F_coul_pos"]["value"], F_c_neg=abs(p["F_coul_neg"]["value"]),
-                                      v_reg=1e-4))
-    s.connect("friction.flange_a", "guide_ground.flange")
-    s.connect("friction.flange_b", "table.flange_b")
-    s.insert("backlash", Backlash(b=p["backlash_L"]["value"] * 0.010 / (2 * np.pi), c=1.7e10),
-             between=("table_joint.flange", "table.flange_a"))
-    return s
+    return with_friction_backlash(testbed("axial_torsional", "C", nut_joint="moving"))
 
 
 def nrmse(a, b) -> float:

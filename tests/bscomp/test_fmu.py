@@ -27,13 +27,12 @@ from fmpy.validation import validate_fmu  # noqa: E402
 
 import bscomp  # noqa: E402
 from bscomp.cli import main  # noqa: E402
-from bscomp.components import CoulombFriction, Fixed  # noqa: E402
 from bscomp.errors import CompilerNotFoundError, FmuExportError, OutputFileError, UnknownNameError  # noqa: E402
 from bscomp.fmu import export_fmu  # noqa: E402
 from bscomp.kernel.damping import RayleighDamping  # noqa: E402
 from bscomp.simulation import simulate  # noqa: E402
 from bscomp.systems import get  # noqa: E402
-from bscomp.systems.parameters import load_parameters  # noqa: E402
+from bscomp.systems.thesis_effects import with_friction_backlash  # noqa: E402
 
 DT = 1e-4
 SMALL_OUT = ["table.a", "table.s", "table.v", "rotor.w", "coupling.tau"]
@@ -73,15 +72,8 @@ def run_fmu(path, name, amp, f, T, rtol, outputs, start_values=None):
 
 def friction_drive():
     """The Ch 5 test bed with the Table 5.2 guideway friction (Coulomb 2066 N, Eq 5.7), as in
-    examples/nonlinear_scenarios.py."""
-    p = load_parameters()["friction_backlash"]
-    s = get("testbed_axial_torsional")
-    s.add("guide_ground", Fixed())
-    s.add("friction", CoulombFriction(F_c_pos=p["F_coul_pos"]["value"], F_c_neg=abs(p["F_coul_neg"]["value"]),
-                                      v_reg=1e-4))
-    s.connect("friction.flange_a", "guide_ground.flange")
-    s.connect("friction.flange_b", "table.flange_b")
-    return s
+    examples/nonlinear_scenarios.py (:func:`bscomp.systems.thesis_effects.with_friction_backlash`)."""
+    return with_friction_backlash(get("testbed_axial_torsional"), backlash=False)
 
 
 def _export_all(d):

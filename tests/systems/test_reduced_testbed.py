@@ -6,13 +6,12 @@ import numpy as np
 import pytest
 
 from bscomp import flatten
-from bscomp.components import Backlash, CoulombFriction, Fixed
 from bscomp.linear import modes
 from bscomp.simulation import simulate
 from bscomp.systems import get
-from bscomp.systems.parameters import load_parameters
 from bscomp.systems.reduced_testbed import reduce_testbed
 from bscomp.systems.testbed import testbed as build
+from bscomp.systems.thesis_effects import with_friction_backlash
 
 AMP, F_SQ = 2.125, 5.0
 
@@ -23,19 +22,6 @@ def square(t):
 
 def nrmse(a, b):
     return float(np.sqrt(np.mean((np.asarray(a) - b) ** 2)) / np.sqrt(np.mean(np.asarray(b) ** 2)))
-
-
-def effects(s):
-    """Table 5.2 guideway friction and screw-nut backlash, as benchmarks/moving_cases.py."""
-    p = load_parameters()["friction_backlash"]
-    s.add("guide_ground", Fixed())
-    s.add("friction", CoulombFriction(F_c_pos=p["F_coul_pos"]["value"], F_c_neg=abs(p["F_coul_neg"]["value"]),
-                                      v_reg=1e-4))
-    s.connect("friction.flange_a", "guide_ground.flange")
-    s.connect("friction.flange_b", "table.flange_b")
-    s.insert("backlash", Backlash(b=p["backlash_L"]["value"] * 0.010 / (2 * np.pi), c=1.7e10),
-             between=("table_joint.flange", "table.flange_a"))
-    return s
 
 
 @pytest.fixture(scope="module")
@@ -85,7 +71,7 @@ def test_moving_nut_with_friction_and_backlash_matches_the_full_model():
     modal method on the reduced model against IDAS rtol 1e-9 on the same reduced equations."""
     t = 1e-4 * np.arange(1501)
     outs = ["table.a", "table.v", "rotor.phi", "backlash.f", "sn.z"]
-    full = effects(build("axial_torsional", "C", nut_joint="moving"))
+    full = with_friction_backlash(build("axial_torsional", "C", nut_joint="moving"))
     ref = simulate(full, t, inputs={"amp.u": square}, outputs=outs, method="modal")
     assert np.ptp(ref["sn.z"]) > 1e-3                                   # the nut travels across elements
     red3, _ = reduce_testbed(full, 3)
