@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 
 from bscomp.components import Backlash, CoulombFriction, Fixed
+from bscomp.errors import ModelDefinitionError
 from bscomp.kernel.system import System
 
 from .parameters import load_parameters
@@ -36,6 +37,12 @@ def with_friction_backlash(s: System, friction: bool = True, backlash: bool = Tr
                            contact_stiffness: float = CONTACT_STIFFNESS, params: str = "fadal_vmc2216_x") -> System:
     """Add Table 5.2 guideway friction (component ``friction``) and screw-nut backlash (``backlash``) to a drive
     variant of the test bed (it needs ``table`` and ``table_joint``); returns ``s`` (changed in place)."""
+    names = {path.split(".")[0] for path, _ in s.leaves()}
+    need = {"table"} | ({"table_joint"} if backlash else set())
+    if need - names or (friction and "friction" in names) or (backlash and "backlash" in names):
+        raise ModelDefinitionError(
+            f"with_friction_backlash: '{s.name}' needs the test bed's {sorted(need)} (a drive variant of "
+            f"bscomp.systems.testbed) and no 'friction' / 'backlash' yet; it has {sorted(names)[:12]}...")
     p = load_parameters(params)["friction_backlash"]
     if friction:
         s.add("guide_ground", Fixed())

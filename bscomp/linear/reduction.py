@@ -66,7 +66,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from bscomp.errors import SingularSystemError
+from bscomp.errors import SingularSystemError, UsageError
 from bscomp.kernel.damping import as_dense_symmetric
 from bscomp.linear.linearization import SecondOrderModel
 
@@ -84,18 +84,18 @@ def _index_list(dofs: Any, n: int, names: Sequence[str] | None, what: str) -> np
     for d in items:
         if isinstance(d, str):
             if names is None or d not in names:
-                raise ValueError(f"{what}: unknown DOF name {d!r} (pass dof_names to use names)")
+                raise UsageError(f"{what}: unknown DOF name {d!r} (pass dof_names to use names)")
             out.append(list(names).index(d))
         elif isinstance(d, (int, np.integer)) and not isinstance(d, bool):
             k = int(d) + n if int(d) < 0 else int(d)
             if not 0 <= k < n:
-                raise ValueError(f"{what}: DOF index {d} out of range for {n} DOF")
+                raise UsageError(f"{what}: DOF index {d} out of range for {n} DOF")
             out.append(k)
         else:
-            raise ValueError(f"{what}: DOF must be an int index or a name, got {d!r}")
+            raise UsageError(f"{what}: DOF must be an int index or a name, got {d!r}")
     idx = np.asarray(out, dtype=int)
     if len(set(idx.tolist())) != idx.size:
-        raise ValueError(f"{what}: duplicate DOF in {dofs!r}")
+        raise UsageError(f"{what}: duplicate DOF in {dofs!r}")
     return idx
 
 
@@ -108,12 +108,12 @@ def _rows(at: Any, n: int) -> np.ndarray | sp.csr_matrix:
         if a.dtype.kind in "iu" and a.ndim <= 1:
             idx = np.atleast_1d(a).astype(int)
             if np.any(idx < -n) or np.any(idx >= n):
-                raise ValueError(f"at: DOF index out of range for {n} DOF")
+                raise UsageError(f"at: DOF index out of range for {n} DOF")
             idx = np.where(idx < 0, idx + n, idx)
             return sp.csr_matrix((np.ones(idx.size), (np.arange(idx.size), idx)), shape=(idx.size, n))
         R = np.atleast_2d(np.asarray(a, dtype=float))
     if R.shape[1] != n:
-        raise ValueError(f"at: a row/matrix with {n} columns is needed, got shape {R.shape}")
+        raise UsageError(f"at: a row/matrix with {n} columns is needed, got shape {R.shape}")
     return R
 
 
@@ -181,7 +181,7 @@ class ReducedPort:
 def _method(method: str) -> str:
     m = str(method).upper()
     if m not in ("MA", "MD"):
-        raise ValueError(
+        raise UsageError(
             f"method must be 'MA' (modal acceleration) or 'MD' (mode displacement), got {method!r}"
         )
     return m
@@ -294,7 +294,7 @@ class ReducedModel:
         """
         x = np.asarray(x, dtype=float)
         if x.shape[0] != self.n_reduced:
-            raise ValueError(f"x must have {self.n_reduced} rows (reduced coordinates), got {x.shape}")
+            raise UsageError(f"x must have {self.n_reduced} rows (reduced coordinates), got {x.shape}")
         if _method(method) == "MD":
             d = self.Psi @ x
         else:
@@ -306,7 +306,7 @@ class ReducedModel:
             if f is not None:
                 f = np.asarray(f, dtype=float)
                 if f.shape[0] != self.n_full:
-                    raise ValueError(f"f must have {self.n_full} rows (full load vector), got {f.shape}")
+                    raise UsageError(f"f must have {self.n_full} rows (full load vector), got {f.shape}")
                 d = d + self._T3F(f)
         if at is None:
             return d
@@ -393,7 +393,7 @@ def cms_reduce(
 
     Raises
     ------
-    ValueError
+    UsageError
         Bad shapes, non-symmetric or non-finite matrices, unknown/duplicate DOF, both or neither of
         ``n_modes``/``f_cut``, more modes than interior DOF, unknown ``interface``.
     SingularSystemError
@@ -446,19 +446,19 @@ def cms_reduce(
 def _check_cms_arguments(n, boundary_dofs, dof_names, n_modes, f_cut, interface):
     """Exterior ``e`` and interior ``i`` DOF indices, after checking every argument of :func:`cms_reduce`."""
     if dof_names is not None and len(dof_names) != n:
-        raise ValueError(f"dof_names must have {n} entries, got {len(dof_names)}")
+        raise UsageError(f"dof_names must have {n} entries, got {len(dof_names)}")
     e = _index_list(boundary_dofs, n, dof_names, "boundary_dofs")
     if e.size == 0:
-        raise ValueError("boundary_dofs: at least one exterior DOF is needed")
+        raise UsageError("boundary_dofs: at least one exterior DOF is needed")
     if (n_modes is None) == (f_cut is None):
-        raise ValueError("give exactly one of n_modes and f_cut")
+        raise UsageError("give exactly one of n_modes and f_cut")
     if n_modes is not None and (isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer))
                                 or n_modes < 0):
-        raise ValueError(f"n_modes must be a non-negative integer, got {n_modes!r}")
+        raise UsageError(f"n_modes must be a non-negative integer, got {n_modes!r}")
     if f_cut is not None and not (np.isfinite(f_cut) and f_cut >= 0):
-        raise ValueError(f"f_cut must be a finite non-negative frequency [Hz], got {f_cut!r}")
+        raise UsageError(f"f_cut must be a finite non-negative frequency [Hz], got {f_cut!r}")
     if interface not in ("free", "fixed"):
-        raise ValueError(f"interface must be 'free' or 'fixed', got {interface!r}")
+        raise UsageError(f"interface must be 'free' or 'fixed', got {interface!r}")
     return e, np.setdiff1d(np.arange(n), e)
 
 
@@ -511,7 +511,7 @@ def _normal_modes(Md, Kd, lam, V, n_r, i, interface, rigid_body_modes, n_modes, 
     P = int(np.count_nonzero(f_el <= f_cut)) if f_cut is not None else int(n_modes)
     n_rb = V_rb.shape[1]
     if P + n_rb > i.size:
-        raise ValueError(f"{P + n_rb} modes requested but only {i.size} interior DOF exist")
+        raise UsageError(f"{P + n_rb} modes requested but only {i.size} interior DOF exist")
     chi = np.hstack([V_rb, V_el[:, :P]])
     return (chi[i] if interface == "free" else chi), f_el, P, n_rb
 
