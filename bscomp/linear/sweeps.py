@@ -176,7 +176,10 @@ class _TangentUpdate:
         import scipy.sparse as sp
 
 
-        L, W, A0 = self._factor()
+        try:
+            L, W, A0 = self._factor()
+        except np.linalg.LinAlgError:        # M not symmetric positive definite (massless coordinates, or a
+            return None                      # non-symmetric CMS superelement with MA recovery): rebuild instead
         t = self._tangent_at(x)
         dK = (sp.csr_matrix(t.K) - self.Kt0).tocoo()
         S = np.unique(np.concatenate([dK.row, dK.col]))
@@ -391,8 +394,10 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
             if res is not None:
                 return res
             if method == "tangent":
-                raise ValueError("position_sweep(method='tangent'): the damping is not modal plus a few discrete "
-                                 "dampers, so the one-eigh FRF does not apply; use method='rebuild'")
+                raise UsageError("position_sweep(method='tangent'): the tangent update needs a symmetric positive "
+                                 "definite mass matrix and damping that is modal plus a few discrete dampers (not "
+                                 "so here: e.g. massless coordinates, a CMS superelement with MA recovery); use "
+                                 "method='rebuild'")
     tasks = [(build, {**(overrides or {}), parameter: float(x)}, inputs, outputs, freqs, n_modes, at)
              for x in positions]
     if executor is not None:
@@ -423,7 +428,8 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
 
 
 def _tangent_sweep(system, parameter, owner, positions, freqs, inputs, outputs, n_modes, progress, name):
-    """position_sweep by the tangent update; None when the damping does not allow the one-eigh FRF."""
+    """position_sweep by the tangent update; None when the model does not allow the one-eigh form (damping that is
+    not modal plus dampers, or a mass matrix that is not symmetric positive definite)."""
     import sys
 
     import scipy.sparse as sp
