@@ -15,8 +15,11 @@ loads can be added on by using the MA recovery").
 Everything outside sub-model 1 is the full model's own parts (nut, table, amplifier, motor damping,
 and whatever friction, backlash or controllers the full system carries): :func:`reduce_testbed` takes a full
 axial + torsional test bed *System* and returns its reduced twin. Damping: the full system's option (modal
-ratios of Tables 4.1/4.2) applied to the reduced drive's own modes (:func:`_modal_damping`; the thesis's
-``C_red = Ψ^T C_model Ψ`` was tried and over-damps a 2.2 kHz mode, see there).
+ratios of Tables 4.1/4.2), which the kernel applies to the reduced drive's own modes at flattening and every
+linear analysis re-derives at its operating point, as for the full model (the MA-coupled pair is not
+symmetric: :func:`bscomp.kernel.damping.nonsymmetric_damping`). The thesis's ``C_red = Ψ^T C_model Ψ`` was tried
+and not kept: ``C_model`` weights its highest modes by their frequency and the mode-displacement shapes
+``Ψ x`` overlap them, which put 42 % damping on a 2.2 kHz mode.
 
 The rotor stays a component of its own (outputs ``rotor.phi``, ``rotor.w`` keep their names): it is part
 of sub-model 1 for the reduction (its inertia shapes the free-interface modes) and its inertia, an exterior
@@ -29,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from bscomp.components import ReducedSubstructure, StructuralBlock
+from bscomp.components import ReducedSubstructure
 from bscomp.errors import ModelDefinitionError
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
@@ -115,10 +118,7 @@ def reduce_testbed(full: System, n_modes: int = 3, *, anchor="centre", interface
     for a, b in boundary:
         inner, outer = (a, b) if a.split(".")[0] in SUBMODEL1 else (b, a)
         s.connect(_superelement_port(se, sub_ports, inner), outer)
-    option = getattr(full, "damping", None)
-    s.damping = None
-    if option is not None:
-        _modal_damping(s, option)
+    s.damping = getattr(full, "damping", None)        # the kernel applies it to the reduced drive's own modes
     s.sources = dict(getattr(full, "sources", {}) or {})
     s.sources["sm1"] = (f"Sec 5.2.3 / Eq 5.10-5.18: CMS of sub-model 1 (Table 5.1), exterior {ext}, {n_modes} "
                         f"{interface}-interface modes; MA-recovered node ports")
@@ -143,65 +143,6 @@ def _superelement_port(se, sub_mech, port: str) -> str:
         raise ModelDefinitionError(f"reduce_testbed: cannot map port '{port}' of sub-model 1 to one superelement "
                                    f"port (candidates {sorted(hits)})")
     return f"sm1.{hits.pop()}"
-
-
-def _modal_damping(s, option):
-    """The system damping option (modal ratios, Tables 4.1/4.2) applied to the reduced drive's own modes.
-
-    The reduced, MA-coupled mass and stiffness are not symmetric (module docstring), so the kernel's symmetric
-    modal damping does not apply; with ``K_c V = M_c V Λ`` (static coordinates condensed, right
-    eigenvectors) the damping ``C = M_c V diag(2 ζ_k ω_k) V^{-1}`` gives every mode exactly its ratio (Eq A.10-A.15
-    for a non-symmetric pair; for a symmetric one it is the kernel's ``M Φ diag(2ζω) Φ^T M``). It is attached
-    as a :class:`~components.structural_block.StructuralBlock` on the inertial coordinates, computed at the start
-    point like the full model's (its modes: the nut at its start position, the parts in their regime at rest).
-    Projecting the full model's modal damping instead (``Ψ^T C_model Ψ``) put up to 42 % on a 2.2 kHz mode:
-    ``C_model`` weights its highest modes by their frequency and the MD shapes ``Ψ x`` overlap them.
-    """
-    dae = flatten(s)
-    m = dae.mech
-    so = second_order(dae)
-    M, K = so.M.toarray(), so.K.toarray()
-    a = np.array(m.inertial, int)
-    st = np.array(m.static, int)
-    Mc, Kc = M[np.ix_(a, a)], K[np.ix_(a, a)]
-    if st.size:
-        Kss = K[np.ix_(st, st)]
-        X = np.linalg.solve(Kss, np.hstack([K[np.ix_(st, a)], M[np.ix_(st, a)]]))
-        Kc = Kc - K[np.ix_(a, st)] @ X[:, :a.size]
-        Mc = Mc - K[np.ix_(a, st)] @ X[:, a.size:]
-    lam, V = np.linalg.eig(np.linalg.solve(Mc, Kc))
-    if np.max(np.abs(lam.imag)) > 1e-6 * np.max(np.abs(lam)):
-        raise ModelDefinitionError("reduce_testbed: the reduced drive has complex undamped eigenvalues "
-                                   f"({np.max(np.abs(lam.imag)):.3g}); its modal damping is not defined")
-    order = np.argsort(lam.real)
-    lam, V = lam.real[order], V[:, order].real
-    rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
-    lam[rigid] = 0.0
-    zeta = option.modal_ratios(lam, V, Mc, None)
-    C = Mc @ V @ np.diag(2.0 * zeta * np.sqrt(lam)) @ np.linalg.inv(V)
-    ports, dofs, wiring = {}, [], []
-    for j in a:
-        port, pot = _port_of(s, dae, j)
-        key = port.replace(".", "_")
-        if key not in ports:
-            ports[key] = s.port_spec(port).kind.name
-            wiring.append((key, port))
-        dofs.append(f"{key}.{pot}")
-    s.add("damping", StructuralBlock(ports, dofs, C=C))
-    for k, port in wiring:
-        s.connect(f"damping.{k}", port)
-
-
-def _port_of(s, dae, j):
-    """A port of ``s`` whose potential is reduced coordinate ``j`` of ``dae`` (``(port, potential)``)."""
-    m = dae.mech
-    T = sp.csr_matrix(m.T)
-    for key, row in m.port_coordinates.items():
-        r = T.getrow(row)
-        if r.nnz == 1 and r.indices[0] == j and np.isclose(r.data[0], 1.0):
-            port, pot = key.rsplit(".", 1)
-            return port, pot
-    raise ModelDefinitionError(f"reduce_testbed: no port carries coordinate '{m.coordinate_names[j]}'")
 
 
 def testbed_reduced(n_modes: int = 3, anchor="centre", interface: str = "free", **testbed_args) -> System:

@@ -133,14 +133,15 @@ def _position(value, named: dict) -> float:
     return float(value)
 
 
-#: Coordinate fields of the drive (axial and torsional motion): the rest is bending/radial.
-DRIVE_FIELDS = ("w", "tz", "phi", "s")
+#: Coordinate fields of bending/radial motion; every other coordinate (axial w, torsion tz, phi, s, and the
+#: generalized coordinates q of an axial + torsional CMS superelement) belongs to the drive.
+BENDING_FIELDS = ("u", "v", "tx", "ty")
 
 
 def drive_fraction(shapes, M, coordinates) -> np.ndarray:
-    """Share of each mode's kinetic energy ``phi^T M phi`` in the axial/torsional coordinates."""
+    """Share of each mode's kinetic energy ``phi^T M phi`` in the axial/torsional (non-bending) coordinates."""
 
-    drive = np.array([c.rsplit(".", 1)[-1] in DRIVE_FIELDS for c in coordinates], float)
+    drive = np.array([c.rsplit(".", 1)[-1] not in BENDING_FIELDS for c in coordinates], float)
     M = sp.csr_matrix(M)
     total = np.sum(shapes * (M @ shapes), axis=0)
     sd = shapes * drive[:, None]                                # (D phi)^T M (D phi), D the drive mask

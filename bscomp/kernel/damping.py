@@ -40,6 +40,7 @@ __all__ = [
     "rayleigh_coefficients",
     "damped_modal_properties",
     "matrix_from_ratios",
+    "nonsymmetric_damping",
     "ModalDamping",
     "RayleighDamping",
 ]
@@ -360,6 +361,40 @@ def matrix_from_ratios(option, M, K, coordinates=None) -> np.ndarray:
     return modal_damping_matrix(Md, Kd, z, n_rigid=int(rigid.sum()))
 
 
+def nonsymmetric_damping(option, M, K, coordinates=None) -> np.ndarray:
+    """A system damping option's matrix for a mass and stiffness that are not symmetric (a CMS superelement with
+    Modal-Acceleration recovery couples its loads and displacements through different matrices, Eq 5.14/5.18).
+
+    With ``K V = M V Λ`` (right eigenvectors, real eigenvalues) the damping ``C = M V diag(2 ζ_k ω_k) V^{-1}``
+    gives every mode exactly the option's ratio ``ζ_k`` (``modal_ratios``; rigid-body modes none): in the
+    coordinates ``η = V^{-1} q`` the equations decouple as ``η'' + 2 ζ ω η' + ω² η = 0``. For a symmetric pair
+    with mass-normalised modes ``V^{-1} = V^T M`` and this is Eq A.15, ``M Φ diag(2ζω) Φ^T M``. Rayleigh
+    damping is ``α M + β K`` as for any pair.
+
+    Raises
+    ------
+    ParameterError
+        Complex undamped eigenvalues (the pair has no real modes), or an option with neither ``modal_ratios``
+        nor Rayleigh coefficients.
+    """
+    Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M, float)
+    Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K, float)
+    if isinstance(option, RayleighDamping):
+        return option.alpha * Md + option.beta * Kd
+    if not hasattr(option, "modal_ratios"):
+        raise ParameterError(f"system damping {option!r} has no modal ratios to apply to a non-symmetric model")
+    lam, V = sla.eig(Kd, Md)
+    scale = max(float(np.max(np.abs(lam))), 1e-300)
+    if np.max(np.abs(lam.imag)) > 1e-6 * scale:
+        raise ParameterError("system damping: the non-symmetric mass and stiffness have complex undamped "
+                             f"eigenvalues ({np.max(np.abs(lam.imag)):.3g}); modal ratios are not defined")
+    order = np.argsort(lam.real)
+    lam, V = lam.real[order], V[:, order].real
+    lam = np.where(np.abs(lam) <= 1e-9 * scale, 0.0, lam)
+    zeta = np.asarray(option.modal_ratios(lam, V, Md, coordinates), float)
+    return Md @ (V * (2.0 * zeta * np.sqrt(np.clip(lam, 0.0, None)))) @ np.linalg.inv(V)
+
+
 class ModalDamping:
     """System-level option: modal damping ratios turned into ``C`` (Eq A.10-A.15) at flattening.
 
@@ -393,6 +428,19 @@ class ModalDamping:
         else:
             z = float(z[0])
         return modal_damping_matrix(M, K, z)
+
+    def modal_ratios(self, lam, phi, M, coordinates=None) -> np.ndarray:
+        """The ratio of each mode of ``K phi = M phi lam`` (ascending): the ratios of :meth:`matrix` (one for
+        every elastic mode, or one per elastic mode in ascending frequency), 0 for rigid-body modes."""
+        lam = np.asarray(lam, float)
+        rigid = np.abs(lam) <= 1e-9 * max(float(np.max(np.abs(lam))), 1e-300)
+        out = np.zeros(lam.size)
+        el = np.flatnonzero(~rigid)
+        z = self.zeta
+        out[el] = z[-1] if z.size > 1 else float(z[0])
+        if z.size > 1:
+            out[el[:min(z.size, el.size)]] = z[:el.size]
+        return out
 
     def __repr__(self):
         return f"ModalDamping({self.zeta.tolist()})"

@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from bscomp.errors import SingularSystemError
+from bscomp.kernel.damping import nonsymmetric_damping
 from bscomp.kernel.mechanics import start_matrices
 
 __all__ = ["system_damping_matrix", "apply_system_damping"]
@@ -25,10 +26,50 @@ def system_damping_matrix(damping, M, K, coordinates) -> np.ndarray:
 
     Options with ``needs_coordinates = True`` assign their ratios by mode character and are given the
     coordinate names; the others only see M and K.
+
+    Coordinates without inertia (zero columns of ``M``: a massless node, the MA-recovered ports of a CMS
+    superelement) are condensed statically first, row by row (their rows may carry inertia loads):
+    ``M_c = M_mm - K_m0 K_00^{-1} M_0m``, ``K_c = K_mm - K_m0 K_00^{-1} K_0m``; the damping acts on the coordinates
+    with inertia. A condensed pair that is not symmetric (MA coupling, Eq 5.14/5.18) gets the option's ratios
+    through left and right eigenvectors (:func:`bscomp.kernel.damping.nonsymmetric_damping`).
     """
+    Ms, Ks = sp.csr_matrix(M), sp.csr_matrix(K)
+    col = np.asarray(abs(Ms).sum(axis=0)).ravel()
+    massless = np.flatnonzero(col <= 1e-14 * max(col.max(initial=0.0), 1e-300))
+    if not massless.size and not _asymmetric(Ms) and not _asymmetric(Ks):
+        return _option_matrix(damping, M, K, coordinates)
+    massive = np.setdiff1d(np.arange(Ms.shape[0]), massless)
+    Md, Kd = Ms.toarray(), Ks.toarray()
+    Mc, Kc = Md[np.ix_(massive, massive)], Kd[np.ix_(massive, massive)]
+    if massless.size:
+        try:
+            X = np.linalg.solve(Kd[np.ix_(massless, massless)],
+                                np.hstack([Kd[np.ix_(massless, massive)], Md[np.ix_(massless, massive)]]))
+        except np.linalg.LinAlgError as exc:
+            names = [coordinates[i] for i in massless][:10]
+            raise SingularSystemError(f"system damping: coordinates without inertia {names} are not held by any "
+                                      "stiffness") from exc
+        Km0 = Kd[np.ix_(massive, massless)]
+        Kc, Mc = Kc - Km0 @ X[:, :massive.size], Mc - Km0 @ X[:, massive.size:]
+    names = [coordinates[i] for i in massive]
+    if _asymmetric(sp.csr_matrix(Mc)) or _asymmetric(sp.csr_matrix(Kc)):
+        Cc = nonsymmetric_damping(damping, Mc, Kc, names)
+    else:
+        Cc = np.asarray(sp.csr_matrix(_option_matrix(damping, 0.5 * (Mc + Mc.T), 0.5 * (Kc + Kc.T), names)).toarray())
+    C = np.zeros(Md.shape)
+    C[np.ix_(massive, massive)] = Cc
+    return C
+
+
+def _option_matrix(damping, M, K, coordinates):
     if getattr(damping, "needs_coordinates", False):
         return damping.matrix(M, K, coordinates=list(coordinates))
     return damping.matrix(M, K)
+
+
+def _asymmetric(A) -> bool:
+    scale = abs(A).max() if A.nnz else 0.0
+    return bool(scale > 0 and abs(A - A.T).max() > 1e-9 * scale)
 
 
 def apply_system_damping(dae, damping):
@@ -41,15 +82,17 @@ def apply_system_damping(dae, damping):
     Raises
     ------
     SingularSystemError
-        If a reduced coordinate has no inertia (the modes need a non-singular M).
+        If a coordinate that is a state has damping but no inertia (the modes need a non-singular M), or
+        coordinates without inertia are not held by a stiffness.
     NotLinearError
         If the Dae has internal differential states.
     """
     m = dae.mech
-    if m.static or m.damped:
-        names = [m.coordinate_names[j] for j in m.static + m.damped]
+    if m.damped:
+        names = [m.coordinate_names[j] for j in m.damped]
         raise SingularSystemError(f"system damping {damping!r} needs inertia on every coordinate of "
-                                  f"'{dae.name}'; without inertia: {names[:10]} (add masses or drop the option)")
+                                  f"'{dae.name}' that is a state; damped but without inertia: {names[:10]} (add "
+                                  "masses or drop the option)")
     dae.check_index1()
     M, K = start_matrices(dae)
     Cadd = sp.csc_matrix(system_damping_matrix(damping, M, K, list(m.coordinate_names)))

@@ -1,5 +1,7 @@
 """System-level damping options (Eq A.10-A.15): modal ratios recovered, rigid-body mode undamped."""
 
+import math
+
 import numpy as np
 import pytest
 import scipy.linalg as sl
@@ -59,17 +61,24 @@ def test_bad_damping_values():
         RayleighDamping()
 
 
-def test_massless_coordinate_with_modal_damping_is_a_named_error():
+def test_massless_coordinate_is_condensed_for_modal_damping():
+    """A massless node between two springs (wall - k1 - node - k2 - m) is condensed statically before the modes
+    are taken: the one mode is sqrt(k1 k2 / (k1 + k2) / m) and gets exactly the option's ratio; the damping acts
+    on the coordinate with inertia only (was refused: 'needs inertia on every coordinate')."""
+    from bscomp.components import Fixed
+    from bscomp.linear import modes
+
     s = System("massless")
-    s.add("m", Mass(m=1.0))
-    s.add("k1", Spring(c=1.0))
-    s.add("k2", Spring(c=1.0))
+    s.add("wall", Fixed())
+    s.add("k1", Spring(c=3.0e4))
+    s.add("k2", Spring(c=6.0e4))
+    s.add("m", Mass(m=2.0))
     s.add("F", Force())
-    s.connect("F.flange", "m.flange_a")
-    s.connect("m.flange_b", "k1.flange_a")
+    s.connect("wall.flange", "k1.flange_a")
     s.connect("k1.flange_b", "k2.flange_a")
-    s.add("F2", Force())
-    s.connect("k2.flange_b", "F2.flange")
+    s.connect("k2.flange_b", "m.flange_a")
+    s.connect("F.flange", "m.flange_b")
     s.damping = ModalDamping(0.05)
-    with pytest.raises(bscomp.SingularSystemError, match="inertia on every coordinate"):
-        bscomp.flatten(s)
+    md = modes(bscomp.flatten(s))
+    assert md.omega[-1] == pytest.approx(math.sqrt(2.0e4 / 2.0), rel=1e-12)
+    assert md.damping[-1] == pytest.approx(0.05, rel=1e-9)
