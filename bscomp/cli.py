@@ -438,6 +438,35 @@ def one_line_warning(verb: str):
     return fmt
 
 
+def _run_json(args, verb: str) -> int:
+    """A command with ``--json``: its warnings go to stderr as one line each *and* into the printed JSON object
+    (``"warnings": [{"type", "message"}]``), so a script reading stdout sees them too."""
+    import contextlib
+    import io
+    import json
+    import warnings
+
+    buf = io.StringIO()
+    with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stdout(buf):
+        warnings.simplefilter("default")
+        code = args.func(args)
+    fmt = one_line_warning(verb)
+    for w in caught:
+        sys.stderr.write(fmt(w.message, w.category, w.filename, w.lineno))
+    text = buf.getvalue()
+    if caught:
+        try:
+            obj = json.loads(text)
+        except ValueError:
+            obj = None
+        if isinstance(obj, dict):
+            obj["warnings"] = [{"type": w.category.__name__, "message": " ".join(str(w.message).split())}
+                               for w in caught]
+            text = json.dumps(obj, indent=1) + "\n"
+    sys.stdout.write(text)
+    return code
+
+
 def main(argv=None) -> int:
     """Run one command; every failure is one line (or a JSON object with ``--json``), see the module doc."""
     import json
@@ -450,6 +479,8 @@ def main(argv=None) -> int:
     try:
         args = _parser().parse_args(argv)
         verb = args.cmd
+        if as_json and not debug:
+            return _run_json(args, verb)
         with warnings.catch_warnings():
             if not debug:
                 warnings.formatwarning = one_line_warning(verb)   # still a Python warning: filters see it
