@@ -292,7 +292,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
                      ranked=ranked, accepted=accepted, rounds=rounds, staircase=staircase, message=message,
                      skipped=skipped, user_errors=user_errs,
-                     noise=[list(map(float, s)) for s in sigmas],
+                     noise=[[np.asarray(b, float).tolist() if np.ndim(b) else float(b) for b in s] for s in sigmas],
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
                             "conditions": len(setup.systems)}, calibration=calibration)
 
