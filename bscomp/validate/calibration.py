@@ -8,9 +8,10 @@ first step of :func:`~bscomp.validate.diagnostics.diagnose`, which calls it.
 
 Method: the model at every measurement condition is evaluated by the shared engine
 (:class:`~bscomp.validate.evaluation.Evaluator`); each residual block (FRF log-magnitude and phase per pair,
-each time channel) is whitened by its noise floor estimated from the data alone
-(:func:`~bscomp.validate.evaluation.noise_levels`), so the normalised error :math:`\chi^2` is 1 where the
-model explains a block within noise. Bounded least squares in log space over
+each time channel) is whitened by its noise floor estimated from the data
+(:func:`~bscomp.validate.noise.noise_levels`: per frequency where an FRF states its coherence), so the
+normalised error :math:`\chi^2` is 1 where the model explains a block within noise. Bounded least squares
+in log space over
 
 .. math::
 

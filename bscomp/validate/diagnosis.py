@@ -53,6 +53,11 @@ class EffectFit:
         (:mod:`bscomp.validate.equivalence`): ``{name: {"D", "z", "dchi2", "shared", "n", "tell_apart"}}``.
     compared : dict
         The same test numbers for every other refined candidate of the round, with ``indistinguishable``.
+    own_share : float or None
+        Share of what it does that the parameters fitted with it cannot do
+        (:func:`~bscomp.validate.collinearity.own_share`; None where not judged).
+    trades_with : list
+        The parameters its most independent direction is most aligned with (``|cos| >= 0.5``).
     """
 
     candidate: object
@@ -73,6 +78,8 @@ class EffectFit:
     user_after: dict = field(default_factory=dict)
     equivalent: dict = field(default_factory=dict)
     compared: dict = field(default_factory=dict)
+    own_share: float | None = None
+    trades_with: list = field(default_factory=list)
     _start: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -97,7 +104,7 @@ class EffectFit:
                 "accepted": self.accepted, "verdict": self.verdict, "refined": self.refined, "round": self.round,
                 "evidence": self.evidence, "signature": self.candidate.signature,
                 "user_before": self.user_before, "user_after": self.user_after, "equivalent": self.equivalent,
-                "compared": self.compared}
+                "compared": self.compared, "own_share": self.own_share, "trades_with": self.trades_with}
 
     def equivalence_lines(self, indent: str = "     ", skip=()) -> list:
         """The candidates this one cannot be told apart from (but those in ``skip``), with the numbers and

@@ -3,8 +3,9 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
 :func:`diagnose` automates the guessing of thesis Sec 3.5.2.3-3.5.2.4 on the user's own drive and data:
 
 1. **Noise floors** of every residual block (FRF magnitude and phase per pair, time channels) from the
-   data alone (:func:`~bscomp.validate.evaluation.noise_levels`); residuals are whitened by them, so the
-   normalised error :math:`\chi^2` is 1 where the model explains a block within noise.
+   data (:func:`~bscomp.validate.noise.noise_levels`: per frequency where an FRF states its coherence);
+   residuals are whitened by them, so the normalised error :math:`\chi^2` is 1 where the model explains a
+   block within noise.
 2. **Re-calibrate** the parameters the drive declares uncertain (``system.validation.uncertain``, each
    with its spread: a wrong value is not a missing effect), bounded least squares in log space on the
    fitted part of the data (FRFs whole, the first half of each time series): the same fit as
@@ -19,10 +20,13 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    confirms on held-out data -- the second halves of the time series, which the fit did not see, lose at
    least ``min_heldout_drop`` of their excess (a linear effect fitted to FRFs must also explain the
    time series), (d) makes no dataset clearly worse (normalised error up more than 10 %) and no error
-   the user reads clearly worse (FRF magnitude or phase error of a pair, fit % of a channel), and (e)
-   does not sit at a bound of its prior (a stand-in for something else). The report says which of
-   these held. Candidates the data cannot tell apart (Vuong's test prefers neither, and they remove the
-   same error: :mod:`~bscomp.validate.equivalence`) are reported as **one group** with the one accepted
+   the user reads clearly worse (FRF magnitude or phase error of a pair, fit % of a channel), (e)
+   does not sit at a bound of its prior (a stand-in for something else), and (f) does something the
+   parameters already fitted cannot: at least 10 % of its action its own, variance inflation at most 10
+   (:mod:`~bscomp.validate.collinearity`; a motor inertia beside a re-calibrated table mass only
+   re-distributes the rigid-body inertia). The report says which of these held. Candidates the data
+   cannot tell apart (Vuong's test prefers neither, and they remove the same error:
+   :mod:`~bscomp.validate.equivalence`) are reported as **one group** with the one accepted
    (``EffectFit.equivalent``, with what to measure to separate them), not one picked by round-off.
    Repeat (greedy) up to ``max_effects``.
 
@@ -47,6 +51,7 @@ from threadpoolctl import threadpool_limits
 from bscomp.kernel.interface import NotApplicable
 from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
+from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
 from bscomp.validate.datasets import FrfData
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
 from bscomp.validate.equivalence import mark_equivalent
@@ -75,8 +80,9 @@ def _clearly_worse(before: dict, after: dict) -> list:
     return worse
 
 
-def _verdict(before, after, dbic, at_bound, worse, thresholds):
-    """(accepted?, words) for one candidate fit against the acceptance rules of the module docstring."""
+def _verdict(before, after, dbic, at_bound, worse, thresholds, tradeoff=(1.0, [])):
+    """(accepted?, words) for one candidate fit against the acceptance rules of the module docstring;
+    ``tradeoff``: (own share of its action, partners), :func:`~bscomp.validate.collinearity.own_share`."""
     bic_thr, min_drop, min_held, tol = thresholds
     why_not = []
     excess = max(before["error"] - 1.0, 1e-12)
@@ -97,6 +103,12 @@ def _verdict(before, after, dbic, at_bound, worse, thresholds):
             why_not.append(f"dataset {i + 1} worse ({b:.3g} -> {a:.3g})")
     if at_bound:
         why_not.append(f"{', '.join(at_bound)} at a bound of the prior (a stand-in for something else)")
+    share, partners = tradeoff
+    if share < MIN_OWN_SHARE:
+        with_ = ", ".join(p for p, _ in partners) or "the parameters already fitted"
+        why_not.append(f"trades off against {with_}: only {100 * share:.2g} % of what it does is its own (variance "
+                       f"inflation {1 / max(share, 1e-300):.3g} > {1 / MIN_OWN_SHARE:.3g}): a re-distribution, not a "
+                       "missing part")
     why_not += [f"{w} (clearly worse)" for w in worse]
     return (not why_not), "; ".join(why_not)
 
@@ -281,7 +293,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
             r.evidence = f"Signature: {r.candidate.signature}"
     for rr in rounds:
         for r in rr:
-            for attr in ("_after", "_problem", "_theta"):
+            for attr in ("_after", "_problem", "_theta", "_jac"):
                 r.__dict__.pop(attr, None)
     if accepted:
         message = f"{len(accepted)} missing effect(s) found: " + ", ".join(_titles(a) for a in accepted)
@@ -292,7 +304,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
                      ranked=ranked, accepted=accepted, rounds=rounds, staircase=staircase, message=message,
                      skipped=skipped, user_errors=user_errs,
-                     noise=[list(map(float, s)) for s in sigmas],
+                     noise=[[np.asarray(b, float).tolist() if np.ndim(b) else float(b) for b in s] for s in sigmas],
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
                             "conditions": len(setup.systems)}, calibration=calibration)
 
@@ -397,6 +409,7 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
                       round=rnd, per_dataset=(current["per_dataset"], after["per_dataset"]),
                       _start=vals_all)
         r._after, r._problem, r._theta = after, pr, th
+        r._jac = None if sl is None or getattr(sl, "jac", None) is None else np.asarray(sl.jac, float)
         results.append(r)
     # refined candidates by their predictive error: the mean of the fitted and the held-out error (a
     # candidate that only fits the fitted half, e.g. by absorbing noise or a smoothing detail, drops)
@@ -413,8 +426,14 @@ def _choose(results, current, datasets, thresholds):
             continue
         bound = r._problem.at_bound(r._theta, [f"{r.name}.{p.name}" for p in r.candidate.parameters])
         r.user_before, r.user_after = user_now, user_summary(r._after["outputs"], datasets)
+        tradeoff = (1.0, [])
+        if r.__dict__.get("_jac") is not None:
+            labels = [f.label for f in r._problem.free]
+            mine = [i for i, lbl in enumerate(labels) if lbl.startswith(r.name + ".")]
+            tradeoff = own_share(r._jac, mine, labels)
+            r.own_share, r.trades_with = tradeoff[0], [p for p, _ in tradeoff[1]]
         ok, why = _verdict(current, r._after, r.delta_bic, bound, _clearly_worse(user_now, r.user_after),
-                           thresholds)
+                           thresholds, tradeoff)
         r.verdict = "accepted" if ok else why
         r.evidence = _evidence(current, r._after, datasets, r.candidate)
         if ok:

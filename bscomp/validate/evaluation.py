@@ -6,13 +6,8 @@ structure and measurement condition: one flattening, then FRFs and time series p
 coordinates).
 
 Residuals are *whitened*: each block -- the log10-magnitude or the phase error of one FRF pair, one time
-channel -- is divided by that block's **noise level** :math:`\hat\sigma`, estimated from the data alone
-(robust second differences: a white error of variance :math:`\sigma^2` gives second differences of
-variance :math:`6\sigma^2`, whereas a smooth model-form error gives almost none; the median ignores the
-few samples at resonances and input steps)::
-
-    sigma = median(|y[k+1] - 2 y[k] + y[k-1]|) / 0.6745 / sqrt(6)
-
+channel -- is divided by that block's **noise level** :math:`\hat\sigma` (:mod:`bscomp.validate.noise`:
+estimated from the data's own scatter; per frequency from the stated coherence where an FRF states one),
 so magnitude and phase, accelerations and angles, weigh by what the measurement can resolve: the
 normalised error :math:`\chi^2` of a block is 1 at the noise floor. A model that explains the data
 has :math:`\chi^2 \approx 1` in every block.
@@ -31,55 +26,20 @@ from scipy.optimize import least_squares
 
 from bscomp.simulation.compiled import CompiledModel
 from bscomp.validate.datasets import FrfData, TimeData
+from bscomp.validate.noise import noise_levels
 from bscomp.validate.residuals import frf_errors
 
 __all__ = ["Evaluator", "Structures", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]
-
-_MAD = 0.6744897501960817
-
-
-def _robust_sigma(y, floor):
-    y = np.asarray(y, float)
-    if y.size < 5:
-        return floor
-    d2 = y[2:] - 2 * y[1:-1] + y[:-2]
-    s = float(np.median(np.abs(d2))) / _MAD / math.sqrt(6.0)
-    return max(s, floor)
-
-
-def noise_levels(data) -> list:
-    """Noise level of every residual block of a dataset, from the data alone (module docstring).
-
-    FRF: per pair ``[sigma(log10 |H|), sigma(phase)]``; time: per channel ``sigma(y)`` in its unit.
-    """
-    if isinstance(data, FrfData):
-        out = []
-        for h in data.H.values():
-            h = np.asarray(h, complex)
-            mag = np.log10(np.maximum(np.abs(h), 1e-300))
-            ph = np.unwrap(np.angle(h))
-            out += [_robust_sigma(mag, 1e-4), _robust_sigma(ph, 1e-4)]
-        return out
-    out = []
-    for y in data.outputs.values():
-        y = np.asarray(y, float)
-        rms = float(np.sqrt(np.mean(y * y))) if y.size else 1.0
-        # a quantised channel (encoder counts, an ADC) has at least the quantisation noise q / sqrt(12),
-        # which second differences of a slowly varying signal do not see (most of them are 0)
-        dy = np.abs(np.diff(y))
-        nz = dy[dy > 1e-12 * max(rms, 1e-300)]
-        q = float(np.percentile(nz, 5)) if nz.size > 10 else 0.0
-        out.append(_robust_sigma(y, max(1e-6 * max(rms, 1e-300), q / math.sqrt(12.0))))
-    return out
 
 
 def residual_blocks(model_out, data, sigmas):
     """Whitened residual blocks (measured minus model) of one dataset."""
     if isinstance(data, FrfData):
         blocks = []
-        for (e_mag, e_ph, w), (s_m, s_p) in zip(frf_errors(model_out, data).values(),
-                                                zip(sigmas[0::2], sigmas[1::2])):
-            blocks += [w * e_mag / s_m, w * e_ph / s_p]
+        # the noise levels carry the coherence (per frequency, where it was stated): no weight on top
+        for (e_mag, e_ph, _w), (s_m, s_p) in zip(frf_errors(model_out, data).values(),
+                                                 zip(sigmas[0::2], sigmas[1::2])):
+            blocks += [e_mag / s_m, e_ph / s_p]
         return blocks
     out = []
     for (n, y), s in zip(data.outputs.items(), sigmas):

@@ -11,8 +11,9 @@ chosen values and (b) slightly mis-set nominal parameters. From it:
   Nonlinear effects (friction, backlash) are not in the FRF (large-amplitude excitation).
 * **Time data** -- a square-wave voltage (thesis Sec 5.3.1: 4.25 V peak-to-peak, 5 Hz) applied
   open loop through the current amplifier; the truth is integrated by IDAS (rtol 1e-9) on a grid of
-  8 sub-steps per sample (the fit uses another engine, :class:`bscomp.simulation.compiled.CompiledModel`),
-  a hidden delay as an exact shift of the input on that fine grid. Sensors: motor encoder 10 000 counts/rev, tachometer
+  8 sub-steps per sample (more where a hidden delay must be a whole number of them; the fit uses another
+  engine, :class:`bscomp.simulation.compiled.CompiledModel`), a hidden delay as an exact shift of the input on
+  that fine grid. Sensors: motor encoder 10 000 counts/rev, tachometer
   noise, linear encoder 1 um, accelerometer noise and 16-bit quantisation over +-50 m/s^2.
 
 The nominal drive is an argument (a System, or anything :func:`bscomp.model.as_system` resolves; by
@@ -23,10 +24,12 @@ CSV files (:mod:`bscomp.validate.writers`) and a README naming the hidden effect
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
 
+from bscomp.errors import UsageError
 from bscomp.files import atomic_write
 from bscomp.linear.response import frf as model_frf
 from bscomp.model import as_system
@@ -105,6 +108,20 @@ def square_wave(t, amplitude=2.125, frequency=5.0):
     return np.round(u / q) * q
 
 
+def _substeps(delay: float, dt: float, least: int = 8) -> int:
+    """Integration sub-steps per sample: at least ``least``, and a whole number of them in ``delay``, so the
+    delayed input is exact on the fine grid (with 8 sub-steps of 0.5 ms a 0.4 ms delay would round to
+    0.375 ms in the time series while the FRF has 0.4 ms: a truth inconsistent with itself)."""
+    if delay <= 0:
+        return least
+    frac = Fraction(delay / dt).limit_denominator(64)
+    if abs(float(frac) * dt - delay) > 1e-9 * delay:
+        raise UsageError(f"hidden delay {delay:g} s is not a rational multiple p/q (q <= 64) of the sample "
+                         f"interval {dt:g} s: the time series could not apply it exactly")
+    q = frac.denominator
+    return q * -(-least // q)
+
+
 def generate(hidden: dict | None = None, misset: dict | None = None, seed: int = 0, nominal="validation_drive",
              freqs=None, n_avg: int = 20, eps: float = 3e-3, duration: float = 0.2, dt: float = 5e-4,
              amplitude: float = 2.125, frequency: float = 5.0, noise: dict | None = None) -> SyntheticData:
@@ -157,7 +174,7 @@ def generate(hidden: dict | None = None, misset: dict | None = None, seed: int =
                   source=f"synthetic FRF (bscomp.validate.synthetic, seed {seed})")
 
     # ---- time series ----
-    sub = 8
+    sub = _substeps(delay, dt)
     t = np.arange(int(round(duration / dt)) + 1) * dt
     u = square_wave(t, amplitude, frequency)
     uf = np.repeat(u[:-1], sub)

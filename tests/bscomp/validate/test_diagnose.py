@@ -1,12 +1,18 @@
 """diagnose() on synthetic data with a hidden effect (the acceptance of issue 8, item 6).
 
 The generator builds truth = validation_drive + hidden effect + mis-set table mass and coupling
-stiffness, and hands only the data and the nominal system to diagnose(). For each hidden effect: its group
-(the candidates the data cannot tell apart from it, :mod:`bscomp.validate.equivalence`) ranks first and is
-accepted, its fitted parameter is within 15 % of the truth and the error (after re-calibration) falls by
->= 80 % (>= 50 % for backlash). On the 3 coordinates of validation_drive a joint at the nut and a housing
-at the screw support are one series spring: the joint case's group is exactly those two, whichever of them
-round-off puts first. A no-effect control claims nothing; a two-effect case finds both.
+stiffness, and hands only the data and the nominal system to diagnose(). For each hidden effect: it ranks
+first, alone (no other candidate fits the data as well: Vuong's z against the runner-up is significant),
+and is accepted; its fitted parameter is within 2 % of the truth; the error (after re-calibration) falls
+by >= 80 % (>= 50 % for backlash) to the noise floor (every dataset within 1 + noise_tolerance), and
+nothing is accepted on top. A no-effect control is explained within its noise floor by re-calibration
+alone; a two-effect case finds both.
+
+The truths are built from the candidates themselves, so the right candidate at the right values must
+fit to the noise floor: on the joint case the exact truth model scores chi^2 0.85 (FRF) / 0.96 (time
+series), tests/bscomp/validate/test_noise.py. With one noise level per FRF block (before the coherence
+entered the noise model) it scored 41.6 on the FRF, every case ended at 21 to 25, and the joint and a
+bearing housing looked alike (Vuong z 0.29): the anti-resonances' noise drowned what tells them apart.
 Each case runs diagnose once (module fixture) and several tests read the result.
 """
 
@@ -24,8 +30,7 @@ CASES = {
     "delay": ({"amplifier_delay": {}}, "amplifier_delay", "T", 0.80),
 }
 
-#: the group named first, where it is more than the hidden effect alone (the same series spring)
-GROUPS = {"joint": {"nut_table_joint", "bearing_housing"}}
+NOISE_TOLERANCE = 0.5           # diagnose's default: "within noise" is chi^2 < 1 + 0.5 in every dataset
 
 _cache = {}
 
@@ -46,28 +51,22 @@ def _recalibrated_error(diag: Diagnosis) -> float:
 def test_hidden_effect_is_found(case):
     hidden, name, pname, min_drop = CASES[case]
     _, diag = run_case(case, hidden)
-    # its group ranks first in round 1 and is the first accepted effect; the group is exactly the candidates
-    # it is the same effect as on this model, or the hidden effect with at most mates of its own kind
-    # (Coulomb ~ Stribeck at the guideway: one place, one exclusive candidate group)
-    kind = {r.name: r.candidate.group for r in diag.ranked}
+    # it ranks first in round 1, alone, and is the accepted effect
     for r in (diag.ranked[0], diag.accepted[0] if diag.accepted else None):
-        assert r is not None and name in r.group_names, diag.table()
-        if case in GROUPS:
-            assert set(r.group_names) == GROUPS[case], diag.table()
-        else:
-            assert {kind[n] for n in r.group_names} == {kind[name]}, diag.table()
-    if case in GROUPS:                                          # both ways, whichever round-off puts first
-        assert all(set(r.group_names) == GROUPS[case] for r in diag.ranked[:len(GROUPS[case])]), diag.table()
-    # the hidden effect's fitted parameter within 15 % of the truth (polished if it is the one accepted)
-    fit = diag.accepted[0] if diag.accepted[0].name == name else next(r for r in diag.ranked if r.name == name)
-    fitted = fit.values[pname]
+        assert r is not None and r.group_names == (name,), diag.table()
+    # the runner-up is told apart: the data prefer the hidden effect (Vuong z > 1.96)
+    runner = next(r for r in diag.ranked[1:] if r.refined)
+    assert diag.ranked[0].compared[runner.name]["z"] > 1.96, diag.table()
+    # the hidden effect's fitted parameter within 2 % of the truth (the truth is the candidate itself)
+    fit = diag.accepted[0]
     truth = TRUTH_VALUES[name][pname]
-    assert abs(fitted / truth - 1) < 0.15, (fitted, truth, diag.table())
+    assert abs(fit.values[pname] / truth - 1) < 0.02, (fit.values, truth, diag.table())
     # an uncertainty is reported and is finite
     assert np.isfinite(fit.std[pname]) and fit.std[pname] > 0
-    # error falls by the required fraction relative to the re-calibrated model
+    # error falls by the required fraction relative to the re-calibrated model, to the noise floor
     final = diag.staircase[-1][1]
     assert 1 - final / _recalibrated_error(diag) >= min_drop, diag.table()
+    assert final < 1 + NOISE_TOLERANCE, diag.table()
     # nothing spurious on top
     assert len(diag.accepted) == 1, diag.table()
 
@@ -76,27 +75,26 @@ def test_hidden_effect_is_found(case):
 def test_no_effect_control_claims_nothing():
     _, diag = run_case("none", {})
     assert not diag.accepted, diag.table()
-    assert "no missing effect found" in diag.message
+    # explained within the noise floor by re-calibration alone (not: no candidate removed enough)
+    assert diag.message == "no missing effect found: the model explains every dataset within its noise floor"
+    assert _recalibrated_error(diag) < 1 + NOISE_TOLERANCE, diag.table()
     # the mis-set parameters are recovered by re-calibration alone
-    assert abs(diag.recalibrated["table.m"][0] / (250.0 * 1.06) - 1) < 0.05
-    assert abs(diag.recalibrated["coupling.c"][0] / (3938.0 * 0.93) - 1) < 0.05
+    assert abs(diag.recalibrated["table.m"][0] / (250.0 * 1.06) - 1) < 0.01
+    assert abs(diag.recalibrated["coupling.c"][0] / (3938.0 * 0.93) - 1) < 0.01
 
 
 @pytest.mark.slow
 def test_two_effects_found_one_after_another():
     _, diag = run_case("two", {"nut_table_joint": {}, "guideway_friction": {}})
-    names = {a.name for a in diag.accepted}
-    # on the 3-coordinate lumped drive a joint in series at the nut and a housing spring in series at the
-    # screw's support (with a housing mass small against the 1.49 kg nut) are the same series compliance
-    series = {"nut_table_joint", "bearing_housing"}
-    assert len(names) == 2 and "guideway_friction" in names and names & series, diag.table()
+    assert {a.name for a in diag.accepted} == {"nut_table_joint", "guideway_friction"}, diag.table()
+    assert all(a.group_names == (a.name,) for a in diag.accepted), diag.table()
     errs = [e for _, e in diag.staircase]
     assert all(b < a for a, b in zip(errs[1:], errs[2:])), diag.staircase  # a staircase down
-    joint = next(a for a in diag.accepted if a.name in series)
-    assert set(joint.group_names) == series, diag.table()      # reported as one group, not one by round-off
+    assert errs[-1] < 1 + NOISE_TOLERANCE, diag.table()
+    joint = next(a for a in diag.accepted if a.name == "nut_table_joint")
     fric = next(a for a in diag.accepted if a.name == "guideway_friction")
-    assert abs(joint.values["k"] / TRUTH_VALUES["nut_table_joint"]["k"] - 1) < 0.15
-    assert abs(fric.values["F_c"] / TRUTH_VALUES["guideway_friction"]["F_c"] - 1) < 0.15
+    assert abs(joint.values["k"] / TRUTH_VALUES["nut_table_joint"]["k"] - 1) < 0.02
+    assert abs(fric.values["F_c"] / TRUTH_VALUES["guideway_friction"]["F_c"] - 1) < 0.02
 
 
 @pytest.mark.slow
@@ -123,31 +121,32 @@ def test_diagnosis_apply_code_json_plot(tmp_path):
 
 
 @pytest.mark.slow
-def test_joint_group_is_reported_with_what_to_measure():
-    """The joint case's report says the two are one group, why (the test numbers), and which sensor would
-    tell them apart; the JSON carries the same."""
+def test_joint_is_told_apart_from_a_bearing_housing():
+    """On 3 coordinates a housing spring (with its mass) at the screw support is the nearest stand-in for the
+    nut-table joint: both remove the same error (shared improvement ~1), but the joint fits to the noise
+    floor and the housing does not (it has no damper; its mass is not the joint's damping): Vuong's z is
+    significant and the two are not grouped; the JSON keeps the numbers."""
     import json
 
     _, diag = run_case("joint", CASES["joint"][0])
-    first, other = diag.accepted[0].name, ({"nut_table_joint", "bearing_housing"} - {diag.accepted[0].name}).pop()
-    st = diag.accepted[0].equivalent[other]
-    assert st["shared"] > 0.99 and abs(st["z"]) < 1.96 and st["n"] > 1000        # same error, neither better
-    text = diag.table()
-    assert f"{first} ~ {other}: indistinguishable on this model and data" in text
-    assert "nut.flange_b - table.flange_a" in text and "lead.flange_b - axial.flange_a" in text
-    assert f"(~ {other}: indistinguishable on this model" in diag.message
+    first, housing = diag.ranked[0], next(r for r in diag.ranked if r.name == "bearing_housing")
+    assert first.name == "nut_table_joint" and housing.refined, diag.table()
+    st = first.compared["bearing_housing"]
+    assert st["shared"] > 0.99 and st["z"] > 1.96 and not st["indistinguishable"], st
+    assert housing.error_after > first.error_after + 0.1, diag.table()
+    assert "indistinguishable" not in diag.table() and "~" not in diag.message
     d = json.loads(diag.to_json())
-    assert d["accepted"][0]["equivalent"][other]["tell_apart"] == st["tell_apart"]
+    assert d["ranked"][0]["compared"]["bearing_housing"]["z"] == pytest.approx(st["z"])
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("eps, seed", [(1e-12, 3), (1e-11, 4), (1e-11, 5)])
 def test_joint_case_does_not_turn_on_round_off(monkeypatch, eps, seed):
-    """Last round's knife edge: the compiled time series' modal basis changed by ~1e-13 and the joint case
+    """An earlier knife edge: the compiled time series' modal basis changed by ~1e-13 and the joint case
     named bearing_housing first. Here the basis is perturbed on purpose (T -> T (I + eps R), the block form
-    recomputed: outputs off by ~eps); without the refinement's restart these three named bearing_housing
-    first (nut_table_joint stalled with d on its 1 N s/m bound: error 28.5 or 21.14 against 21.00). The
-    diagnosis must not change: same group, same accepted effect, same fit."""
+    recomputed: outputs off by ~eps); with one noise level per FRF block and without the refinement's
+    restart these three named bearing_housing first (nut_table_joint stalled with d on its 1 N s/m bound).
+    The diagnosis must not change: same effect named first and accepted, same fit."""
     from bscomp.simulation import compiled_time
 
     real = compiled_time.real_modal_form
@@ -164,7 +163,7 @@ def test_joint_case_does_not_turn_on_round_off(monkeypatch, eps, seed):
     data, ref = run_case("joint", CASES["joint"][0])
     monkeypatch.setattr(compiled_time, "real_modal_form", perturbed)
     diag = diagnose(validation_drive(), data.datasets, max_effects=1)
-    assert set(diag.ranked[0].group_names) == GROUPS["joint"] and diag.accepted, diag.table()
+    assert diag.ranked[0].group_names == ("nut_table_joint",) and diag.accepted, diag.table()
     assert diag.accepted[0].name == ref.accepted[0].name, diag.table()
     for r in diag.ranked[:2]:
         r0 = next(q for q in ref.ranked if q.name == r.name)
