@@ -448,11 +448,11 @@ def _run_json(args, verb: str) -> int:
 
     buf = io.StringIO()
     with warnings.catch_warnings(record=True) as caught, contextlib.redirect_stdout(buf):
-        warnings.simplefilter("default")
         code = args.func(args)
-    fmt = one_line_warning(verb)
-    for w in caught:
-        sys.stderr.write(fmt(w.message, w.category, w.filename, w.lineno))
+    with warnings.catch_warnings():           # re-issued: still Python warnings that filters and recorders see
+        warnings.formatwarning = one_line_warning(verb)
+        for w in caught:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     text = buf.getvalue()
     if caught:
         try:
