@@ -33,6 +33,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.errors import ParameterError
+from bscomp.kernel.condensation import SYM_RTOL as _SYM_RTOL
+from bscomp.kernel.condensation import real_general_eig
 
 __all__ = [
     "modal_damping_matrix",
@@ -44,8 +46,6 @@ __all__ = [
     "ModalDamping",
     "RayleighDamping",
 ]
-
-_SYM_RTOL = 1e-9
 
 
 def as_dense_symmetric(A: Any, name: str, n: int | None = None) -> np.ndarray:
@@ -383,14 +383,7 @@ def nonsymmetric_damping(option, M, K, coordinates=None) -> np.ndarray:
         return option.alpha * Md + option.beta * Kd
     if not hasattr(option, "modal_ratios"):
         raise ParameterError(f"system damping {option!r} has no modal ratios to apply to a non-symmetric model")
-    lam, V = sla.eig(Kd, Md)
-    scale = max(float(np.max(np.abs(lam))), 1e-300)
-    if np.max(np.abs(lam.imag)) > 1e-6 * scale:
-        raise ParameterError("system damping: the non-symmetric mass and stiffness have complex undamped "
-                             f"eigenvalues ({np.max(np.abs(lam.imag)):.3g}); modal ratios are not defined")
-    order = np.argsort(lam.real)
-    lam, V = lam.real[order], V[:, order].real
-    lam = np.where(np.abs(lam) <= 1e-9 * scale, 0.0, lam)
+    lam, V, _ = real_general_eig(Kd, Md, 1e-9, error=ParameterError, what="system damping")
     zeta = np.asarray(option.modal_ratios(lam, V, Md, coordinates), float)
     return Md @ (V * (2.0 * zeta * np.sqrt(np.clip(lam, 0.0, None)))) @ np.linalg.inv(V)
 

@@ -15,6 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from bscomp.errors import SingularSystemError
+from bscomp.kernel.condensation import condense_massless, is_asymmetric, massless_split
 from bscomp.kernel.damping import nonsymmetric_damping
 from bscomp.kernel.mechanics import start_matrices
 
@@ -33,26 +34,16 @@ def system_damping_matrix(damping, M, K, coordinates) -> np.ndarray:
     with inertia. A condensed pair that is not symmetric (MA coupling, Eq 5.14/5.18) gets the option's ratios
     through left and right eigenvectors (:func:`bscomp.kernel.damping.nonsymmetric_damping`).
     """
-    Ms, Ks = sp.csr_matrix(M), sp.csr_matrix(K)
-    col = np.asarray(abs(Ms).sum(axis=0)).ravel()
-    massless = np.flatnonzero(col <= 1e-14 * max(col.max(initial=0.0), 1e-300))
-    if not massless.size and not _asymmetric(Ms) and not _asymmetric(Ks):
+    massless, massive = massless_split(M)
+    if not massless.size and not is_asymmetric(M) and not is_asymmetric(K):
         return _option_matrix(damping, M, K, coordinates)
-    massive = np.setdiff1d(np.arange(Ms.shape[0]), massless)
-    Md, Kd = Ms.toarray(), Ks.toarray()
+    Md = M.toarray() if sp.issparse(M) else np.asarray(M, float)
+    Kd = K.toarray() if sp.issparse(K) else np.asarray(K, float)
     Mc, Kc = Md[np.ix_(massive, massive)], Kd[np.ix_(massive, massive)]
     if massless.size:
-        try:
-            X = np.linalg.solve(Kd[np.ix_(massless, massless)],
-                                np.hstack([Kd[np.ix_(massless, massive)], Md[np.ix_(massless, massive)]]))
-        except np.linalg.LinAlgError as exc:
-            names = [coordinates[i] for i in massless][:10]
-            raise SingularSystemError(f"system damping: coordinates without inertia {names} are not held by any "
-                                      "stiffness") from exc
-        Km0 = Kd[np.ix_(massive, massless)]
-        Kc, Mc = Kc - Km0 @ X[:, :massive.size], Mc - Km0 @ X[:, massive.size:]
+        Mc, Kc, *_ = condense_massless(Md, Kd, massless, massive, coordinates, "system damping")
     names = [coordinates[i] for i in massive]
-    if _asymmetric(sp.csr_matrix(Mc)) or _asymmetric(sp.csr_matrix(Kc)):
+    if is_asymmetric(Mc) or is_asymmetric(Kc):
         Cc = nonsymmetric_damping(damping, Mc, Kc, names)
     else:
         Cc = np.asarray(sp.csr_matrix(_option_matrix(damping, 0.5 * (Mc + Mc.T), 0.5 * (Kc + Kc.T), names)).toarray())
@@ -65,11 +56,6 @@ def _option_matrix(damping, M, K, coordinates):
     if getattr(damping, "needs_coordinates", False):
         return damping.matrix(M, K, coordinates=list(coordinates))
     return damping.matrix(M, K)
-
-
-def _asymmetric(A) -> bool:
-    scale = abs(A).max() if A.nnz else 0.0
-    return bool(scale > 0 and abs(A - A.T).max() > 1e-9 * scale)
 
 
 def apply_system_damping(dae, damping):
