@@ -26,6 +26,7 @@ import scipy.sparse.linalg as spla
 from bscomp.errors import SingularSystemError, UnknownNameError, UsageError, check_number
 from bscomp.files import atomic_write
 from bscomp.kernel import Dae, System
+from bscomp.kernel.condensation import condense_massless, is_asymmetric, massless_split, real_general_eig
 from bscomp.linear.frf_engine import dense
 from bscomp.linear.linearization import SecondOrderModel, second_order, warn_linearized
 from bscomp.model import as_system
@@ -81,11 +82,8 @@ def _condense(so) -> _Reduced:
     M, C, K = (sp.csr_matrix(m) for m in (so.M, so.C, so.K))
     B, Cq, Cv, Ca, D = (dense(m, float) for m in (so.B, so.Cq, so.Cv, so.Ca, so.D))
     n = M.shape[0]
-    col = np.asarray(abs(M).sum(axis=0)).ravel()
-    scale = col.max() if n else 0.0
-    massless = np.flatnonzero(col <= 1e-14 * scale) if scale > 0 else np.arange(n)
-    massive = np.setdiff1d(np.arange(n), massless)
-    if _asymmetric(M, scale) or _asymmetric(K, abs(K).max() if K.nnz else 0.0):
+    massless, massive = massless_split(M)
+    if is_asymmetric(M) or is_asymmetric(K):
         return _condense_general(so, M, C, K, B, Cq, Cv, Ca, D, massless, massive)
     notes = []
     if massive.size == 0:
@@ -118,10 +116,6 @@ def _condense(so) -> _Reduced:
                     Ca=np.asarray(Ca @ T), D=D + Cq @ tu, T=T, massive=massive, notes=notes)
 
 
-def _asymmetric(A, scale) -> bool:
-    return bool(scale > 0 and A.nnz and abs(A - A.T).max() > 1e-9 * scale)
-
-
 def _condense_general(so, M, C, K, B, Cq, Cv, Ca, D, massless, massive) -> _Reduced:
     """Row-wise static condensation of a non-symmetric model: the massless rows give
     ``q_0 = -X q_m - Y q_m'' - Z q_m' + t u`` (``X, Y, Z, t = K_00^{-1} (K_0m, M_0m, C_0m - C_00 X, B_0)``), and the
@@ -133,16 +127,11 @@ def _condense_general(so, M, C, K, B, Cq, Cv, Ca, D, massless, massive) -> _Redu
              "general eigenproblem, with left and right eigenvectors (W^T M V = I)"]
     Md, Cd, Kd = M.toarray(), C.toarray(), K.toarray()
     if ml.size:
-        try:
-            lu = sla.lu_factor(Kd[np.ix_(ml, ml)], check_finite=False)
-        except (np.linalg.LinAlgError, ValueError) as exc:
-            raise SingularSystemError(f"massless coordinates {[so.coordinates[i] for i in ml][:10]} are not held by "
-                                      "any stiffness (a mechanism without mass): add a mass or a spring") from exc
-        X = sla.lu_solve(lu, Kd[np.ix_(ml, ma)])
-        Y = sla.lu_solve(lu, Md[np.ix_(ml, ma)])
+        Mc, Kc, lu, X, Y = condense_massless(Md, Kd, ml, ma, so.coordinates, "modes")
         Z = sla.lu_solve(lu, Cd[np.ix_(ml, ma)] - Cd[np.ix_(ml, ml)] @ X)
         t = sla.lu_solve(lu, B[ml]) if B.size else np.zeros((ml.size, B.shape[1]))
     else:
+        Mc, Kc = Md, Kd
         X = Y = Z = np.zeros((0, ma.size))
         t = np.zeros((0, B.shape[1]))
     Km0 = Kd[np.ix_(ma, ml)]
@@ -152,9 +141,9 @@ def _condense_general(so, M, C, K, B, Cq, Cv, Ca, D, massless, massive) -> _Redu
     T[ml], Ta[ml], Tv[ml] = -X, -Y, -Z
     tu = np.zeros((n, B.shape[1]))
     tu[ml] = t
-    return _Reduced(M=sp.csr_matrix(Md[np.ix_(ma, ma)] - Km0 @ Y),
+    return _Reduced(M=sp.csr_matrix(Mc),
                     C=sp.csr_matrix(Cd[np.ix_(ma, ma)] - Cd[np.ix_(ma, ml)] @ X - Km0 @ Z),
-                    K=sp.csr_matrix(Kd[np.ix_(ma, ma)] - Km0 @ X), B=np.asarray(B[ma] - Km0 @ t),
+                    K=sp.csr_matrix(Kc), B=np.asarray(B[ma] - Km0 @ t),
                     Cq=np.asarray(Cq @ T), Cv=np.asarray(Cv @ T + Cq @ Tv), Ca=np.asarray(Ca @ T + Cq @ Ta),
                     D=D + Cq @ tu, T=sp.csr_matrix(T), massive=ma, notes=notes, symmetric=False, Ta=Ta)
 
@@ -163,20 +152,7 @@ def _undamped_general(red: _Reduced, n=None, fmax=None):
     """``K V = M V Λ`` of a non-symmetric pair: right eigenvectors ``V`` (``v^T M_s v = 1``, ``M_s`` the symmetric
     part) and left ones ``W = (V^{-1} M^{-1})^T`` (``W^T M V = I``, ``W^T K V = Λ``)."""
     Md, Kd = red.M.toarray(), red.K.toarray()
-    try:
-        lam, V = sla.eig(Kd, Md, check_finite=False)
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise SingularSystemError("the general eigenproblem K v = w^2 M v failed (singular M?)") from exc
-    if not np.all(np.isfinite(lam)):
-        raise SingularSystemError("the mass matrix is singular after condensing the massless coordinates")
-    scale = max(float(np.max(np.abs(lam))), 1e-300)
-    if np.max(np.abs(lam.imag)) > 1e-6 * scale:
-        raise SingularSystemError("the non-symmetric model has complex undamped eigenvalues (a flutter-like "
-                                  "coupling): its modes are not real; use frf() or the first-order linearize()")
-    order = np.argsort(lam.real)
-    lam, V = lam.real[order], V[:, order].real
-    rigid = lam <= 1e-8 * scale
-    lam = np.where(rigid, 0.0, lam)
+    lam, V, rigid = real_general_eig(Kd, Md, rigid_rtol=1e-8, what="modes")
     if np.any(lam < 0):
         raise SingularSystemError("negative eigenvalue of K v = w^2 M v (an unstable operating point?)")
     Ms = 0.5 * (Md + Md.T)
@@ -226,7 +202,7 @@ def _undamped(red: _Reduced, n=None, fmax=None, dense_limit=DENSE_LIMIT):
             k = min(N - 2, 2 * k)
         method = "sparse eigsh (shift-invert)"
         phi = phi / np.sqrt(np.einsum("ik,ik->k", phi, red.M @ phi))
-    rigid = lam <= 1e-8 * scale
+    rigid = np.abs(lam) <= 1e-8 * scale                     # round-off either side of 0; a large negative one is not
     lam = np.where(rigid, 0.0, lam)
     if np.any(lam < 0):
         raise SingularSystemError("negative eigenvalue of K phi = omega^2 M phi: the stiffness matrix is not "

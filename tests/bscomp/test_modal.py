@@ -196,3 +196,18 @@ def test_non_symmetric_model_left_and_right_modes():
         Hm = sum(md.residues[k][:, 0] / (md.omega[k]**2 + 2j * md.damping[k] * md.omega[k] * w - w**2)
                  for k in range(2))
         assert Hm == pytest.approx(H, rel=1e-9)
+
+
+@pytest.mark.parametrize("K", [np.diag([1.0e4, -2.0e4]), np.array([[2.0, -1.0], [-0.5, -1.0]])],
+                         ids=["symmetric", "non-symmetric"])
+def test_negative_stiffness_is_an_error_not_a_rigid_mode(K):
+    """An indefinite stiffness (an unstable operating point) has a negative eigenvalue of ``K v = w^2 M v``
+    (here -2e4, resp. (1 - sqrt 11) / 2): modes() refuses it instead of calling it a rigid-body mode."""
+    from bscomp.errors import SingularSystemError
+
+    Z = sp.csr_matrix((2, 2))
+    so = SecondOrderModel(M=sp.identity(2, format="csr"), C=Z, K=sp.csr_matrix(K), B=sp.csr_matrix((2, 0)),
+                          Cq=sp.identity(2, format="csr"), Cv=Z, Ca=Z, D=sp.csr_matrix((2, 0)),
+                          coordinates=["a", "b"], units=["m", "m"], inputs=[], outputs=["a", "b"])
+    with pytest.raises(SingularSystemError, match="negative eigenvalue"):
+        modes(so)
