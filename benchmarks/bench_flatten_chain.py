@@ -14,23 +14,12 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from bscomp import System, flatten, linearize, second_order
-from bscomp.components import Fixed, Force, Mass, Spring
+from bscomp import flatten, linearize, second_order
+from bscomp.systems import mass_spring_chain
 
 
 def build(N, m=0.1, k=1.0e6):
-    s = System(f"chain{N}")
-    s.add("wall", Fixed())
-    prev = "wall.flange"
-    for i in range(N):
-        s.add(f"k{i}", Spring(c=k))
-        s.add(f"m{i}", Mass(m=m))
-        s.connect(prev, f"k{i}.flange_a")
-        s.connect(f"k{i}.flange_b", f"m{i}.flange_a")
-        prev = f"m{i}.flange_b"
-    s.add("F", Force())
-    s.connect("F.flange", prev)
-    return s
+    return mass_spring_chain([m] * N, [k] * N, name=f"chain{N}", first=0)
 
 
 def baseline(N, m=0.1, k=1.0e6):

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from bscomp.errors import BscompError, ModelDefinitionError, UnknownNameError
 
+from .chain import mass_spring_chain  # noqa: E402
 from .small_drive import small_drive  # noqa: E402
 from .validation_drive import validation_drive  # noqa: E402
 
@@ -70,7 +71,8 @@ REGISTRY.update({
     "testbed_reduced": testbed_reduced,               # Sec 5.2.3 / 5.3.2 (CMS + MA, Table 5.3)
 })
 
-__all__ = ["small_drive", "validation_drive", "get", "available", "REGISTRY"]  # test beds: bscomp.systems.testbed
+# test beds: bscomp.systems.testbed
+__all__ = ["small_drive", "validation_drive", "mass_spring_chain", "get", "available", "REGISTRY"]
 
 
 def available() -> dict[str, str]:

@@ -14,7 +14,7 @@ from bscomp.errors import UnknownNameError
 from bscomp.kernel.damping import modal_damping_matrix
 from bscomp.linear.modal import modes
 from bscomp.linear.response import Frf, _statespace_frf, frf, transfer_function
-from bscomp.systems import small_drive
+from bscomp.systems import mass_spring_chain, small_drive
 
 
 def oscillator(k=2.0e5, m=4.0):
@@ -30,18 +30,8 @@ def oscillator(k=2.0e5, m=4.0):
 
 
 def chain3():
-    s = System("chain3")
-    s.add("wall", Fixed())
-    prev = "wall.flange"
-    for i, (k, m) in enumerate(((1.0e5, 1.0), (2.0e5, 2.0), (1.5e5, 0.5))):
-        s.add(f"k{i}", Spring(c=k))
-        s.add(f"m{i}", Mass(m=m))
-        s.connect(prev, f"k{i}.flange_a")
-        s.connect(f"k{i}.flange_b", f"m{i}.flange_a")
-        prev = f"m{i}.flange_b"
-    s.add("F", Force())
-    s.connect("F.flange", prev)
-    return s
+    return mass_spring_chain((1.0, 2.0, 0.5), (1.0e5, 2.0e5, 1.5e5), name="chain3", first=0)
+
 
 
 def test_grounded_spring_mass_is_compliance_at_low_frequency():

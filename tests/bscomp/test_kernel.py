@@ -27,22 +27,11 @@ from bscomp.components import (
 from bscomp.kernel.mechanics import start_matrices
 from bscomp.kernel.partials import PartialCompliant
 from bscomp.linear.modal import modes
+from bscomp.systems import mass_spring_chain
 
 
 def two_mass(m1=2.0, m2=3.0, k1=1.0e4, k2=2.5e4):
-    s = System("two_mass")
-    s.add("wall", Fixed())
-    s.add("k1", Spring(c=k1))
-    s.add("m1", Mass(m=m1))
-    s.add("k2", Spring(c=k2))
-    s.add("m2", Mass(m=m2))
-    s.add("F", Force())
-    s.connect("wall.flange", "k1.flange_a")
-    s.connect("k1.flange_b", "m1.flange_a")
-    s.connect("m1.flange_b", "k2.flange_a")
-    s.connect("k2.flange_b", "m2.flange_a")
-    s.connect("F.flange", "m2.flange_b")
-    return s
+    return mass_spring_chain((m1, m2), (k1, k2), name="two_mass")
 
 
 def analytic_two_mass(m1, m2, k1, k2):
@@ -152,17 +141,7 @@ def test_rigid_drive_transfer_function_is_eq_4_2():
 def test_chain_of_1000_flattens_and_linearizes():
     """Fixed-free chain of N equal masses: w_k = 2 sqrt(k/m) sin((2k-1) pi / (2 (2N+1)))."""
     N, m, k = 1000, 0.1, 1.0e6
-    s = System("chain")
-    s.add("wall", Fixed())
-    prev = "wall.flange"
-    for i in range(N):
-        s.add(f"k{i}", Spring(c=k))
-        s.add(f"m{i}", Mass(m=m))
-        s.connect(prev, f"k{i}.flange_a")
-        s.connect(f"k{i}.flange_b", f"m{i}.flange_a")
-        prev = f"m{i}.flange_b"
-    s.add("F", Force())
-    s.connect("F.flange", prev)
+    s = mass_spring_chain([m] * N, [k] * N, first=0)
     dae = flatten(s)
     assert dae.nx == 2 * N and dae.nz == 0
     so = second_order(dae)

@@ -9,28 +9,16 @@ import pytest
 import scipy.sparse as sp
 
 from bscomp import System, second_order
-from bscomp.components import Fixed, Force, Mass, Spring
+from bscomp.components import Fixed, Mass, Spring
 from bscomp.errors import UnknownNameError
 from bscomp.kernel.damping import modal_damping_matrix
 from bscomp.linear.linearization import SecondOrderModel
 from bscomp.linear.modal import Modes, modes
-from bscomp.systems import small_drive
+from bscomp.systems import mass_spring_chain, small_drive
 
 
 def chain2(m1=2.0, m2=3.0, k1=1.0e4, k2=2.5e4):
-    s = System("chain2")
-    s.add("wall", Fixed())
-    s.add("k1", Spring(c=k1))
-    s.add("m1", Mass(m=m1))
-    s.add("k2", Spring(c=k2))
-    s.add("m2", Mass(m=m2))
-    s.add("F", Force())
-    s.connect("wall.flange", "k1.flange_a")
-    s.connect("k1.flange_b", "m1.flange_a")
-    s.connect("m1.flange_b", "k2.flange_a")
-    s.connect("k2.flange_b", "m2.flange_a")
-    s.connect("F.flange", "m2.flange_b")
-    return s
+    return mass_spring_chain((m1, m2), (k1, k2), name="chain2")
 
 
 def analytic_chain2(m1, m2, k1, k2):

@@ -7,11 +7,10 @@ import textwrap
 import numpy as np
 import pytest
 
-from bscomp import System
-from bscomp.components import Fixed, Force, Mass, Spring
 from bscomp.errors import UnknownNameError
 from bscomp.linear.response import frf
 from bscomp.linear.sweeps import PositionSweep, build_system, position_sweep
+from bscomp.systems import mass_spring_chain
 
 M1, M2, K1 = 2.0, 3.0, 1.0e4
 
@@ -39,19 +38,7 @@ SYSTEM_FILE = textwrap.dedent('''
 
 
 def chain():
-    s = System("chain")
-    s.add("wall", Fixed())
-    s.add("k1", Spring(c=K1))
-    s.add("m1", Mass(m=M1))
-    s.add("k2", Spring(c=2.0e4))
-    s.add("m2", Mass(m=M2))
-    s.add("F", Force())
-    s.connect("wall.flange", "k1.flange_a")
-    s.connect("k1.flange_b", "m1.flange_a")
-    s.connect("m1.flange_b", "k2.flange_a")
-    s.connect("k2.flange_b", "m2.flange_a")
-    s.connect("F.flange", "m2.flange_b")
-    return s
+    return mass_spring_chain((M1, M2), (K1, 2.0e4))
 
 
 def analytic(k2):

@@ -1,0 +1,52 @@
+"""A grounded spring-mass chain: the textbook system with closed-form modes, for checking an analysis.
+
+``wall -- k1 -- m1 -- k2 -- m2 -- ... -- m_n <- F``: spring ``k_i`` ties mass ``m_i`` to the previous one (the
+first to the wall), a force ``F.f`` [N] acts on the last mass. Its undamped frequencies are the roots of
+``det(K - ω² M) = 0`` with the tridiagonal ``K`` of the springs; a chain of ``N`` equal masses and springs has
+``ω_j = 2 sqrt(k/m) sin((2j - 1) π / (2 (2N + 1)))``. It lives in ``systems/`` (not the tests) so the tests, the
+benchmarks and a user's own checks build the same chain.
+"""
+
+from __future__ import annotations
+
+from bscomp import System
+from bscomp.components import Fixed, Force, Mass, Spring
+from bscomp.errors import ParameterError
+
+__all__ = ["mass_spring_chain"]
+
+
+def mass_spring_chain(masses=(2.0, 3.0), springs=(1.0e4, 2.5e4), *, name: str = "chain", first: int = 1) -> System:
+    """Grounded chain of ``len(masses)`` masses [kg] on ``len(springs)`` springs [N/m], force ``F.f`` on the last.
+
+    Parameters
+    ----------
+    masses, springs : sequence of float
+        ``m_i`` and ``k_i`` in chain order (``springs[0]`` ties the first mass to the wall); equal lengths.
+    name : str
+        The System's name.
+    first : int
+        Index of the first spring and mass in the component names (``k1``, ``m1`` ... by default; ``0`` gives
+        ``k0``, ``m0`` ...).
+
+    Raises
+    ------
+    ParameterError
+        The lengths differ or the chain is empty.
+    """
+    masses, springs = list(masses), list(springs)
+    if not masses or len(masses) != len(springs):
+        raise ParameterError(f"mass_spring_chain: give one spring per mass (springs[0] to the wall); got "
+                             f"{len(masses)} masses and {len(springs)} springs")
+    s = System(name)
+    s.add("wall", Fixed())
+    prev = "wall.flange"
+    for i, (m, k) in enumerate(zip(masses, springs, strict=True), start=first):
+        s.add(f"k{i}", Spring(c=k))
+        s.add(f"m{i}", Mass(m=m))
+        s.connect(prev, f"k{i}.flange_a")
+        s.connect(f"k{i}.flange_b", f"m{i}.flange_a")
+        prev = f"m{i}.flange_b"
+    s.add("F", Force())
+    s.connect("F.flange", prev)
+    return s
