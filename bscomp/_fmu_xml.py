@@ -7,8 +7,8 @@ units and descriptions of the component declarations and a ``UnitDefinitions`` b
 header (``instantiationToken``, ``modelIdentifier``) and the value references the generated C code uses.
 
 Units are Modelica-style strings as the components declare them (``"N.s/m"``, ``"kg.m2"``,
-``"m/s2"``, ``"N.m/rad"``; ``^`` exponents also accepted); :func:`parse_unit` turns one into the SI base
-exponents of an FMI ``<BaseUnit>`` (``rad`` kept as its own base unit, as FMI allows).
+``"m/s2"``, ``"N.m/rad"``; ``^`` exponents also accepted); :func:`~bscomp.kernel.signal_meta.base_exponents`
+turns one into the SI base exponents of an FMI ``<BaseUnit>`` (``rad`` kept as its own base unit, as FMI allows).
 """
 
 from __future__ import annotations
@@ -18,68 +18,9 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from fractions import Fraction
 
-__all__ = ["FmuVariable", "parse_unit", "structured_name", "write_model_description"]
+from bscomp.kernel.signal_meta import BASE_ORDER, base_exponents, derivative_unit
 
-# SI base exponents in the FMI order (kg, m, s, A, K, mol, cd, rad) and a factor to SI
-_BASE_ORDER = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
-_UNITS = {
-    "kg": (1.0, {"kg": 1}), "g": (1e-3, {"kg": 1}), "m": (1.0, {"m": 1}), "s": (1.0, {"s": 1}),
-    "A": (1.0, {"A": 1}), "K": (1.0, {"K": 1}), "mol": (1.0, {"mol": 1}), "cd": (1.0, {"cd": 1}),
-    "rad": (1.0, {"rad": 1}), "N": (1.0, {"kg": 1, "m": 1, "s": -2}), "Pa": (1.0, {"kg": 1, "m": -1, "s": -2}),
-    "J": (1.0, {"kg": 1, "m": 2, "s": -2}), "W": (1.0, {"kg": 1, "m": 2, "s": -3}),
-    "V": (1.0, {"kg": 1, "m": 2, "s": -3, "A": -1}), "Hz": (1.0, {"s": -1}),
-    "rev": (6.283185307179586, {"rad": 1}), "deg": (0.017453292519943295, {"rad": 1}),
-}
-_FACTOR = re.compile(r"^(?P<word>[A-Za-z]+)(?:\^?(?P<exp>-?\d+))?$")
-
-
-def parse_unit(text: str):
-    """A Modelica unit string -> ``(factor, {base: exponent})``, or None when it cannot be parsed.
-
-    ``"1"`` (and ``""``) is dimensionless; ``"N.s/m"`` = ``{"kg": 1, "s": -1}``; ``"m/rev"`` has the factor
-    ``1 / (2 pi)`` per radian.
-    """
-    text = (text or "").strip()
-    if text in ("", "1", "-"):
-        return 1.0, {}
-    num, _, den = text.partition("/")
-    if "/" in den or "|" in text or "(" in text:
-        return None
-    factor, exps = 1.0, {}
-    for sign, part in ((1, num), (-1, den)):
-        if not part:
-            continue
-        for tok in part.split("."):
-            if tok == "1" and sign == 1:
-                continue
-            m = _FACTOR.match(tok)
-            if not m or m["word"] not in _UNITS:
-                return None
-            f, base = _UNITS[m["word"]]
-            e = sign * int(m["exp"] or 1)
-            factor *= f ** e
-            for b, k in base.items():
-                exps[b] = exps.get(b, 0) + k * e
-    return factor, {b: k for b, k in exps.items() if k}
-
-
-def derivative_unit(unit: str, order: int = 1) -> str:
-    """The unit of the ``order``-th time derivative of a quantity in ``unit`` (``"m"`` -> ``"m/s2"``)."""
-    if not unit or parse_unit(unit) is None:
-        return ""
-    num, _, den = unit.partition("/")
-    num = "" if num == "1" else num
-    s_exp = order
-    parts = []
-    for tok in (den.split(".") if den else []):
-        m = _FACTOR.match(tok)
-        if m and m["word"] == "s":
-            s_exp += int(m["exp"] or 1)
-        else:
-            parts.append(tok)
-    parts.append("s" if s_exp == 1 else f"s{s_exp}")
-    return f"{num or '1'}/{'.'.join(parts)}"
-
+__all__ = ["FmuVariable", "derivative_unit", "structured_name", "write_model_description"]
 
 _BNAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\[\d+(,\d+)*\])?$")
 _DER = re.compile(r"^der\((?P<inner>.+?)(?:,(?P<order>\d+))?\)$")
@@ -155,12 +96,12 @@ def _unit_definitions(units) -> tuple[ET.Element, set]:
     root = ET.Element("UnitDefinitions")
     known = set()
     for u in sorted(units):
-        parsed = parse_unit(u)
+        parsed = base_exponents(u)
         if parsed is None or not u:
             continue
         factor, exps = parsed
         el = ET.SubElement(root, "Unit", {"name": u})
-        base = {b: str(Fraction(exps[b]).limit_denominator()) for b in _BASE_ORDER if b in exps}
+        base = {b: str(Fraction(exps[b]).limit_denominator()) for b in BASE_ORDER if b in exps}
         if factor != 1.0:
             base["factor"] = repr(factor)
         ET.SubElement(el, "BaseUnit", base)

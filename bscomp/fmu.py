@@ -34,11 +34,11 @@ import numpy as np
 
 from bscomp import __version__
 from bscomp._fmu_damping import check_damping_parameters, rayleigh_term
-from bscomp._fmu_meta import input_meta, output_meta, parameter_meta, state_meta
 from bscomp._fmu_wrap import TIME_VR, patch_wrapper, state_nominals
 from bscomp._fmu_xml import FmuVariable, derivative_name, derivative_unit, structured_name, write_model_description
 from bscomp.errors import CompilerNotFoundError, FmuExportError, UnknownNameError
 from bscomp.files import atomic_path, writable_path
+from bscomp.kernel.signal_meta import input_meta, output_meta, parameter_meta, state_meta
 from bscomp.model import as_dae
 
 __all__ = ["export_fmu", "FMI3_HEADERS"]

@@ -24,6 +24,7 @@ from functools import lru_cache
 import casadi as ca
 import numpy as np
 
+from bscomp.kernel.signal_meta import unit_of
 from bscomp.optimal.infeasibility import Ledger, describe
 from bscomp.optimal.result import OcpResult, active_fraction, convergence_error
 
@@ -363,7 +364,7 @@ class _Transcription:
             gv, lbg, ubg = (np.asarray(opti.debug.value(e), float).ravel() for e in (opti.g, opti.lbg, opti.ubg))
             viol = float(np.max(np.r_[0.0, lbg - gv, gv - ubg]))
             T = float(opti.debug.value(self.T)) if self.ocp.T_fixed is None else self.ocp.T_fixed
-            where, info = describe(self.ledger, T, gv, lbg, ubg)
+            where, info = describe(self.ledger, T, gv, lbg, ubg, units=self._unit)
         except Exception:  # noqa: BLE001 - diagnostic only
             viol = float("nan")
         vib = {}
@@ -372,7 +373,11 @@ class _Transcription:
                 vib[n] = float(opti.debug.value(e))
             except Exception:  # noqa: BLE001 - diagnostic only
                 vib[n] = None
-        return convergence_error(self.dae.name, opti.stats(), viol, vib, self.ocp.residual_limits, where, info)
+        return convergence_error(self.dae.name, opti.stats(), viol, vib, self.ocp.residual_limits, where, info,
+                                 units=self._unit)
+
+    def _unit(self, name: str) -> str:
+        return unit_of(self.dae, name)
 
     def _result(self, sol, stats, rate_expr) -> OcpResult:
         """The solution at the grid points (derivatives and algebraic variables: the last stage of each

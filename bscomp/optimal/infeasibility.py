@@ -19,6 +19,9 @@ import numpy as np
 
 __all__ = ["Block", "Ledger", "describe"]
 
+#: the rows whose numbers are in their signal's unit (the others: residuals, scaled or modal rows)
+UNIT_LABELS = {"bound", "rate limit", "final value", "initial value", "continuity", "collocation equation", "horizon"}
+
 #: a bounded value within this fraction of its bound's magnitude counts as at the bound (an interior-point
 #: iterate stopped early stays a little inside its bounds)
 ACTIVE_TOL = 1e-2
@@ -85,7 +88,15 @@ def _span(t):
     return f"t = {t.min():.4g} s" if t.min() == t.max() else f"t = {t.min():.4g} s to {t.max():.4g} s"
 
 
-def _worst(ledger, values, T):
+def _unit(units, label, name) -> str:
+    """`` unit`` (with its space) of a row's numbers, or ``""``: the horizon in s, a signal's by ``units``."""
+    if label == "horizon":
+        return " s"
+    u = units(name) if units is not None and label in UNIT_LABELS else ""
+    return f" {u}" if u and u != "1" else ""
+
+
+def _worst(ledger, values, T, units=None):
     """The row with the largest scaled violation over all spaces: a sentence, and the row as a dict."""
     best = None
     for b in ledger.blocks:
@@ -102,24 +113,27 @@ def _worst(ledger, values, T):
     t = float(b.tfrac[k] * T)
     name = b.names[k]
     phys = viol * float(b.scale[k])
+    u = _unit(units, b.label, name)
     if b.bound:
         v = values[b.space][0][b.start + k] * float(b.scale[k])
         side, bound = ("lower", float(b.lo[k])) if v < b.lo[k] else ("upper", float(b.hi[k]))
-        text = (f"'{name}' = {v:.6g} violates its {side} bound {bound:.6g} by {phys:.3g} at t = {t:.4g} s "
+        text = (f"'{name}' = {v:.6g}{u} violates its {side} bound {bound:.6g}{u} by {phys:.3g}{u} at t = {t:.4g} s "
                 f"(scaled violation {viol:.3g})")
         row = {"constraint": b.label, "variable": name, "side": side, "bound": bound, "value": v, "time": t,
-               "violation": phys, "scaled": viol}
+               "violation": phys, "scaled": viol, "unit": u.strip()}
     elif b.rate:
-        text = (f"{b.label} on '{name}' exceeded by {phys:.3g} over the interval ending at t = {t:.4g} s "
+        text = (f"{b.label} on '{name}' exceeded by {phys:.3g}{u} over the interval ending at t = {t:.4g} s "
                 f"(scaled violation {viol:.3g})")
-        row = {"constraint": b.label, "variable": name, "time": t, "violation": phys, "scaled": viol}
+        row = {"constraint": b.label, "variable": name, "time": t, "violation": phys, "scaled": viol,
+               "unit": u.strip()}
     else:
-        text = f"{b.label} of '{name}' at t = {t:.4g} s is off by {phys:.3g} (scaled violation {viol:.3g})"
-        row = {"constraint": b.label, "variable": name, "time": t, "violation": phys, "scaled": viol}
+        text = f"{b.label} of '{name}' at t = {t:.4g} s is off by {phys:.3g}{u} (scaled violation {viol:.3g})"
+        row = {"constraint": b.label, "variable": name, "time": t, "violation": phys, "scaled": viol,
+               "unit": u.strip()}
     return text, row
 
 
-def _bounds(ledger, values, T, limit=4):
+def _bounds(ledger, values, T, limit=4, units=None):
     """Bounds at their limit (or beyond) at the last iterate, by name: sentences, most pressed first."""
     by_name: dict = {}
     for b in ledger.blocks:
@@ -138,22 +152,25 @@ def _bounds(ledger, values, T, limit=4):
                 mine = names == n
                 sel = at & mine
                 if np.any(sel):
-                    e = by_name.setdefault((n, side), [float(bound[sel][0]), [], 0])
+                    e = by_name.setdefault((n, side), [float(bound[sel][0]), [], 0, _unit(units, b.label, n)])
                     e[1].extend(t[sel])
                     e[2] += int(np.count_nonzero(mine & fin))
     items = sorted(by_name.items(), key=lambda kv: -len(kv[1][1]) / max(kv[1][2], 1))
     out, rows = [], []
-    for (n, side), (bound, times, total) in items[:limit]:
+    for (n, side), (bound, times, total, u) in items[:limit]:
         frac = len(times) / max(total, 1)
-        out.append(f"'{n}' at its {side} bound {bound:.6g} (within {100 * ACTIVE_TOL:g}%) on {100 * frac:.0f}% of "
+        out.append(f"'{n}' at its {side} bound {bound:.6g}{u} (within {100 * ACTIVE_TOL:g}%) on {100 * frac:.0f}% of "
                    f"the points ({_span(times)})")
         rows.append({"variable": n, "side": side, "bound": bound, "fraction": frac,
                      "t_first": float(np.min(times)), "t_last": float(np.max(times))})
     return out, rows
 
 
-def describe(ledger: Ledger, T: float, g=None, lbg=None, ubg=None, x=None, lbx=None, ubx=None):
+def describe(ledger: Ledger, T: float, g=None, lbg=None, ubg=None, x=None, lbx=None, ubx=None, units=None):
     """The last iterate read through ``ledger``: ``(text, info)``.
+
+    ``units(name) -> str`` gives a signal's unit (:func:`bscomp.kernel.signal_meta.unit_of`); the values of
+    bounds, rate limits, initial/final values and the dynamics' rows are printed with it.
 
     ``text`` is a sentence for :class:`~bscomp.optimal.OcpError` (the largest infeasibility, in the model's
     names and units at its time; the bounds at their limits with their share of the points and times);
@@ -164,8 +181,8 @@ def describe(ledger: Ledger, T: float, g=None, lbg=None, ubg=None, x=None, lbx=N
 
     values = {"g": (arr(g), arr(lbg), arr(ubg)), "x": (arr(x), arr(lbx), arr(ubx))}
     T = float(T) if T is not None and np.isfinite(T) else float("nan")
-    worst, row = _worst(ledger, values, T)
-    bounds, brows = _bounds(ledger, values, T)
+    worst, row = _worst(ledger, values, T, units)
+    bounds, brows = _bounds(ledger, values, T, units=units)
     parts = []
     parts.append(f"Largest infeasibility at the last iterate: {worst}." if worst else
                  "At the last iterate every constraint holds (to Ipopt's tolerance): the solver stopped for "

@@ -19,6 +19,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from bscomp.kernel.signal_meta import unit_of
 from bscomp.optimal.collocation import objective, output_at, radau
 from bscomp.optimal.guess import initial_guess
 from bscomp.optimal.infeasibility import Ledger, describe
@@ -234,9 +235,13 @@ class _ModalNlp:
             gv = np.asarray(sol["g"]).ravel()
             viol = float(np.max(np.r_[0.0, lbg - gv, gv - ubg])) if gv.size else 0.0
             where, info = describe(self.ledger, float(vals[0]), gv, lbg, ubg, np.asarray(sol["x"]).ravel(),
-                                   np.concatenate(lbx), np.concatenate(ubx))
-            raise convergence_error(self.md.name, stats, viol, residual, ocp.residual_limits, where, info)
+                                   np.concatenate(lbx), np.concatenate(ubx), units=self._unit)
+            raise convergence_error(self.md.name, stats, viol, residual, ocp.residual_limits, where, info,
+                                    units=self._unit)
         return self._result(vals, stats, residual, int(w.numel()) - nE)
+
+    def _unit(self, name: str) -> str:
+        return unit_of(self.md, name)
 
     def _result(self, vals, stats, residual, n_unknowns) -> OcpResult:
         """The solution in modal coordinates at the grid points, bounded outputs and active fractions."""

@@ -42,7 +42,8 @@ def active_fraction(v, lo, hi) -> float:
 
 
 def convergence_error(model_name: str, stats: dict, violation: float, residual: dict | None = None,
-                      limits: dict | None = None, where: str = "", info: dict | None = None) -> OcpError:
+                      limits: dict | None = None, where: str = "", info: dict | None = None,
+                      units=None) -> OcpError:
     """The :class:`OcpError` of a failed Ipopt run, with its status, the largest scaled constraint
     violation, the constraint it is on and the bounds at their limits (``where``, from
     :func:`bscomp.optimal.infeasibility.describe`) and, for residual-vibration limits, the bound reached at
@@ -62,11 +63,17 @@ def convergence_error(model_name: str, stats: dict, violation: float, residual: 
         The largest infeasibility in the model's names, units and times, and the bounds at their limits.
     info : dict, optional
         ``{"worst": {...}, "bounds": [...]}`` (see :func:`~bscomp.optimal.infeasibility.describe`).
+    units : callable, optional
+        ``units(name) -> str``, the unit of an output (:func:`bscomp.kernel.signal_meta.unit_of`).
     """
     vib = ""
     if residual:
-        parts = [f"'{n}' {v:.3g} (limit {limits[n]:.3g})" if v is not None else f"'{n}' ? (limit {limits[n]:.3g})"
-                 for n, v in residual.items()]
+        def unit(n):
+            u = units(n) if units is not None else ""
+            return f" {u}" if u and u != "1" else ""
+
+        parts = [f"'{n}' {v:.3g}{unit(n)} (limit {limits[n]:.3g}{unit(n)})" if v is not None
+                 else f"'{n}' ? (limit {limits[n]:.3g}{unit(n)})" for n, v in residual.items()]
         vib = (" Residual-vibration bound at the last iterate: " + ", ".join(parts) + "; a limit below what "
                "the input grid can reach is infeasible: raise N (finer torque shaping before arrival) or the "
                "limit, or add time (fixed-T problems).")

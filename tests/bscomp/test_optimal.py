@@ -67,13 +67,14 @@ def test_infeasible_move_names_the_bound_the_time_and_the_violation(coordinates)
         ocp.solve({"max_iter": 100})
     msg = str(info.value)
     assert "Largest infeasibility at the last iterate: " in msg
-    assert re.search(r"'motor\.tau' at its upper bound 1 .*t = 0 s to 0\.04 s", msg)
-    assert re.search(r"'motor\.tau' at its lower bound -1 .*t = 0\.05 s to 0\.09 s", msg)
+    assert re.search(r"'motor\.tau' at its upper bound 1 N m .*t = 0 s to 0\.04 s", msg)      # values with units
+    assert re.search(r"'motor\.tau' at its lower bound -1 N m .*t = 0\.05 s to 0\.09 s", msg)
     worst = info.value.infeasibility["worst"]
     assert worst["violation"] > 0 and 0 <= worst["time"] <= 0.1 and worst["variable"] in msg
     # bang-bang at the bound still reaches only tau T^2 / (4 J) = 0.29 rad of the 10: the miss is of that order
     if coordinates == "modal":
-        assert worst["constraint"] == "final value" and worst["variable"] == "rotor.phi"
+        assert worst["constraint"] == "final value" and worst["variable"] == "rotor.phi" and worst["unit"] == "rad"
+        assert re.search(r"final value of 'rotor\.phi' at t = 0\.1 s is off by [0-9.]+ rad", msg)
         assert worst["violation"] == pytest.approx(10.0 - 1.0 * 0.1 ** 2 / (4 * 8.55e-3), rel=0.05)
     sides = {(b["variable"], b["side"]): b["fraction"] for b in info.value.infeasibility["bounds"]}
     assert sides == {("motor.tau", "upper"): 0.5, ("motor.tau", "lower"): 0.5}
