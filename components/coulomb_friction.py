@@ -31,12 +31,11 @@ to ground. Mechanical power dissipated: ``f v_rel >= 0``.
 import casadi as ca
 
 from bscomp.kernel.component import Parameter
-from bscomp.kernel.partials import PartialCompliant
 
-from .damper import Damper
+from ._friction import PartialFriction
 
 
-class CoulombFriction(PartialCompliant):
+class CoulombFriction(PartialFriction):
     """Regularised Coulomb + viscous friction, Eq (5.7), with asymmetric ``+/-`` constants.
 
     Parameters
@@ -48,7 +47,8 @@ class CoulombFriction(PartialCompliant):
     Attributes
     ----------
     flange_a, flange_b : Flange
-        The two flanges (from :class:`~bscomp.kernel.partials.PartialCompliant`).
+        The two flanges (from :class:`~bscomp.kernel.partials.PartialCompliant`; force law, equation, power
+        and viscous FRF equivalent from :class:`components._friction.PartialFriction`).
     f, s_rel, v_rel : observable
         Friction force [N], relative position [m] and relative velocity [m/s].
     power : observable
@@ -63,38 +63,10 @@ class CoulombFriction(PartialCompliant):
     d_neg = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B for v_rel < 0 (Table 5.2: 12673 N.s/m)")
     v_reg = Parameter(1.0e-4, unit="m/s", positive=True, doc="regularisation velocity of tanh(v_rel/v_reg)")
 
-    def __init__(self, F_c=None, d=None, **params):
-        """``F_c=`` and ``d=`` set both directions at once (symmetric friction)."""
-        if F_c is not None:
-            params.setdefault("F_c_pos", F_c)
-            params.setdefault("F_c_neg", F_c)
-        if d is not None:
-            params.setdefault("d_pos", d)
-            params.setdefault("d_neg", d)
-        super().__init__(**params)
+    SYMMETRIC = ("F_c", "d")     # F_c=, d= set both directions at once (symmetric friction)
 
     def friction_force(self, v):
         """Regularised friction force [N] at sliding velocity ``v`` (CasADi or float)."""
         sig = ca.tanh(v / self.v_reg)
         wp, wn = 0.5 * (1 + sig), 0.5 * (1 - sig)
         return sig * (wp * self.F_c_pos + wn * self.F_c_neg) + (wp * self.d_pos + wn * self.d_neg) * v
-
-    def linear_equivalent(self):
-        """Small-signal equivalent for FRFs: the viscous part only (Coulomb friction has no tangent at
-        sliding; at rest its regularised slope F_c/v_reg is not what a swept-sine test sees)."""
-
-        d = 0.5 * (self.d_pos + self.d_neg)
-        return Damper(d=d) if d > 0 else None
-
-    def force_law(self, s_rel, v_rel):
-        """Element force ``f(s_rel, v_rel)`` (Eq 5.7, regularised): what :meth:`equations` states, and what
-        a compiled simulator evaluates with parameters as symbols."""
-        return self.friction_force(v_rel)
-
-    def equations(self):
-        return [self.f - self.force_law(self.s_rel, self.v_rel)]
-
-    def observables(self):
-        out = super().observables()
-        out["power"] = self.f * self.v_rel
-        return out

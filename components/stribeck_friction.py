@@ -33,12 +33,11 @@ Sign convention as :class:`~components.damper.Damper`: ``f`` has the sign of
 import casadi as ca
 
 from bscomp.kernel.component import Parameter
-from bscomp.kernel.partials import PartialCompliant
 
-from .damper import Damper
+from ._friction import PartialFriction
 
 
-class StribeckFriction(PartialCompliant):
+class StribeckFriction(PartialFriction):
     """Regularised Stribeck friction, Eq (5.6), with asymmetric ``+/-`` constants.
 
     No value of ``F_stat``, ``V1`` or ``V2`` is published for the test bed (the thesis uses Eq 5.7):
@@ -72,13 +71,7 @@ class StribeckFriction(PartialCompliant):
     d_neg = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient B, v_rel < 0 (Table 5.2: 12673 N.s/m)")
     v_reg = Parameter(1.0e-5, unit="m/s", positive=True, doc="regularisation velocity of tanh(v/v_reg), << v1")
 
-    def __init__(self, F_s=None, F_c=None, v1=None, v2=None, d=None, **params):
-        """``F_s=``, ``F_c=``, ``v1=``, ``v2=``, ``d=`` set both directions at once (symmetric friction)."""
-        for short, value in (("F_s", F_s), ("F_c", F_c), ("v1", v1), ("v2", v2), ("d", d)):
-            if value is not None:
-                params.setdefault(f"{short}_pos", value)
-                params.setdefault(f"{short}_neg", value)
-        super().__init__(**params)
+    SYMMETRIC = ("F_s", "F_c", "v1", "v2", "d")     # F_s=, F_c=, v1=, v2=, d= set both directions at once
 
     def friction_force(self, v):
         """Regularised friction force [N] at sliding velocity ``v`` (CasADi or float)."""
@@ -92,21 +85,3 @@ class StribeckFriction(PartialCompliant):
         level = (wp * curve(self.F_s_pos, self.F_c_pos, self.v1_pos, self.v2_pos)
                  + wn * curve(self.F_s_neg, self.F_c_neg, self.v1_neg, self.v2_neg))
         return sig * level + (wp * self.d_pos + wn * self.d_neg) * v
-
-    def linear_equivalent(self):
-        """Small-signal equivalent for FRFs: the viscous part only (see CoulombFriction)."""
-
-        d = 0.5 * (self.d_pos + self.d_neg)
-        return Damper(d=d) if d > 0 else None
-
-    def force_law(self, s_rel, v_rel):
-        """Element force ``f(s_rel, v_rel)`` (Eq 5.6, regularised); see CoulombFriction.force_law."""
-        return self.friction_force(v_rel)
-
-    def equations(self):
-        return [self.f - self.force_law(self.s_rel, self.v_rel)]
-
-    def observables(self):
-        out = super().observables()
-        out["power"] = self.f * self.v_rel
-        return out
