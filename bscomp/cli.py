@@ -279,6 +279,60 @@ def _fmu(args) -> int:
     return 0
 
 
+def _simulate(args) -> int:
+    """``bscomp simulate SYSTEM --input NAME=SIGNAL --t-end T``: a time response (any method of
+    :func:`bscomp.simulation.simulate`), summarised with units; CSV / figure on request."""
+    import json
+
+    from bscomp.errors import UsageError
+    from bscomp.files import staged
+    from bscomp.kernel.flattening import flatten
+    from bscomp.kernel.signal_meta import measured_outputs, unit_of
+    from bscomp.simulation.dispatch import simulate
+    from bscomp.simulation.signals import SPELLINGS, parse_signal
+
+    inputs = {}
+    for item in args.input or []:
+        name, eq, spec = item.partition("=")
+        if not eq or not name.strip():
+            raise UsageError(f"--input expects NAME=SIGNAL (e.g. amp.u=square:2.125:5), got {item!r}",
+                             hint=f"SIGNAL is {SPELLINGS}")
+        inputs[name.strip()] = parse_signal(spec, f"--input {name.strip()}")
+    n = int(round(args.t_end / args.dt))
+    if n < 1 or n > 10 ** 7:
+        raise UsageError(f"--t-end {args.t_end:g} s over --dt {args.dt:g} s gives {n} steps (1 to 1e7)",
+                         hint="give --dt below --t-end, e.g. --t-end 0.6 --dt 1e-4")
+    _outputs(args)
+    dae = flatten(_build(args))
+    outputs = args.output or measured_outputs(dae)
+    t = np.linspace(0.0, n * args.dt, n + 1)
+    res = simulate(dae, t, inputs=inputs, outputs=outputs, method=args.method, rtol=args.rtol, atol=args.atol,
+                   jit=args.jit)
+    with staged() as st:       # both files or neither
+        if args.csv:
+            res.to_csv(st.path(args.csv))
+        if args.png:
+            res.plot(path=st.path(args.png), title=f"{dae.name}: {args.method}")
+    summary = {o: {"unit": unit_of(dae, o), "min": float(np.min(res[o])), "max": float(np.max(res[o])),
+                   "final": float(res[o][-1])} for o in outputs}
+    wall, rtf = res.stats.get("wall_s"), res.stats.get("real_time_factor")
+    if args.json:
+        print(json.dumps({"system": dae.name, "method": args.method, "t_end": float(t[-1]), "dt": args.dt,
+                          "wall_s": wall, "real_time_factor": None if rtf is None else float(rtf),
+                          "outputs": summary}, indent=1))
+        return 0
+    speed = f"; {wall:.3g} s wall, {float(rtf):.3g}x real time" if wall and rtf else ""
+    print(f"{dae.name}: method {args.method!r}, {t[-1]:g} s in {n} steps of {args.dt:g} s{speed}")
+    width = max(len(o) for o in outputs)
+    for o, v in summary.items():
+        u = f" {v['unit']}" if v["unit"] else ""
+        print(f"  {o:<{width}}  min {v['min']:11.4g}{u}  max {v['max']:11.4g}{u}  final {v['final']:11.4g}{u}")
+    for f_ in (args.csv, args.png):
+        if f_:
+            print(f"  written {f_}")
+    return 0
+
+
 def _add_system_args(p):
     p.add_argument("system", help="a system registered in bscomp.systems (see `bscomp systems`) or a .py file "
                                   "defining build()")
@@ -386,6 +440,27 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the diagnosis as JSON")
     p.add_argument("--verbose", action="store_true", help="print each round's fits (debug lines)")
     p.set_defaults(func=_diagnose)
+
+    p = sub.add_parser("simulate", parents=[common],
+                       help="time response to test signals (IDAS, fixed-step, exact ZOH, split or modal)")
+    _add_system_args(p)
+    p.add_argument("--input", action="append", metavar="NAME=SIGNAL",
+                   help="input signal (repeatable): a number, step:A[:T0], square:A:F, sine:A:F or ramp:RATE[:T0], "
+                        "e.g. amp.u=square:2.125:5 (the thesis's Ch 5 run); inputs not given are 0")
+    p.add_argument("--output", action="append", help="observable to record (repeatable; default: the drive's "
+                                                     "measured outputs)")
+    p.add_argument("--t-end", type=_number("--t-end", 0), default=0.6, help="simulated time [s] (default 0.6)")
+    p.add_argument("--dt", type=_number("--dt", 0), default=1e-4, help="output step [s] (default 1e-4)")
+    p.add_argument("--method", choices=("idas", "fixed", "lti", "split", "modal"), default="idas",
+                   help="integrator (default idas; modal: the fast exact-linear path for friction, backlash and a "
+                        "moving nut, docs/nonlinear.md)")
+    p.add_argument("--jit", action="store_true", help="compile the step to C (fixed, modal; cached on disk)")
+    p.add_argument("--rtol", type=_number("--rtol", 0), default=1e-6, help="IDAS relative tolerance (default 1e-6)")
+    p.add_argument("--atol", type=_number("--atol", 0), default=1e-9, help="IDAS absolute tolerance (default 1e-9)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.add_argument("--csv", help="write t and the outputs to a CSV file")
+    p.add_argument("--png", help="write a time plot (.png, .pdf or .svg)")
+    p.set_defaults(func=_simulate)
 
     p = sub.add_parser("fmu", parents=[common], help="export the drive as an FMI 3.0 model-exchange FMU (Simulink, "
                                                       "OpenModelica, FMPy; needs gcc)")

@@ -38,7 +38,7 @@ from bscomp._fmu_wrap import TIME_VR, patch_wrapper, state_nominals
 from bscomp._fmu_xml import FmuVariable, derivative_name, derivative_unit, structured_name, write_model_description
 from bscomp.errors import CompilerNotFoundError, FmuExportError, UnknownNameError
 from bscomp.files import atomic_path, writable_path
-from bscomp.kernel.signal_meta import input_meta, output_meta, parameter_meta, state_meta
+from bscomp.kernel.signal_meta import input_meta, measured_outputs, output_meta, parameter_meta, state_meta
 from bscomp.model import as_dae
 
 __all__ = ["export_fmu", "FMI3_HEADERS"]
@@ -100,7 +100,7 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
     cc = _find_compiler(compiler)
     dae = as_dae(system, overrides)
     inputs = _check_inputs(dae, inputs)
-    outputs = _default_outputs(dae) if outputs is None else list(outputs)
+    outputs = measured_outputs(dae) if outputs is None else list(outputs)
     dae.output_expr(outputs)  # unknown names raise UnknownNameError here
     tunable = _check_parameters(dae, parameters)
     nominals = state_nominals(dae.x_names, nominal)
@@ -149,12 +149,6 @@ def _check_inputs(dae, inputs):
     if bad:
         raise UnknownNameError(f"export_fmu: '{bad[0]}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
     return inputs
-
-
-def _default_outputs(dae):
-    val = getattr(dae.system, "validation", None)
-    outs = [o for o in (getattr(val, "outputs", None) or []) if o in dae.observables]
-    return outs or [n for n in dae.x_names if n in dae.observables]
 
 
 def _check_parameters(dae, parameters):

@@ -18,8 +18,8 @@ import re
 
 from bscomp.kernel.units import convention_units
 
-__all__ = ["state_meta", "input_meta", "parameter_meta", "output_meta", "unit_of", "base_exponents", "derivative_unit",
-           "BASE_ORDER"]
+__all__ = ["state_meta", "input_meta", "parameter_meta", "output_meta", "unit_of", "measured_outputs",
+           "base_exponents", "derivative_unit", "BASE_ORDER"]
 
 # SI base exponents in the FMI order (kg, m, s, A, K, mol, cd, rad) and a factor to SI
 BASE_ORDER = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
@@ -207,3 +207,11 @@ def _declared_unit(dae, name: str) -> str:
         pass
     # the Modelica naming convention of a flange's potentials and flow (table.s [m], motor.tau [N m], ...)
     return convention_units.get(name.rsplit(".", 1)[-1], ("",))[0] if "." in name else ""
+
+
+def measured_outputs(dae) -> list:
+    """The outputs a user of this drive measures: its System's declared validation outputs that are observables
+    of ``dae``, else the observables that are states (what the FMU and ``bscomp simulate`` record by default)."""
+    val = getattr(dae.system, "validation", None)
+    outs = [o for o in (getattr(val, "outputs", None) or []) if o in dae.observables]
+    return outs or [n for n in dae.x_names if n in dae.observables]

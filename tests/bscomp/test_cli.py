@@ -97,6 +97,14 @@ BAD = [
     (["diagnose", "small_drive", "{tmp}/missing.csv"], "Error", "missing.csv"),
     (["diagnose", "small_drive", "x.csv", "--max-effects", "-1"], "UsageError", "--max-effects"),
     (["compare", "small_drive", "{tmp}"], "Error", ""),
+    (["simulate", "small_drive", "--input", "motor.tau=squar:1:5"], "UsageError", "--input motor.tau"),
+    (["simulate", "small_drive", "--input", "motor.tau"], "UsageError", "NAME=SIGNAL"),
+    (["simulate", "small_drive", "--input", "motor.nope=1"], "UnknownNameError", "motor.nope"),
+    (["simulate", "small_drive", "--output", "table.q"], "UnknownNameError", "table.q"),
+    (["simulate", "small_drive", "--t-end", "0.001", "--dt", "0.01"], "UsageError", "--dt"),
+    (["simulate", "small_drive", "--dt", "-1"], "UsageError", "--dt"),
+    (["simulate", "small_drive", "--method", "euler"], "UsageError", "euler"),
+    (["simulate", "small_drive", "--csv", "{tmp}/m.csv", "--png", "{tmp}/m.xyz"], "OutputFileError", "m.xyz"),
     (["frobnicate"], "UsageError", "frobnicate"),
 ]
 
@@ -201,3 +209,32 @@ def test_json_output_carries_the_warnings(capsys):
     assert "amp" in d["warnings"][0]["message"]
     assert main(["modes", "small_drive", "--json"]) == 0
     assert "warnings" not in json.loads(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize("method, rtol", [("lti", 1e-9), ("idas", 1e-4)])
+def test_simulate_step_response_of_the_oscillator_is_analytic(tmp_path, capsys, method, rtol):
+    """``bscomp simulate`` on m = 1 kg, k = 4e4 N/m under a 2 N step: ``s(t) = F/k (1 - cos(200 t))``
+    (exact ZOH reproduces it to round-off, IDAS to its tolerance); the summary prints units."""
+    path = tmp_path / "osc.py"
+    path.write_text(SYSTEM_FILE)
+    csv = tmp_path / "s.csv"
+    assert main(["simulate", str(path), "--input", "F.f=step:2", "--output", "m.s", "--t-end", "0.1",
+                 "--dt", "1e-4", "--method", method, "--rtol", "1e-8", "--atol", "1e-12", "--csv", str(csv)]) == 0
+    out = capsys.readouterr().out
+    assert "m.s" in out and " m " in out and "written" in out
+    data = np.loadtxt(csv, delimiter=",", skiprows=1)
+    t, s = data[:, 0], data[:, 1]
+    assert t[-1] == pytest.approx(0.1) and len(t) == 1001
+    exact = 2.0 / 4.0e4 * (1 - np.cos(200.0 * t))
+    np.testing.assert_allclose(s, exact, atol=rtol * 2 * 2.0 / 4.0e4)
+
+
+def test_simulate_json_summary_and_bad_signal(tmp_path, capsys):
+    path = tmp_path / "osc.py"
+    path.write_text(SYSTEM_FILE)
+    assert main(["simulate", str(path), "--input", "F.f=sine:1:10", "--t-end", "0.05", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["outputs"]["m.s"]["unit"] == "m" and d["method"] == "idas" and d["real_time_factor"] > 0
+    assert main(["simulate", str(path), "--input", "F.f=square:1"]) == 2
+    err = capsys.readouterr().err
+    assert "UsageError" in err and "--input F.f" in err and "square:A:F" in err
