@@ -313,8 +313,8 @@ def _simulate(args) -> int:
             res.to_csv(st.path(args.csv))
         if args.png:
             res.plot(path=st.path(args.png), title=f"{dae.name}: {args.method}")
-    summary = {o: {"unit": unit_of(dae, o), "min": float(np.min(res[o])), "max": float(np.max(res[o])),
-                   "final": float(res[o][-1])} for o in outputs}
+    summary = {o: {"unit": unit_of(dae, o), "min": float(np.min(res[o])) + 0.0, "max": float(np.max(res[o])) + 0.0,
+                   "final": float(res[o][-1]) + 0.0} for o in outputs}         # + 0.0: no "-0" printed
     wall, rtf = res.stats.get("wall_s"), res.stats.get("real_time_factor")
     if args.json:
         print(json.dumps({"system": dae.name, "method": args.method, "t_end": float(t[-1]), "dt": args.dt,
