@@ -95,10 +95,11 @@ SIMULATE_INSTEAD = ("for the response at a real amplitude, simulate a sine sweep
                     "spectra")
 
 
-def warn_linearized(parts: tuple, what: str, instead: str, stacklevel: int = 2) -> None:
+def warn_linearized(parts: tuple, what: str, instead: str, stacklevel: int = 2, measured: str = "") -> None:
     """Warn (:class:`~bscomp.errors.ModelLimitationWarning`) that ``what`` linearizes the nonlinear parts
     ``parts`` (:func:`linearized_parts`) at the operating point, naming them and saying what to use
-    ``instead``; nothing for a linear model. ``stacklevel`` as in :func:`warnings.warn`, seen from the caller."""
+    ``instead``; nothing for a linear model. ``stacklevel`` as in :func:`warnings.warn`, seen from the caller;
+    ``measured``: what the linearization got wrong, where that was measured (a time response)."""
     if not parts:
         return
     name, comps, names = parts
@@ -107,7 +108,8 @@ def warn_linearized(parts: tuple, what: str, instead: str, stacklevel: int = 2) 
     vars_ = f"{', '.join(names[:5])}{' ...' if len(names) > 5 else ''}"
     warnings.warn(f"{what} on '{name}' linearizes {which} at the operating point (nonlinear in {vars_}): "
                   "friction, backlash, saturation or a moving contact is replaced by its tangent there, which "
-                  f"holds for small motions only; {instead}", ModelLimitationWarning, stacklevel=stacklevel + 1)
+                  f"holds for small motions only{f' ({measured})' if measured else ''}; {instead}",
+                  ModelLimitationWarning, stacklevel=stacklevel + 1)
 
 
 def explicit_form(dae: Dae, Jxd, Jx, Jz, Ju):

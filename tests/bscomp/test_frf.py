@@ -168,7 +168,7 @@ def test_linear_analyses_of_a_nonlinear_model_warn_by_name(tmp_path):
     s = _drive_with_friction()
     calls = [lambda: frf(s, "motor.tau", "table.s", [10.0, 100.0]), lambda: modes(s),
              lambda: transfer_function(s, "motor.tau", "table.s"),
-             lambda: simulate(s, np.linspace(0, 1e-3, 3), method="lti")]
+             lambda: simulate(s, np.linspace(0, 0.05, 51), inputs={"motor.tau": 2.0}, method="lti")]
     for call in calls:
         with pytest.warns(ModelLimitationWarning, match=r"linearizes the nonlinear component\(s\) fric "
                           r"\(CoulombFriction\).*nonlinear in der\(table\.s\).*method='idas'") as rec:

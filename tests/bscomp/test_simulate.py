@@ -264,3 +264,51 @@ def test_idas_restarts_on_a_reduced_model_match_exact_zoh():
     for n, tol in zip(outs, (1e-6, 1e-4, 1e-3), strict=True):
         err = float(np.max(np.abs(r[n] - ref[n])) / np.max(np.abs(ref[n])))
         assert err < tol, (n, err)
+
+
+def test_lti_warns_only_when_the_run_leaves_the_tangent():
+    """simulate(method='lti') on a model with nonlinear parts measures the nonlinear residual along the run: a
+    friction element that never moves (no input) or a current limit never reached is exact -- no warning,
+    ``linearization_error`` at round-off -- while a driven friction element is named with the time the run left
+    the tangent (the friction force saturates at F_c = 100 N within the first millisecond of a 2 N m torque)."""
+    import warnings
+
+    from bscomp.components import CoulombFriction
+    from bscomp.errors import ModelLimitationWarning
+
+    s = small_drive()
+    s.add("fric", CoulombFriction(F_c_pos=100.0, F_c_neg=100.0))
+    s.connect("ground.flange", "fric.flange_a")
+    s.connect("fric.flange_b", "table.flange_b")
+    t = np.linspace(0.0, 0.05, 51)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelLimitationWarning)
+        r = simulate(s, t, method="lti")
+    assert r.stats["linearization_error"] == 0.0
+    with pytest.warns(ModelLimitationWarning, match=r"this run leaves it by t = 0\.001 s, first in 'force balance "
+                      r"at table\.s'"):
+        r = simulate(s, t, inputs={"motor.tau": 2.0}, method="lti")
+    assert r.stats["linearization_error"] > 0.1
+
+
+def test_lti_on_the_test_bed_with_a_current_limit():
+    """The FE test bed with a 30 A amplifier limit (K_a = 6.4898 A/V, Eq 4.1): a +-2 V square wave (13 A) never
+    reaches it -- exact, silent; +-10 V (65 A) starts saturated, so the tangent there (slope 0) holds until the
+    first switch at 0.1 s and the warning says so."""
+    import warnings
+
+    from bscomp.errors import ModelLimitationWarning
+    from bscomp.linear.sweeps import build_system
+
+    dae = bscomp.flatten(build_system("testbed_axial_torsional", {"amp.i_max": 30.0}))
+    t = 1e-4 * np.arange(2001)
+
+    def square(a):
+        return lambda tt: a if (tt * 5.0) % 1.0 < 0.5 else -a
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelLimitationWarning)
+        r = simulate(dae, t, inputs={"amp.u": square(2.0)}, outputs=["table.a"], method="lti")
+    assert r.stats["linearization_error"] < 1e-9
+    with pytest.warns(ModelLimitationWarning, match=r"amp \(CurrentAmplifier\).*leaves it by t = 0\.1\d* s"):
+        simulate(dae, t, inputs={"amp.u": square(10.0)}, outputs=["table.a"], method="lti")
