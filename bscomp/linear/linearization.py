@@ -62,28 +62,35 @@ def _output_jac(dae: Dae, names, op: OperatingPoint):
     return [_sp(m) for m in f(op.xd, op.x, op.z, op.u, op.p)]
 
 
-def nonlinear_variables(dae) -> list:
+def nonlinear_variables(dae, p=None) -> list:
     """Names of the variables the residual's Jacobian depends on (empty for a linear model): the one test of
-    whether linearizing ``dae`` drops anything (``simulate(method="lti")``, :func:`frf`, :func:`modes`)."""
-    if "nonlinear_variables" in dae._cache:
-        return dae._cache["nonlinear_variables"]
+    whether linearizing ``dae`` drops anything (``simulate(method="lti")``, :func:`frf`, :func:`modes`).
+
+    With parameter values ``p`` the test is of the model *at those values*: a branch a parameter switches off
+    (an amplifier current limit ``i_max = 0``, Eq 4.1 without saturation) folds away and is not reported."""
+    key = "nonlinear_variables" if p is None else ("nonlinear_variables", np.asarray(p, float).tobytes())
+    if key in dae._cache:
+        return dae._cache[key]
     w = [(dae.xds, [f"der({n})" for n in dae.x_names]), (dae.xs, dae.x_names), (dae.zs, dae.z_names),
          (dae.us, dae.u_names)]
     wv = ca.vertcat(*(v for v, _ in w))
     names = [n for _, ns in w for n in ns]
+    F = dae.F_sx
+    if p is not None and F.numel() and dae.ps.numel():
+        F = ca.substitute(F, dae.ps, ca.DM(np.asarray(p, float)))     # constant folding drops switched-off branches
     # the unknowns entering the residual with order >= 2 (those its Jacobian depends on), by one
     # dependency walk: no Jacobian of the Jacobian (seconds on the moving-nut test bed)
-    cols = [i for i, dep in enumerate(ca.which_depends(dae.F_sx, wv, 2, False)) if dep] if dae.F_sx.numel() else []
-    dae._cache["nonlinear_variables"] = out = [names[c] for c in cols]
+    cols = [i for i, dep in enumerate(ca.which_depends(F, wv, 2, False)) if dep] if F.numel() else []
+    dae._cache[key] = out = [names[c] for c in cols]
     return out
 
 
-def linearized_parts(dae) -> tuple:
-    """``(model name, components, variables)`` a linearization of ``dae`` replaces by their tangent: the
-    components whose equations are nonlinear (``"fric (CoulombFriction)"``, recorded by flattening) and the
-    variables the residual's Jacobian depends on; ``()`` for a linear model (:func:`nonlinear_variables`
-    decides)."""
-    names = nonlinear_variables(dae)
+def linearized_parts(dae, p=None) -> tuple:
+    """``(model name, components, variables)`` a linearization of ``dae`` (at parameter values ``p``, default:
+    any) replaces by their tangent: the components whose equations are nonlinear (``"fric (CoulombFriction)"``,
+    recorded by flattening) and the variables the residual's Jacobian depends on; ``()`` for a linear model
+    (:func:`nonlinear_variables` decides)."""
+    names = nonlinear_variables(dae, p)
     if not names:
         return ()
     return dae.name, list(getattr(dae, "nonlinear_components", []) or []), names
@@ -193,7 +200,7 @@ def linearize(model, inputs=None, outputs=None, at: dict | None = None, params: 
     except NotLinearError:
         sys.second_order = None
     sys.operating_point = op
-    sys.linearized = linearized_parts(dae)
+    sys.linearized = linearized_parts(dae, op.p)
     return sys
 
 
@@ -349,4 +356,4 @@ def second_order(model, inputs=None, outputs=None, at: dict | None = None, param
         M=sp.csr_matrix(b.M), C=sp.csr_matrix(C), K=sp.csr_matrix(b.K), B=-sp.csr_matrix(b.Bu),
         Cq=sp.csr_matrix(Cq), Cv=sp.csr_matrix(Cv), Ca=sp.csr_matrix(Ca), D=sp.csr_matrix(Dy),
         coordinates=list(m.coordinate_names), units=list(m.coordinate_units), inputs=unames,
-        outputs=list(outputs), linearized=linearized_parts(dae))
+        outputs=list(outputs), linearized=linearized_parts(dae, op.p))

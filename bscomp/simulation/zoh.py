@@ -89,7 +89,7 @@ def simulate_zoh(problem, options=None):
         ``stats``: ``discretisations`` (distinct step lengths).
     """
     dae, t, U, p, xs = problem.dae, problem.t, problem.U, problem.p, problem.x0
-    parts = linearized_parts(dae)
+    parts = linearized_parts(dae, p)
     t_wall = time.perf_counter()
     nx, nu, nt = dae.nx, dae.nu, len(t)
     u0 = U[:, 0]

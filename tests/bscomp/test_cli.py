@@ -197,18 +197,24 @@ def test_demo_tells_the_story_on_the_fe_test_bed(tmp_path, capsys):
 
 
 def test_json_output_carries_the_warnings(capsys):
-    """With --json a warning (here: modes linearize the amplifier's current limit) stays a Python warning (one line
-    on stderr in a shell) and is in the JSON object on stdout, so a script reading stdout sees it."""
+    """With --json a warning (here: modes linearize the amplifier's 30 A current limit) stays a Python warning (one
+    line on stderr in a shell) and is in the JSON object on stdout, so a script reading stdout sees it. Without a
+    limit (``i_max = 0``, the default) the amplifier is linear and nothing is said."""
+    import warnings
+
     from bscomp.errors import ModelLimitationWarning
 
     with pytest.warns(ModelLimitationWarning, match="amp"):      # still a Python warning (stderr in a shell)
-        assert main(["modes", "testbed_axial_torsional", "--json"]) == 0
+        assert main(["modes", "testbed_axial_torsional", "--set", "amp.i_max=30", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert d["frequencies_hz"][1] > 100.0
     assert d["warnings"] and d["warnings"][0]["type"] == "ModelLimitationWarning"
     assert "amp" in d["warnings"][0]["message"]
-    assert main(["modes", "small_drive", "--json"]) == 0
-    assert "warnings" not in json.loads(capsys.readouterr().out)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelLimitationWarning)
+        for system in ("small_drive", "testbed_axial_torsional"):
+            assert main(["modes", system, "--json"]) == 0
+            assert "warnings" not in json.loads(capsys.readouterr().out)
 
 
 @pytest.mark.parametrize("method, rtol", [("lti", 1e-9), ("idas", 1e-4)])

@@ -141,7 +141,6 @@ def test_moving_nut_with_friction_and_backlash_matches_idas_at_rtol_1e9(moving):
     assert r.stats["switches"] >= 2                              # gap -> contact, stick -> slide
 
 
-@pytest.mark.filterwarnings("ignore:simulate\\(method='lti'\\)")   # the amplifier's (inactive) current limit
 def test_linear_model_equals_exact_zoh():
     """Without friction, backlash or a moving nut the method is the exact zero-order hold (method='lti')."""
     dae = flatten(drive("point", friction=False, backlash=False))
