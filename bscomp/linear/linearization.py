@@ -93,7 +93,14 @@ def linearized_parts(dae, p=None) -> tuple:
     names = nonlinear_variables(dae, p)
     if not names:
         return ()
-    return dae.name, list(getattr(dae, "nonlinear_components", []) or []), names
+    comps = list(getattr(dae, "nonlinear_components", []) or [])
+    if p is not None:           # at these values: the components a nonlinear variable belongs to (else all)
+        def mine(c):
+            path = c.split(" ")[0] + "."
+            return any(n.startswith(path) or n.startswith("der(" + path) for n in names)
+
+        comps = [c for c in comps if mine(c)] or comps
+    return dae.name, comps, names
 
 
 #: what a frequency-domain analysis of a nonlinear model should be replaced by
