@@ -287,7 +287,7 @@ def _simulate(args) -> int:
     from bscomp.errors import UsageError
     from bscomp.files import staged
     from bscomp.kernel.flattening import flatten
-    from bscomp.kernel.signal_meta import measured_outputs, unit_of
+    from bscomp.kernel.signal_meta import measured_outputs, unit_of, unit_suffix
     from bscomp.simulation.dispatch import simulate
     from bscomp.simulation.signals import SPELLINGS, parse_signal
 
@@ -325,7 +325,7 @@ def _simulate(args) -> int:
     print(f"{dae.name}: method {args.method!r}, {t[-1]:g} s in {n} steps of {args.dt:g} s{speed}")
     width = max(len(o) for o in outputs)
     for o, v in summary.items():
-        u = f" {v['unit']}" if v["unit"] else ""
+        u = unit_suffix(v["unit"])
         print(f"  {o:<{width}}  min {v['min']:11.4g}{u}  max {v['max']:11.4g}{u}  final {v['final']:11.4g}{u}")
     for f_ in (args.csv, args.png):
         if f_:

@@ -18,7 +18,7 @@ import re
 
 from bscomp.kernel.units import convention_units
 
-__all__ = ["state_meta", "input_meta", "parameter_meta", "output_meta", "unit_of", "measured_outputs",
+__all__ = ["state_meta", "input_meta", "parameter_meta", "output_meta", "unit_of", "unit_suffix", "measured_outputs",
            "base_exponents", "derivative_unit", "BASE_ORDER"]
 
 # SI base exponents in the FMI order (kg, m, s, A, K, mol, cd, rad) and a factor to SI
@@ -80,6 +80,7 @@ def derivative_unit(unit: str, order: int = 1) -> str:
             parts.append(tok)
     parts.append("s" if s_exp == 1 else f"s{s_exp}")
     return f"{num or '1'}/{'.'.join(parts)}"
+
 
 _OBS = re.compile(r"``(\w+)``\s*\[([^\]]*)\](?::\s*([^,`\n]+))?")
 
@@ -183,6 +184,11 @@ def unit_of(dae, name: str) -> str:
     unit = _declared_unit(dae, name)
     unit = re.sub(r"(?<=[A-Za-z0-9])\.(?=[A-Za-z])", " ", unit)
     return re.sub(r"(?<=[A-Za-z])(-?\d+)", r"^\1", unit)
+
+
+def unit_suffix(unit: str) -> str:
+    """``unit`` as it follows a number in a message: ``" m"``, or ``""`` for none and for ``"1"``."""
+    return f" {unit}" if unit and unit != "1" else ""
 
 
 def _declared_unit(dae, name: str) -> str:

@@ -68,9 +68,10 @@ def nonlinear_variables(dae, p=None) -> list:
 
     With parameter values ``p`` the test is of the model *at those values*: a branch a parameter switches off
     (an amplifier current limit ``i_max = 0``, Eq 4.1 without saturation) folds away and is not reported."""
-    key = "nonlinear_variables" if p is None else ("nonlinear_variables", np.asarray(p, float).tobytes())
-    if key in dae._cache:
-        return dae._cache[key]
+    memo = dae._cache.setdefault("nonlinear_variables_at", {})     # bounded below: a sweep visits many p
+    key = None if p is None else np.asarray(p, float).tobytes()
+    if key in memo:
+        return memo[key]
     w = [(dae.xds, [f"der({n})" for n in dae.x_names]), (dae.xs, dae.x_names), (dae.zs, dae.z_names),
          (dae.us, dae.u_names)]
     wv = ca.vertcat(*(v for v, _ in w))
@@ -81,7 +82,9 @@ def nonlinear_variables(dae, p=None) -> list:
     # the unknowns entering the residual with order >= 2 (those its Jacobian depends on), by one
     # dependency walk: no Jacobian of the Jacobian (seconds on the moving-nut test bed)
     cols = [i for i, dep in enumerate(ca.which_depends(F, wv, 2, False)) if dep] if F.numel() else []
-    dae._cache[key] = out = [names[c] for c in cols]
+    if len(memo) >= 64:
+        memo.pop(next(k for k in memo if k is not None))
+    memo[key] = out = [names[c] for c in cols]
     return out
 
 

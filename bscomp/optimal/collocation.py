@@ -19,7 +19,7 @@ chosen apart from the model.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import lru_cache, partial
 
 import casadi as ca
 import numpy as np
@@ -364,7 +364,7 @@ class _Transcription:
             gv, lbg, ubg = (np.asarray(opti.debug.value(e), float).ravel() for e in (opti.g, opti.lbg, opti.ubg))
             viol = float(np.max(np.r_[0.0, lbg - gv, gv - ubg]))
             T = float(opti.debug.value(self.T)) if self.ocp.T_fixed is None else self.ocp.T_fixed
-            where, info = describe(self.ledger, T, gv, lbg, ubg, units=self._unit)
+            where, info = describe(self.ledger, T, gv, lbg, ubg, units=partial(unit_of, self.dae))
         except Exception:  # noqa: BLE001 - diagnostic only
             viol = float("nan")
         vib = {}
@@ -374,10 +374,7 @@ class _Transcription:
             except Exception:  # noqa: BLE001 - diagnostic only
                 vib[n] = None
         return convergence_error(self.dae.name, opti.stats(), viol, vib, self.ocp.residual_limits, where, info,
-                                 units=self._unit)
-
-    def _unit(self, name: str) -> str:
-        return unit_of(self.dae, name)
+                                 units=partial(unit_of, self.dae))
 
     def _result(self, sol, stats, rate_expr) -> OcpResult:
         """The solution at the grid points (derivatives and algebraic variables: the last stage of each

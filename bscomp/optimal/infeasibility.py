@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bscomp.kernel.signal_meta import unit_suffix
+
 __all__ = ["Block", "Ledger", "describe"]
 
 #: the rows whose numbers are in their signal's unit (the others: residuals, scaled or modal rows)
@@ -92,8 +94,7 @@ def _unit(units, label, name) -> str:
     """`` unit`` (with its space) of a row's numbers, or ``""``: the horizon in s, a signal's by ``units``."""
     if label == "horizon":
         return " s"
-    u = units(name) if units is not None and label in UNIT_LABELS else ""
-    return f" {u}" if u and u != "1" else ""
+    return unit_suffix(units(name) if units is not None and label in UNIT_LABELS else "")
 
 
 def _worst(ledger, values, T, units=None):

@@ -16,6 +16,8 @@ Radau IIA equations as :mod:`bscomp.optimal.collocation` are then either
 
 from __future__ import annotations
 
+from functools import partial
+
 import casadi as ca
 import numpy as np
 
@@ -235,13 +237,10 @@ class _ModalNlp:
             gv = np.asarray(sol["g"]).ravel()
             viol = float(np.max(np.r_[0.0, lbg - gv, gv - ubg])) if gv.size else 0.0
             where, info = describe(self.ledger, float(vals[0]), gv, lbg, ubg, np.asarray(sol["x"]).ravel(),
-                                   np.concatenate(lbx), np.concatenate(ubx), units=self._unit)
+                                   np.concatenate(lbx), np.concatenate(ubx), units=partial(unit_of, self.md))
             raise convergence_error(self.md.name, stats, viol, residual, ocp.residual_limits, where, info,
-                                    units=self._unit)
+                                    units=partial(unit_of, self.md))
         return self._result(vals, stats, residual, int(w.numel()) - nE)
-
-    def _unit(self, name: str) -> str:
-        return unit_of(self.md, name)
 
     def _result(self, vals, stats, residual, n_unknowns) -> OcpResult:
         """The solution in modal coordinates at the grid points, bounded outputs and active fractions."""

@@ -14,6 +14,7 @@ from typing import Any, Callable
 import numpy as np
 
 from bscomp.errors import SolverError, UnknownNameError
+from bscomp.kernel.signal_meta import unit_suffix
 from bscomp.model import as_dae
 from bscomp.plotting.base import time_plot  # plotting (matplotlib) only when a figure is asked for
 from bscomp.simulation.dispatch import simulate
@@ -69,8 +70,7 @@ def convergence_error(model_name: str, stats: dict, violation: float, residual: 
     vib = ""
     if residual:
         def unit(n):
-            u = units(n) if units is not None else ""
-            return f" {u}" if u and u != "1" else ""
+            return unit_suffix(units(n) if units is not None else "")
 
         parts = [f"'{n}' {v:.3g}{unit(n)} (limit {limits[n]:.3g}{unit(n)})" if v is not None
                  else f"'{n}' ? (limit {limits[n]:.3g}{unit(n)})" for n, v in residual.items()]
