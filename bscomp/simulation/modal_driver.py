@@ -25,7 +25,7 @@ import numpy as np
 
 from bscomp.simulation.modal_channels import Channels, DefectiveLinearPart, LinearPart, ModalSimulationError
 from bscomp.simulation.modal_kernels import SKIPPED, Kernel, NumpyCall
-from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec
+from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec, regime_eps
 from bscomp.simulation.modal_parts import ModalPart
 from bscomp.simulation.modal_steps import THETAS, Stepper
 
@@ -251,7 +251,7 @@ class ModalSimulator:
         out = []
         for i in range(n):
             c = np.abs(np.array(self.cands[i]))
-            eps = 1e-3 * np.maximum(c.max(axis=0), 1e-300)
+            eps = regime_eps(c)
             dist = np.abs(np.log((np.abs(kd[i]) + eps) / (c + eps))).sum(axis=1)
             best = int(np.argmin(dist))
             keep = current is not None and dist[current[i]] <= dist[best] + REGIME_MARGIN

@@ -18,7 +18,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-__all__ = ["LawSpec"]
+__all__ = ["LawSpec", "regime_eps"]
 
 _EPS_REGIME = 1e-3   # slopes below this fraction of an element's steepest candidate count as zero
 REGIME_MARGIN = 2.3  # hysteresis: another regime is taken when its slopes are 10x closer (log-distance)
@@ -30,6 +30,13 @@ def _flat(a) -> np.ndarray:
     if a.ndim == 3:
         return np.concatenate([a[k].reshape(-1, order="F") for k in range(a.shape[0])])
     return a.reshape(-1, order="F")
+
+
+def regime_eps(cands) -> np.ndarray:
+    """``(eps_k, eps_d)`` of the regime distance: ``_EPS_REGIME`` x an element's steepest candidate slopes (packed
+    numbers, not constants of the expression: a new parameter value must not change the compiled laws)."""
+    c = np.abs(np.asarray(cands, float))
+    return _EPS_REGIME * np.maximum(c.max(axis=0), 1e-300)
 
 
 class LawSpec:
@@ -49,7 +56,7 @@ class LawSpec:
         self.layout = []                      # (name, shape) of every packed piece, in order
         for i, el in enumerate(ch.elements):
             self.layout += [(f"p{i}", (len(el.pnames),)), (f"reg{i}", (2,)), (f"cand{i}", (len(self.cands[i]), 2)),
-                            (f"cur{i}", (1,))]
+                            (f"eps{i}", (2,)), (f"cur{i}", (1,))]
         for j, (jt, (nS, ne)) in enumerate(zip(ch.joints, sizes, strict=True)):
             m = jt.m_eff
             self.layout += [(f"K{j}", (m, m)), (f"Kr{j}", (nS, nS)), (f"z{j}", (3,))]
@@ -71,6 +78,7 @@ class LawSpec:
             vals[f"p{i}"] = el.pvec
             vals[f"reg{i}"] = np.asarray(slopes[i], float)
             vals[f"cand{i}"] = np.asarray(self.cands[i], float)
+            vals[f"eps{i}"] = regime_eps(self.cands[i])
             vals[f"cur{i}"] = np.array([regime[i]], float)
         for j, (jt, (S, elems)) in enumerate(zip(ch.joints, cset, strict=True)):
             Kr, Cr = jt.tangent(z_ref[j])
@@ -146,14 +154,13 @@ class LawSpec:
         """1 if the candidate nearest the law's tangent at (s, v) is the current regime."""
         law = el.law(s, v, P[f"p{i}"])
         k, d = ca.jacobian(law, s), ca.jacobian(law, v)
-        cand = np.asarray(self.cands[i], float)
-        ek = _EPS_REGIME * max(np.abs(cand[:, 0]).max(), 1e-300)
-        ed = _EPS_REGIME * max(np.abs(cand[:, 1]).max(), 1e-300)
+        n_cand = len(self.cands[i])
+        ek, ed = P[f"eps{i}"][0], P[f"eps{i}"][1]
         C = P[f"cand{i}"]
         dist = [ca.fabs(ca.log((ca.fabs(k) + ek) / (ca.fabs(C[c, 0]) + ek)))
-                + ca.fabs(ca.log((ca.fabs(d) + ed) / (ca.fabs(C[c, 1]) + ed))) for c in range(cand.shape[0])]
+                + ca.fabs(ca.log((ca.fabs(d) + ed) / (ca.fabs(C[c, 1]) + ed))) for c in range(n_cand)]
         cur = P[f"cur{i}"][0]
-        dcur = sum(ca.if_else(cur == c, dist[c], 0) for c in range(cand.shape[0]))
+        dcur = sum(ca.if_else(cur == c, dist[c], 0) for c in range(n_cand))
         best = dist[0]
         for dd in dist[1:]:
             best = ca.fmin(best, dd)

@@ -216,3 +216,19 @@ def test_a_mass_sliding_free_in_an_open_clearance():
     assert ref["m2.v"][-1] > 0.03 and abs(ref["m1.s"][-1] - ref["m2.s"][-1]) < 0.5e-3   # sliding, clearance open
     for o in outs:
         assert _nrmse(r[o], ref[o]) < 1e-3, o
+
+
+def test_a_new_parameter_value_reuses_the_compiled_laws(moving):
+    """The laws' expression holds no parameter value (friction force, contact stiffness and the regime distance's
+    scales are packed numbers), so the compiled kernels of another parameter vector are the same library on disk:
+    a friction sweep with jit=True compiled anew per value (~3 s each) before."""
+    p = moving.p0.copy()
+    for name, factor in (("friction.F_c_pos", 1.3), ("friction.F_c_neg", 1.3), ("backlash.c", 0.5)):
+        p[moving.p_names.index(name)] *= factor
+    sims = [ModalSimulator(moving, moving.p0), ModalSimulator(moving, p)]
+    z = [sims[0].ch.joints[0].z0]
+    specs = [s.law(s.channel_set(z, z)) for s in sims]
+    for a, b in zip(specs[0].functions(), specs[1].functions(), strict=True):
+        assert a.serialize() == b.serialize()
+    thetas = [spec.pack((0, 1), s.slopes((0, 1)), z, s.channel_set(z, z)) for s, spec in zip(sims, specs, strict=True)]
+    assert thetas[0].size == thetas[1].size and not np.allclose(thetas[0], thetas[1])
