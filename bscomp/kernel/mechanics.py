@@ -164,14 +164,15 @@ def second_order_blocks(dae: Dae, jacobians, uidx, internal_rows=None) -> Second
     return SecondOrderBlocks(Ma, Cv_, Kq, Bu, Sq_x, Sq_z, Sv_x, Sv_xd_out, Sa_xd, Sw, zint, lu, G)
 
 
-def start_matrices(dae: Dae):
-    """``(M, K)`` (csr) of the mechanical part linearized at the start point with zero inputs.
+def start_matrices(dae: Dae, params: dict | None = None):
+    """``(M, K)`` (csr) of the mechanical part linearized at the start point with zero inputs (parameter
+    overrides ``params`` applied; structural ones are ignored).
 
     Internal differential states (a Pade delay, a controller's integrator) are held at their start
     values: they act on the mechanics as inputs do, so M and K -- what a system damping option needs --
     are those of the structure alone.
     """
-    op = operating_point(dae)
+    op = operating_point(dae, None, params)
     jac = sparse_jacobians(dae, op)
     rows = None
     m = dae.mech
