@@ -38,7 +38,9 @@ from bscomp._fmu_wrap import TIME_VR, patch_wrapper, state_nominals
 from bscomp._fmu_xml import FmuVariable, derivative_name, derivative_unit, structured_name, write_model_description
 from bscomp.errors import CompilerNotFoundError, FmuExportError, UnknownNameError
 from bscomp.files import atomic_path, writable_path
+from bscomp.kernel.dae import Dae
 from bscomp.kernel.signal_meta import input_meta, measured_outputs, output_meta, parameter_meta, state_meta
+from bscomp.kernel.system import System
 from bscomp.model import as_dae
 
 __all__ = ["export_fmu", "FMI3_HEADERS"]
@@ -99,6 +101,9 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
     path = writable_path(path, "export_fmu: path", (".fmu",)).absolute()
     cc = _find_compiler(compiler)
     dae = as_dae(system, overrides)
+    # a System or Dae keeps its flattening's p0 unless re-flattened: the overrides' values are the FMU's
+    own = (overrides or {}) if isinstance(system, (System, Dae)) else {}   # the other forms built them in
+    p_start = dae.parameter_vector({k: v for k, v in own.items() if k not in dae.structural_parameters})
     inputs = _check_inputs(dae, inputs)
     outputs = measured_outputs(dae) if outputs is None else list(outputs)
     dae.output_expr(outputs)  # unknown names raise UnknownNameError here
@@ -107,7 +112,7 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
     ident = re.sub(r"\W", "_", dae.name) or "model"
     ident = ident if not ident[0].isdigit() else "m_" + ident
     rayleigh = check_damping_parameters(dae, tunable)
-    builder, plan = _builder(dae, ident, inputs, outputs, tunable, rayleigh)
+    builder, plan = _builder(dae, ident, inputs, outputs, tunable, p_start, rayleigh)
     cwd = os.getcwd()
     with tempfile.TemporaryDirectory(prefix="bscomp_fmu_") as tmp, atomic_path(path) as target:
         try:
@@ -170,7 +175,7 @@ def _check_parameters(dae, parameters):
     return names
 
 
-def _builder(dae, ident, inputs, outputs, tunable, rayleigh=False):
+def _builder(dae, ident, inputs, outputs, tunable, p_start, rayleigh=False):
     """The DaeBuilder of the explicit ODE (internal names ``x3``, ``u0``, ``p1``, ``y2``) and the naming plan;
     ``rayleigh``: the system's Rayleigh damping evaluated from the tunable parameters (:mod:`bscomp._fmu_damping`)."""
     w_all = ca.vertcat(dae.xds, dae.zs)
@@ -184,11 +189,11 @@ def _builder(dae, ident, inputs, outputs, tunable, rayleigh=False):
     b = ca.DaeBuilder(ident)
     X = [b.add(f"x{i}", {"start": float(dae.x_start[i])}) for i in range(dae.nx)]
     U = {n: b.add(f"u{k}", "input", {"start": 0.0}) for k, n in enumerate(inputs)}
-    T = {n: b.add(f"p{k}", "parameter", "tunable", {"start": float(dae.p0[dae.p_names.index(n)])})
+    T = {n: b.add(f"p{k}", "parameter", "tunable", {"start": float(p_start[dae.p_names.index(n)])})
          for k, n in enumerate(tunable)}
     x = ca.vertcat(*X) if X else ca.MX(0, 1)
     u = ca.vertcat(*[U.get(n, ca.MX(0.0)) for n in dae.u_names]) if dae.nu else ca.MX(0, 1)
-    p = ca.vertcat(*[T.get(n, ca.MX(float(v))) for n, v in zip(dae.p_names, dae.p0)]) if dae.np else ca.MX(0, 1)
+    p = ca.vertcat(*[T.get(n, ca.MX(float(v))) for n, v in zip(dae.p_names, p_start)]) if dae.np else ca.MX(0, 1)
     res, Jxd, _, Jz, _ = dae.jacobians(ca.MX.zeros(dae.nx), x, ca.MX.zeros(dae.nz), u, p)
     if rayleigh:
         res = res + rayleigh_term(dae, x, p)
@@ -202,7 +207,7 @@ def _builder(dae, ident, inputs, outputs, tunable, rayleigh=False):
         Y.append(b.add(f"y{j}", "output"))
         b.eq(Y[j], y[j])
     known = ca.vertcat(x, *U.values()) if U else x
-    plan = {"inputs": inputs, "outputs": outputs, "tunable": tunable,
+    plan = {"inputs": inputs, "outputs": outputs, "tunable": tunable, "p_start": p_start,
             "dep_xd": _dependencies(xd, known), "dep_y": _dependencies(y, known),
             "out_syms": [dae.output_expr([o]) for o in outputs]}
     return b, plan
@@ -255,7 +260,7 @@ def _describe(dae, b, plan, nominals, xml_path):
     for k, n in enumerate(plan["tunable"]):
         unit, desc, lo, hi = parameter_meta(system, n)
         variables.append(FmuVariable(structured_name(n), vr(f"p{k}"), causality="parameter", variability="tunable",
-                                     initial="exact", start=float(dae.p0[dae.p_names.index(n)]), unit=unit,
+                                     initial="exact", start=float(plan["p_start"][dae.p_names.index(n)]), unit=unit,
                                      description=desc, min=lo, max=hi))
         public[structured_name(n)] = "parameter"
     outputs = []
