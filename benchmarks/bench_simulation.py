@@ -28,9 +28,10 @@ max |y - y_idas| / max |y_idas| for table position, table velocity and motor spe
 at rtol 1e-8 as the reference (minutes for 1 s).
 ``--moving`` runs issue 16's table instead (``moving()``: friction + backlash, nut frozen or moving, 0.6 s, the new
 ``method="modal"`` beside IDAS and scikit-sundae's IDA on the same equations, errors against IDAS at rtol 1e-9;
-then 2x/4x the step, the screw mesh 24-188 elements, the 6-DOF test bed and the modally reduced model).
+then 2x/4x the step, the screw mesh 24-188 elements, the 6-DOF test bed, the modally reduced model and a
+friction-force sweep through ``params=``).
 Run: python benchmarks/bench_simulation.py [T_end] [--no-scipy] [--nonlinear [--reference]]
-     python benchmarks/bench_simulation.py --moving [table steps mesh six reduced] [--reference]
+     python benchmarks/bench_simulation.py --moving [table steps mesh six reduced params] [--reference]
 """
 
 from __future__ import annotations
@@ -200,7 +201,7 @@ def _scipy(so, t):
     return list(Y)
 
 
-def moving(reference_again=False, parts=("table", "steps", "mesh", "six", "reduced")):
+def moving(reference_again=False, parts=("table", "steps", "mesh", "six", "reduced", "params")):
     """Issue 16: friction + backlash with the nut frozen at C or moving, 0.6 s (benchmarks/moving_cases.py).
 
     ``modal`` runs are ``simulate(method="modal", jit=True)``: *cold* = a fresh Dae-level set-up (modal parts,
@@ -339,7 +340,38 @@ def moving(reference_again=False, parts=("table", "steps", "mesh", "six", "reduc
             wc = min(cold)
             print(f"  moving nut only (no friction, backlash), {label}: {wc:.4f} s cold (RTF {T / wc:.1f}), "
                   f"{ww:.4f} s warm (RTF {T / ww:.1f})", flush=True)
+    if "params" in parts:
+        params_sweep(t)
     return rows
+
+
+def params_sweep(t):
+    """A sweep of the Table 5.2 friction force (5 values, +-25 %) on the moving-nut test bed with friction and
+    backlash, ``simulate(method="modal", jit=True)``: ``params=`` on the flattened Dae (its modal damping kept,
+    the compiled laws reused) against the baseline of flattening the System with each override."""
+    import moving_cases as mc
+
+    from bscomp.kernel.flattening import flatten
+    from bscomp.systems.thesis_effects import with_friction_backlash
+
+    system = with_friction_backlash(testbed_axial_torsional(nut_joint="moving"))
+    dae = flatten(system)
+    simulate(dae, t, inputs={"amp.u": mc.square}, outputs=mc.OUTS, method="modal", jit=True)   # compiled once
+    walls = {"params= on the Dae": [], "flatten(System.with_parameters) per value": []}
+    for f in (0.75, 0.9, 1.1, 1.25, 1.0):
+        over = {"friction.F_c_pos": 2066.0 * f, "friction.F_c_neg": 2066.0 * f}
+        t0 = time.perf_counter()
+        a = simulate(dae, t, inputs={"amp.u": mc.square}, outputs=["table.a"], method="modal", jit=True, params=over)
+        walls["params= on the Dae"].append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        b = simulate(flatten(system.with_parameters(over)), t, inputs={"amp.u": mc.square}, outputs=["table.a"],
+                     method="modal", jit=True)
+        walls["flatten(System.with_parameters) per value"].append(time.perf_counter() - t0)
+        assert np.allclose(a["table.a"], b["table.a"], rtol=0, atol=1e-9 * np.abs(b["table.a"]).max())
+    for k, w in walls.items():
+        print(f"  friction sweep, {k:<42} {np.mean(w):7.3f} s per value")
+    r = np.mean(walls["flatten(System.with_parameters) per value"]) / np.mean(walls["params= on the Dae"])
+    print(f"  ratio {r:.1f}x (same table.a to 1e-9)")
 
 
 def flatten_testbed_moving():
@@ -352,7 +384,7 @@ if __name__ == "__main__":
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     if "--moving" in sys.argv:
         sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-        moving("--reference" in sys.argv, tuple(args) or ("table", "steps", "mesh", "six", "reduced"))
+        moving("--reference" in sys.argv, tuple(args) or ("table", "steps", "mesh", "six", "reduced", "params"))
     elif "--nonlinear" in sys.argv:
         nonlinear(float(args[0]) if args else 1.0, reference="--reference" in sys.argv)
     else:
