@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.errors import BscompError
@@ -44,7 +45,7 @@ from bscomp.linear.linearization import explicit_form
 from bscomp.simulation.compiled import _Element, nonlinear_elements
 from bscomp.simulation.moving_joints import MovingJoint, find_moving_joints
 
-__all__ = ["ModalSimulationError", "Channels", "LinearPart"]
+__all__ = ["ModalSimulationError", "Channels", "LinearPart", "RigidBodyDamper", "rigid_body_dampers"]
 
 
 class ModalSimulationError(BscompError):
@@ -57,6 +58,56 @@ class DefectiveLinearPart(ModalSimulationError):
 
 
 
+class RigidBodyDamper:
+    """A virtual channel: a grounded viscous damper ``eps`` on one coordinate of an undamped rigid-body mode.
+
+    An undamped rigid-body motion (a free screw, a rotor with no motor damping) is a Jordan block of the linear
+    part (``q'' = f/m``: the eigenvalue 0 twice with one eigenvector), which has no modal coordinates. The damper's
+    slope ``eps`` goes into the linear part (the block splits into 0 and ``-eps/m``) and its law is zero force,
+    so its correction ``g = 0 - eps v`` takes it out again: the equations are the model's, exactly (the same
+    exchange as :meth:`bscomp.simulation.modal_driver.ModalSimulator.damped` makes for a mass left free by a
+    sliding friction, here without an element to carry it)."""
+
+    def __init__(self, coordinate: int, name: str, eps: float):
+        self.coordinate, self.eps = int(coordinate), float(eps)
+        self.path = f"rigid-body damper at {name}"
+        self.pnames, self.values, self.pvec = [], {}, np.zeros(0)
+        s, v, p = ca.SX.sym("s"), ca.SX.sym("v"), ca.SX.sym("p", 0)
+        self.law = ca.Function("law_rigid_body_damper", [s, v, p], [ca.SX(1, 1)])
+
+
+def rigid_body_dampers(lin) -> list:
+    """A :class:`RigidBodyDamper` on one coordinate of each rigid-body mode of the linear part ``lin``: the null
+    space of its stiffness block ``d v'/d q`` (the accelerations' dependence on the positions that are states,
+    ``M^-1 K`` condensed), each on the coordinate that moves most in it (pivoted QR, so that several modes get
+    distinct coordinates), with a slope that makes the mode decay at 1e-6 of the model's fastest rate
+    ``sqrt(max |A|)`` -- slow against every run, yet far from the double eigenvalue 0 in the eigenvector
+    condition. Empty when there is no such mode."""
+    dae = lin.ch.dae
+    m = dae.mech
+    A = lin.explicit()[0]
+    coords = [j for j in range(lin.ch.nr) if j in m.q_in_x and j in m.v_in_x]
+    if not A.size or not coords:
+        return []
+    Kq = A[np.ix_([m.v_in_x[j] for j in coords], [m.q_in_x[j] for j in coords])]
+    _, sv, Vt = np.linalg.svd(Kq)
+    if not sv.size or sv[0] == 0.0:
+        return []
+    Nq = Vt[sv <= 1e-12 * sv[0]].T
+    if not Nq.size:
+        return []
+    _, R, piv = sla.qr(Nq.T, pivoting=True, mode="economic")
+    rank = int(np.sum(np.abs(np.diag(R)) > 1e-6 * max(np.abs(R).max(), 1e-300)))
+    rate = 1e-6 * np.sqrt(np.abs(A).max())
+    out = []
+    for k in piv[:rank]:
+        j = coords[int(k)]
+        mass = abs(float(lin.Jxd[m.balance_rows[j], m.v_in_x[j]]))      # dF/da of the coordinate's balance
+        if mass > 0.0:
+            out.append(RigidBodyDamper(j, m.coordinate_names[j], rate * mass))
+    return out
+
+
 class Channels:
     """The nonlinear force channels of a flattened model: cut elements and moving joints.
 
@@ -65,9 +116,11 @@ class Channels:
     dae : Dae
     p : ndarray
         Parameter vector of the run.
+    rigid : sequence of RigidBodyDamper
+        Virtual dampers on undamped rigid-body modes (:func:`rigid_body_dampers`), after the elements.
     """
 
-    def __init__(self, dae, p):
+    def __init__(self, dae, p, rigid=()):
         if dae.system is None:
             raise ModalSimulationError(f"'{dae.name}' was not flattened from a System: method='modal' needs the "
                                        "components (pass the System, or use method='split')")
@@ -77,6 +130,7 @@ class Channels:
             el.values = {n: float(p[dae.p_names.index(f"{el.path}.{n}")]) if f"{el.path}.{n}" in dae.p_names
                          else el.values[n] for n in el.pnames}
             el.pvec = np.array([el.values[n] for n in el.pnames], float)
+        self.elements += list(rigid)
         joints = [MovingJoint(dae, path, c, p) for path, c in find_moving_joints(dae.system)]
         self.joints = [j for j in joints if not j.is_linear]
         self.z0_index = [dae.p_names.index(f"{j.path}.z0") for j in self.joints]
@@ -99,18 +153,31 @@ class Channels:
     def _element_rows(self):
         """Rows of every element's ``s_rel``, ``v_rel`` at rest, its coordinate row ``D`` and rest slopes."""
         dae = self.dae
-        names = [f"{el.path}.{q}" for el in self.elements for q in ("s_rel", "v_rel")]
-        self.el_rows = None
-        if not names:
-            return
-        y = dae.output_expr(names)
-        f = ca.Function("rows", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
-                        [y, ca.jacobian(y, dae.xds), ca.jacobian(y, dae.xs), ca.jacobian(y, dae.zs),
-                         ca.jacobian(y, dae.us)])
-        y0, Jxd, Jx, Jz, Ju = (dense(np.asarray(ca.DM(v)), float) for v in
-                               f(np.zeros(dae.nx), self.x_a, self.z_a, np.zeros(dae.nu), self.p))
-        self.el_rows = (y0.ravel(), Jxd, Jx, Jz, Ju)
         m = dae.mech
+        real = [el for el in self.elements if not isinstance(el, RigidBodyDamper)]
+        names = [f"{el.path}.{q}" for el in real for q in ("s_rel", "v_rel")]
+        self.el_rows = None
+        if not self.elements:
+            return
+        shapes = (dae.nx, dae.nx, dae.nz, dae.nu)
+        if names:
+            y = dae.output_expr(names)
+            f = ca.Function("rows", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
+                            [y, ca.jacobian(y, dae.xds), ca.jacobian(y, dae.xs), ca.jacobian(y, dae.zs),
+                             ca.jacobian(y, dae.us)])
+            y0, Jxd, Jx, Jz, Ju = (dense(np.asarray(ca.DM(v)), float) for v in
+                                   f(np.zeros(dae.nx), self.x_a, self.z_a, np.zeros(dae.nu), self.p))
+            y0 = y0.ravel()
+        else:
+            y0, (Jxd, Jx, Jz, Ju) = np.zeros(0), (np.zeros((0, n)) for n in shapes)
+        for el in self.elements[len(real):]:            # a virtual damper: s, v = the coordinate's q, v states
+            iq, iv = m.q_in_x[el.coordinate], m.v_in_x[el.coordinate]
+            rows = np.zeros((2, dae.nx))
+            rows[0, iq] = rows[1, iv] = 1.0
+            y0 = np.r_[y0, self.x_a[iq], self.x_a[iv]]
+            Jx = np.vstack([Jx, rows])
+            Jxd, Jz, Ju = (np.vstack([J, np.zeros((2, n))]) for J, n in ((Jxd, dae.nx), (Jz, dae.nz), (Ju, dae.nu)))
+        self.el_rows = (y0, Jxd, Jx, Jz, Ju)
         D = np.zeros((len(self.elements), self.nr))
         for i in range(len(self.elements)):
             for j in range(self.nr):
@@ -118,7 +185,7 @@ class Channels:
         self.D = D
         self.rest = []
         for i in range(len(self.elements)):
-            s0, v0 = y0.ravel()[2 * i], y0.ravel()[2 * i + 1]
+            s0, v0 = y0[2 * i], y0[2 * i + 1]
             self.rest.append((s0, v0) + self.slopes(i, s0, v0))
         self.rest_force = np.array([float(el.law(r[0], r[1], el.pvec)) for el, r in zip(self.elements, self.rest,
                                                                                         strict=True)])
@@ -157,7 +224,10 @@ class Channels:
         return float(ks), float(kv)
 
     def candidate_regimes(self, i):
-        """Slopes ``(k, d)`` element i takes: its tangent at rest and on its outer branches (far points)."""
+        """Slopes ``(k, d)`` element i takes: its tangent at rest and on its outer branches (far points); a
+        :class:`RigidBodyDamper` its one slope."""
+        if isinstance(self.elements[i], RigidBodyDamper):
+            return [(0.0, self.elements[i].eps)]
         s0, v0 = self.rest[i][:2]
         out = [tuple(self.rest[i][2:])]
         for ds, dv in ((1e6, 1e6), (-1e6, -1e6), (1e6, 0.0), (0.0, 1e6)):

@@ -23,7 +23,13 @@ import time
 import casadi as ca
 import numpy as np
 
-from bscomp.simulation.modal_channels import Channels, DefectiveLinearPart, LinearPart, ModalSimulationError
+from bscomp.simulation.modal_channels import (
+    Channels,
+    DefectiveLinearPart,
+    LinearPart,
+    ModalSimulationError,
+    rigid_body_dampers,
+)
 from bscomp.simulation.modal_kernels import SKIPPED, Kernel, NumpyCall
 from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec, regime_eps
 from bscomp.simulation.modal_parts import ModalPart
@@ -113,6 +119,25 @@ class ModalSimulator:
         self.outputs = {}     # names -> modal.Outputs (rows per modal part)
         self._checked = set()
         self.stats = {"setup_channels_s": time.perf_counter() - t0, "modal_parts": 0, "modal_part_s": 0.0}
+        self._rest_part()
+
+    def _rest_part(self):
+        """Build the rest regime's modal part; when it has a Jordan block that no element can take (an undamped
+        rigid-body mode: a free screw, a rotor without motor damping), cut the channels again with a
+        :class:`~bscomp.simulation.modal_channels.RigidBodyDamper` on each rigid-body mode (the equations stay
+        the model's) and build it from those."""
+        rest = tuple(0 for _ in self.ch.elements)
+        z0 = [jt.z0 for jt in self.ch.joints]
+        try:
+            self.part(rest, z0)
+        except DefectiveLinearPart:
+            dampers = rigid_body_dampers(LinearPart(self.ch, self.slopes(rest), z0))
+            if not dampers:
+                raise
+            self.ch = Channels(self.dae, self.p, rigid=dampers)
+            self.cands = [self.ch.candidate_regimes(i) for i in range(len(self.ch.elements))]
+            self.stats["rigid_body_dampers"] = [d.path for d in dampers]
+            self.part(tuple(0 for _ in self.ch.elements), z0)
 
     # ---- cached pieces ----------------------------------------------------------------------------------
     def part(self, regime, z_ref):

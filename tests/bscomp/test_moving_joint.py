@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from bscomp import System, flatten
-from bscomp.components import Backlash, CoulombFriction, Damper, Fixed, Force, Mass
+from bscomp.components import Backlash, CoulombFriction, Damper, Fixed, Force, Mass, Spring
 from bscomp.simulation import SampledController, simulate
 from bscomp.simulation.modal_channels import Channels, LinearPart, ModalSimulationError
 from bscomp.simulation.modal_driver import ModalSimulator
@@ -174,9 +174,14 @@ def test_bad_input_raises_named_errors(moving):
     t = np.arange(0.0, 1e-3, 1e-4)
     with pytest.raises(ValueError, match="options"):
         simulate(moving, t, method="modal", modal_options={"tolerance": 1e-3})
+    # the drive without viscous damping (a free rigid-body motion) was refused ("not diagonalisable"); it runs
+    # now, through a virtual rigid-body damper, and equals the exact ZOH
     dae = flatten(drive("point", friction=False, backlash=False, viscous="none"))
-    with pytest.raises(ModalSimulationError, match="diagonalisable"):
-        simulate(dae, t, method="modal")
+    r = simulate(dae, t, inputs={"amp.u": AMP}, outputs=["rotor.phi", "table.s"], method="modal")
+    ref = simulate(dae, t, inputs={"amp.u": AMP}, outputs=["rotor.phi", "table.s"], method="lti")
+    assert r.stats["rigid_body_dampers"]
+    for o in ("rotor.phi", "table.s"):
+        assert np.abs(r[o] - ref[o]).max() < 1e-6 * np.abs(ref[o]).max(), o
     # a nonlinearity the method does not correct (the amplifier's current limit, active at 2.125 V) is refused,
     # not linearized silently
     with pytest.raises(ModalSimulationError, match="amp"):
@@ -232,3 +237,66 @@ def test_a_new_parameter_value_reuses_the_compiled_laws(moving):
         assert a.serialize() == b.serialize()
     thetas = [spec.pack((0, 1), s.slopes((0, 1)), z, s.channel_set(z, z)) for s, spec in zip(sims, specs, strict=True)]
     assert thetas[0].size == thetas[1].size and not np.allclose(thetas[0], thetas[1])
+
+
+def _free_chain(backlash=False):
+    """Three masses on two springs (the second a clearance when ``backlash``), nothing to ground: a free, undamped
+    rigid-body motion -- a Jordan block of the linear part."""
+    s = System("free_chain")
+    for i, m in enumerate((1.0, 2.0, 3.0)):
+        s.add(f"m{i}", Mass(m=m))
+    s.add("k0", Spring(c=1.0e4))
+    s.add("k1", Backlash(b=2e-4, c=3.0e4) if backlash else Spring(c=3.0e4))
+    s.add("F", Force())
+    s.connect("m0.flange_b", "k0.flange_a")
+    s.connect("k0.flange_b", "m1.flange_a")
+    s.connect("m1.flange_b", "k1.flange_a")
+    s.connect("k1.flange_b", "m2.flange_a")
+    s.connect("F.flange", "m0.flange_a")
+    return flatten(s)
+
+
+def test_an_undamped_rigid_body_mode_runs_exactly():
+    """A free chain pushed by a constant force (no damping, nothing to ground): method='modal' refused it (a
+    Jordan block) before; now a virtual damper on the rigid-body mode goes into the linear part and its exact
+    negative into a correction channel. Checked against the momentum balance -- the centre of mass moves as
+    F t^2 / (2 sum m), whatever the vibration -- and the exact ZOH; and the registered sub-model 1 (a free rotor
+    and screw) against IDAS at rtol 1e-10."""
+    from bscomp.systems import get
+
+    dae = _free_chain()
+    t = 1e-3 * np.arange(1001)
+    outs = ["m0.s", "m1.s", "m2.s", "m2.v"]
+    r = simulate(dae, t, inputs={"F.f": 2.0}, outputs=outs, method="modal")
+    assert r.stats["rigid_body_dampers"] == ["rigid-body damper at m0.s"]
+    xcm = (1.0 * r["m0.s"] + 2.0 * r["m1.s"] + 3.0 * r["m2.s"]) / 6.0
+    np.testing.assert_allclose(xcm, 2.0 * t ** 2 / 12.0, rtol=0, atol=1e-8 * 2.0 / 12.0)
+    ref = simulate(dae, t, inputs={"F.f": 2.0}, outputs=outs, method="lti")
+    for o in outs:
+        assert np.abs(r[o] - ref[o]).max() < 1e-8 * np.abs(ref[o]).max(), o
+    sub = flatten(get("testbed_submodel1"))
+    t = 1e-4 * np.arange(3001)
+    outs = ["rotor.phi", "screw.n0.tz", "screw.n47.tz"]
+    r = simulate(sub, t, inputs={"amp.u": 1.0}, outputs=outs, method="modal")
+    ref = simulate(sub, t, inputs={"amp.u": 1.0}, outputs=outs, method="lti")
+    assert r.stats["rigid_body_dampers"] == ["rigid-body damper at rotor.phi"]
+    for o in outs:
+        assert np.abs(r[o] - ref[o]).max() < 1e-6 * np.abs(ref[o]).max(), o
+
+
+def test_a_free_chain_through_a_clearance_matches_idas():
+    """The free chain with its second spring a 0.2 mm clearance: the rest regime (clearance open) leaves the
+    whole chain free, and after the first contact two bodies bounce apart again. The virtual rigid-body damper
+    and the backlash channel together equal IDAS at rtol 1e-10 on the same equations."""
+    dae = _free_chain(backlash=True)
+    t = 1e-4 * np.arange(1001)
+    outs = ["m0.s", "m2.s", "m2.v"]
+
+    def push(tt):
+        return 40.0 if tt < 0.02 else 0.0
+
+    r = simulate(dae, t, inputs={"F.f": push}, outputs=outs, method="modal")
+    ref = simulate(dae, t, inputs={"F.f": push}, outputs=outs, rtol=1e-10, atol=1e-13, max_num_steps=10**7)
+    assert r.stats["rigid_body_dampers"] and np.abs(ref["m2.v"]).max() > 0.05      # m2 was hit
+    for o in outs:
+        assert _nrmse(r[o], ref[o]) < 1e-3, (o, _nrmse(r[o], ref[o]))
