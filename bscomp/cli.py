@@ -157,7 +157,14 @@ def _frf(args) -> int:
                          hint="give a frequency band, e.g. --fmin 1 --fmax 1000")
     _outputs(args)
     system = _build(args)
-    res = frf(system, args.input, args.output, fmin=args.fmin, fmax=args.fmax, n=args.n)
+    n = args.n or (24 if args.amplitude else 500)
+    if args.amplitude:                  # by simulation at a real amplitude (friction, backlash as they act)
+        from bscomp.simulation.stepped_sine import stepped_sine
+
+        res = stepped_sine(system, args.input, args.output, np.geomspace(args.fmin, args.fmax, n), args.amplitude,
+                           method=args.method, jit=args.jit)
+    else:
+        res = frf(system, args.input, args.output, fmin=args.fmin, fmax=args.fmax, n=n)
     with staged() as st:
         if args.csv:
             res.to_csv(st.path(args.csv))
@@ -170,6 +177,10 @@ def _frf(args) -> int:
         k = int(np.argmax(h))
         print(f"{system.name}: {args.input} -> {args.output}, {res.freqs.size} points "
               f"{args.fmin:g}-{args.fmax:g} Hz; largest |H| = {h[k]:.4g} at {res.freqs[k]:.4g} Hz")
+        if args.amplitude:
+            j = int(np.argmax(d := res.distortion[:, 0]))
+            print(f"  stepped sine at {args.amplitude:g}: largest distortion {100 * d[j]:.3g} % at {res.freqs[j]:.4g} "
+                  "Hz (the share of the response that is not the fundamental)")
         for f_ in (args.csv, args.png):
             if f_:
                 print(f"  written {f_}")
@@ -410,8 +421,15 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--output", required=True, help="output name, e.g. rotor.w")
     p.add_argument("--fmin", type=_number("--fmin", 0), default=1.0, help="lowest frequency [Hz] (default 1)")
     p.add_argument("--fmax", type=_number("--fmax", 0), default=1000.0, help="highest frequency [Hz] (default 1000)")
-    p.add_argument("--n", type=_number("--n", 1, 10 ** 6, integer=True, open_low=False), default=500,
-                   help="number of log-spaced frequencies (default 500)")
+    p.add_argument("--n", type=_number("--n", 1, 10 ** 6, integer=True, open_low=False), default=None,
+                   help="number of log-spaced frequencies (default 500; 24 with --amplitude)")
+    p.add_argument("--amplitude", type=_number("--amplitude", 0),
+                   help="take the FRF by simulation, driving the input with a sine of this amplitude (its unit) at "
+                        "each frequency: a stepped-sine test, friction and backlash acting as they do at that "
+                        "amplitude (default: the FRF linearized at rest)")
+    p.add_argument("--method", choices=["modal", "idas"], default="modal",
+                   help="simulation method of --amplitude (default modal)")
+    p.add_argument("--jit", action="store_true", help="--amplitude: compile the modal kernels to C (needs gcc)")
     p.add_argument("--csv", help="write the FRF to a CSV file (default: CSV on stdout when no --png)")
     p.add_argument("--png", help="write a Bode plot (.png, .pdf or .svg)")
     p.set_defaults(func=_frf)

@@ -107,9 +107,8 @@ def linearized_parts(dae, p=None) -> tuple:
 
 
 #: what a frequency-domain analysis of a nonlinear model should be replaced by
-SIMULATE_INSTEAD = ("for the response at a real amplitude, simulate a sine sweep or stepped sines with "
-                    "bscomp.simulate(..., method='idas') (or 'split') and take the ratio of the output and input "
-                    "spectra")
+SIMULATE_INSTEAD = ("for the response at a real amplitude, take a stepped-sine FRF by simulation: "
+                    "bscomp.stepped_sine(model, input, output, freqs, amplitude)")
 
 
 def warn_linearized(parts: tuple, what: str, instead: str, stacklevel: int = 2, measured: str = "") -> None:

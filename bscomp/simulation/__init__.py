@@ -7,7 +7,8 @@ Modules: :mod:`~bscomp.simulation.dispatch` (``simulate`` and its table of metho
 :mod:`~bscomp.simulation.common` (problem set-up, held inputs, sampled-controller schedule, output
 evaluation, progress), :mod:`~bscomp.simulation.sampled` (sampled controllers in the loop),
 :mod:`~bscomp.simulation.result`, :mod:`~bscomp.simulation.native` (C compilation, native messages);
-:mod:`~bscomp.simulation.compiled` / :mod:`~bscomp.simulation.compiled_time` (CompiledModel).
+:mod:`~bscomp.simulation.compiled` / :mod:`~bscomp.simulation.compiled_time` (CompiledModel);
+:mod:`~bscomp.simulation.stepped_sine` (the FRF of a nonlinear model at a real amplitude, by simulation).
 """
 
 from bscomp.simulation.compiled import CompiledModel, ModalModel, nonlinear_elements
@@ -15,6 +16,7 @@ from bscomp.simulation.compiled_time import CompiledModelError
 from bscomp.simulation.dispatch import METHODS, simulate
 from bscomp.simulation.result import SimulationError, SimulationResult
 from bscomp.simulation.sampled import SampledController, sampled_controller
+from bscomp.simulation.stepped_sine import SteppedSine, stepped_sine
 
 __all__ = ["simulate", "METHODS", "SimulationResult", "SimulationError", "SampledController", "sampled_controller",
-           "CompiledModel", "ModalModel", "nonlinear_elements", "CompiledModelError"]
+           "CompiledModel", "ModalModel", "nonlinear_elements", "CompiledModelError", "stepped_sine", "SteppedSine"]
