@@ -159,7 +159,7 @@ def _frf(args) -> int:
     system = _build(args)
     n = args.n or (24 if args.amplitude else 500)
     if args.amplitude:                  # by simulation at a real amplitude (friction, backlash as they act)
-        from bscomp.simulation.stepped_sine import stepped_sine
+        from bscomp.simulation.stepped import stepped_sine
 
         res = stepped_sine(system, args.input, args.output, np.geomspace(args.fmin, args.fmax, n), args.amplitude,
                            method=args.method, jit=args.jit)

@@ -13,7 +13,7 @@ from bscomp import System
 from bscomp.components import Fixed, Force, Mass, Spring
 from bscomp.errors import ParameterError
 
-__all__ = ["mass_spring_chain"]
+__all__ = ["mass_spring_chain", "free_chain"]
 
 
 def mass_spring_chain(masses=(2.0, 3.0), springs=(1.0e4, 2.5e4), *, name: str = "chain", first: int = 1) -> System:
@@ -49,4 +49,30 @@ def mass_spring_chain(masses=(2.0, 3.0), springs=(1.0e4, 2.5e4), *, name: str = 
         prev = f"m{i}.flange_b"
     s.add("F", Force())
     s.connect("F.flange", prev)
+    return s
+
+
+def free_chain(masses=(1.0, 2.0, 3.0), springs=(1.0e4, 3.0e4), *, name: str = "free_chain") -> System:
+    """Free chain: ``len(masses)`` masses ``m0, m1, ...`` [kg] joined by ``len(masses) - 1`` springs ``k0, k1, ...``
+    [N/m], nothing to ground, force ``F.f`` on the first mass: an undamped rigid-body mode (its centre of mass
+    moves as ``F t^2 / (2 sum m)``) beside the elastic ones.
+
+    Raises
+    ------
+    ParameterError
+        Not one spring fewer than masses.
+    """
+    masses, springs = list(masses), list(springs)
+    if len(masses) < 2 or len(springs) != len(masses) - 1:
+        raise ParameterError(f"free_chain: give one spring between each pair of masses; got {len(masses)} masses "
+                             f"and {len(springs)} springs")
+    s = System(name)
+    for i, m in enumerate(masses):
+        s.add(f"m{i}", Mass(m=m))
+    for i, k in enumerate(springs):
+        s.add(f"k{i}", Spring(c=k))
+        s.connect(f"m{i}.flange_b", f"k{i}.flange_a")
+        s.connect(f"k{i}.flange_b", f"m{i + 1}.flange_a")
+    s.add("F", Force())
+    s.connect("F.flange", "m0.flange_a")
     return s

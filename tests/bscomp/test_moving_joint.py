@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from bscomp import System, flatten
-from bscomp.components import Backlash, CoulombFriction, Damper, Fixed, Force, Mass, Spring
+from bscomp.components import Backlash, CoulombFriction, Damper, Fixed, Force, Mass
 from bscomp.simulation import SampledController, simulate
 from bscomp.simulation.modal_channels import Channels, LinearPart, ModalSimulationError
 from bscomp.simulation.modal_driver import ModalSimulator
-from bscomp.systems import testbed
+from bscomp.systems import free_chain, testbed
 
 AMP = 2.125                     # Sec 5.3.1: 4.25 V peak-to-peak square wave
 F_C, B_GAP = 2066.0, 0.001885 * 0.010 / (2 * np.pi)   # Table 5.2: Coulomb force, backlash L r_g = 3.0 um
@@ -240,19 +240,11 @@ def test_a_new_parameter_value_reuses_the_compiled_laws(moving):
 
 
 def _free_chain(backlash=False):
-    """Three masses on two springs (the second a clearance when ``backlash``), nothing to ground: a free, undamped
-    rigid-body motion -- a Jordan block of the linear part."""
-    s = System("free_chain")
-    for i, m in enumerate((1.0, 2.0, 3.0)):
-        s.add(f"m{i}", Mass(m=m))
-    s.add("k0", Spring(c=1.0e4))
-    s.add("k1", Backlash(b=2e-4, c=3.0e4) if backlash else Spring(c=3.0e4))
-    s.add("F", Force())
-    s.connect("m0.flange_b", "k0.flange_a")
-    s.connect("k0.flange_b", "m1.flange_a")
-    s.connect("m1.flange_b", "k1.flange_a")
-    s.connect("k1.flange_b", "m2.flange_a")
-    s.connect("F.flange", "m0.flange_a")
+    """:func:`bscomp.systems.free_chain` (3 masses, 2 springs, nothing to ground: a free, undamped rigid-body
+    motion -- a Jordan block of the linear part), its second spring a 0.2 mm clearance when ``backlash``."""
+    s = free_chain()
+    if backlash:
+        s.replace("k1", Backlash(b=2e-4, c=3.0e4))
     return flatten(s)
 
 

@@ -10,21 +10,11 @@ import bscomp
 from bscomp import System, second_order
 from bscomp.components import Force, Mass, Spring
 from bscomp.kernel.damping import ModalDamping, RayleighDamping
+from bscomp.systems import free_chain as chain
 
 
 def free_chain():
-    s = System("free3")
-    for i in range(3):
-        s.add(f"m{i}", Mass(m=1.0 + i))
-    s.add("k0", Spring(c=1.0e4))
-    s.add("k1", Spring(c=3.0e4))
-    s.add("F", Force())
-    s.connect("m0.flange_b", "k0.flange_a")
-    s.connect("k0.flange_b", "m1.flange_a")
-    s.connect("m1.flange_b", "k1.flange_a")
-    s.connect("k1.flange_b", "m2.flange_a")
-    s.connect("F.flange", "m0.flange_a")
-    return s
+    return chain(name="free3")
 
 
 def damping_ratios(so):
