@@ -133,8 +133,7 @@ def input_matrix(dae, t, inputs, fixed=()):
             raise UnknownNameError(f"'{k}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
         i = dae.u_names.index(k)
         if callable(v):
-            tm = 0.5 * (t[:-1] + t[1:])
-            U[i] = [_call_input(k, v, tt) for tt in tm]
+            U[i] = _input_values(k, v, 0.5 * (t[:-1] + t[1:]))
         else:
             try:
                 arr = np.asarray(v, float)
@@ -156,6 +155,22 @@ def input_matrix(dae, t, inputs, fixed=()):
         if k not in dae.u_names:
             raise UnknownNameError(f"'{k}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
     return U
+
+
+def _input_values(name, fn, tm) -> np.ndarray:
+    """The input function ``fn`` at the interval midpoints ``tm``: one call with the whole array when ``fn`` is
+    written in numpy (the same numbers as point by point, checked at three points), else one call per point
+    (~0.4 us each: 2.6 ms of a 6,000-interval run that the modal method finishes in 12 ms)."""
+    try:
+        with np.errstate(all="ignore"):
+            v = np.asarray(fn(tm), float)
+    except Exception:  # noqa: BLE001 - a function of one number (`if t < ...`): point by point below
+        v = None
+    if v is not None and v.shape == tm.shape and np.all(np.isfinite(v)):
+        probe = sorted({0, len(tm) // 2, len(tm) - 1})
+        if all(np.isclose(v[j], _call_input(name, fn, tm[j]), rtol=1e-12, atol=0.0) for j in probe):
+            return v
+    return np.array([_call_input(name, fn, tt) for tt in tm])
 
 
 def _call_input(name, fn, t) -> float:

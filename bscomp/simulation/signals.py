@@ -1,8 +1,8 @@
 """Test signals for :func:`bscomp.simulation.simulate` inputs, and their one-line spelling for the CLI.
 
 Each function returns a callable ``u(t)`` (what ``simulate(inputs={name: u})`` takes; held on each interval at
-its midpoint value). The thesis's Ch 5 open-loop run is ``square(2.125, 5.0)`` on ``amp.u`` (4.25 V peak to
-peak, 5 Hz, Sec 5.3.1).
+its midpoint value), written in numpy so that ``simulate`` evaluates it once for the whole grid. The thesis's
+Ch 5 open-loop run is ``square(2.125, 5.0)`` on ``amp.u`` (4.25 V peak to peak, 5 Hz, Sec 5.3.1).
 
 =================================  ===========================================================
 spelling (``bscomp simulate``)      signal
@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from bscomp.errors import UsageError
 
 __all__ = ["step", "square", "sine", "ramp", "parse_signal", "SPELLINGS"]
@@ -28,22 +30,22 @@ SPELLINGS = "a number, step:A[:T0], square:A:F, sine:A:F or ramp:RATE[:T0]"
 
 def step(amplitude: float, t0: float = 0.0):
     """``0`` before ``t0`` [s], ``amplitude`` from it on."""
-    return lambda t: amplitude if t >= t0 else 0.0
+    return lambda t: np.where(np.asarray(t) >= t0, amplitude, 0.0)
 
 
 def square(amplitude: float, frequency: float):
     """``+amplitude`` on the first half of each period ``1/frequency`` [Hz], ``-amplitude`` on the second."""
-    return lambda t: amplitude if (t * frequency) % 1.0 < 0.5 else -amplitude
+    return lambda t: np.where((np.asarray(t) * frequency) % 1.0 < 0.5, amplitude, -amplitude)
 
 
 def sine(amplitude: float, frequency: float):
     """``amplitude sin(2 pi frequency t)``."""
-    return lambda t: amplitude * math.sin(2 * math.pi * frequency * t)
+    return lambda t: amplitude * np.sin(2 * math.pi * frequency * np.asarray(t))
 
 
 def ramp(rate: float, t0: float = 0.0):
     """``rate (t - t0)`` from ``t0`` [s] on, 0 before."""
-    return lambda t: rate * (t - t0) if t >= t0 else 0.0
+    return lambda t: np.where(np.asarray(t) >= t0, rate * (np.asarray(t) - t0), 0.0)
 
 
 _KINDS = {"step": (step, 1, 2, False), "square": (square, 2, 2, True), "sine": (sine, 2, 2, True),
