@@ -36,7 +36,7 @@ from bscomp.optimal import Ocp
 from bscomp.optimal.problem import OcpError
 from bscomp.systems import small_drive
 from bscomp.systems.parameters import get_value, load_parameters
-from bscomp.systems.testbed import testbed
+from bscomp.systems.testbed import testbed as make_testbed
 from bscomp.validate import MeasurementFileError, load
 
 T = np.linspace(0.0, 0.01, 11)
@@ -432,15 +432,15 @@ CASES = [
     ("model_build_keyword_for_a_system", lambda tmp: as_system(sd(), {"k_axial": 1.0}), UnknownNameError,
      r"\['k_axial'\] are build keywords"),
     # ---- the CMS-reduced test bed (Sec 5.2.3) and the Ch 5 effects --------------------------------------------
-    ("reduce_point_joint", lambda tmp: _reduce(testbed("axial_torsional")), ModelDefinitionError,
+    ("reduce_point_joint", lambda tmp: _reduce(make_testbed("axial_torsional")), ModelDefinitionError,
      r"moving screw-nut joint 'sn'.*nut_joint='moving'"),
-    ("reduce_6dof_bed", lambda tmp: _reduce(testbed("full", nut_joint="moving")), ModelDefinitionError,
+    ("reduce_6dof_bed", lambda tmp: _reduce(make_testbed("full", nut_joint="moving")), ModelDefinitionError,
      r"axial \+ torsional test bed.*got variant 'full'"),
-    ("reduce_negative_modes", lambda tmp: _reduce(testbed("axial_torsional", nut_joint="moving"), -1), UsageError,
+    ("reduce_negative_modes", lambda tmp: _reduce(make_testbed("axial_torsional", nut_joint="moving"), -1), UsageError,
      r"n_modes must be a non-negative integer, got -1"),
-    ("reduce_too_many_modes", lambda tmp: _reduce(testbed("axial_torsional", nut_joint="moving"), 200), UsageError,
+    ("reduce_too_many_modes", lambda tmp: _reduce(make_testbed("axial_torsional", nut_joint="moving"), 200), UsageError,
      r"201 modes requested but only 95 interior DOF"),
-    ("reduce_unknown_anchor", lambda tmp: _reduce(testbed("axial_torsional", nut_joint="moving"),
+    ("reduce_unknown_anchor", lambda tmp: _reduce(make_testbed("axial_torsional", nut_joint="moving"),
                                                   anchor="screw.n99.tz"), UsageError,
      r"unknown DOF name 'screw.n99.tz'"),
     ("effects_on_a_drive_without_table_joint", lambda tmp: _effects(sd()), ModelDefinitionError,
