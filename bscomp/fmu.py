@@ -38,10 +38,8 @@ from bscomp._fmu_wrap import TIME_VR, patch_wrapper, state_nominals
 from bscomp._fmu_xml import FmuVariable, derivative_name, derivative_unit, structured_name, write_model_description
 from bscomp.errors import CompilerNotFoundError, FmuExportError, UnknownNameError
 from bscomp.files import atomic_path, writable_path
-from bscomp.kernel.dae import Dae
 from bscomp.kernel.signal_meta import input_meta, measured_outputs, output_meta, parameter_meta, state_meta
-from bscomp.kernel.system import System
-from bscomp.model import as_dae
+from bscomp.model import as_dae, run_overrides
 
 __all__ = ["export_fmu", "FMI3_HEADERS"]
 
@@ -101,9 +99,7 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
     path = writable_path(path, "export_fmu: path", (".fmu",)).absolute()
     cc = _find_compiler(compiler)
     dae = as_dae(system, overrides)
-    # a System or Dae keeps its flattening's p0 unless re-flattened: the overrides' values are the FMU's
-    own = (overrides or {}) if isinstance(system, (System, Dae)) else {}   # the other forms built them in
-    p_start = dae.parameter_vector({k: v for k, v in own.items() if k not in dae.structural_parameters})
+    p_start = dae.parameter_vector(run_overrides(system, dae, overrides))   # a Dae keeps its p0: the overrides
     inputs = _check_inputs(dae, inputs)
     outputs = measured_outputs(dae) if outputs is None else list(outputs)
     dae.output_expr(outputs)  # unknown names raise UnknownNameError here

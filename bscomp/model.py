@@ -38,8 +38,8 @@ from bscomp.kernel.flattening import flatten
 from bscomp.kernel.mechanics import start_matrices
 from bscomp.kernel.system import System
 
-__all__ = ["ModelSpec", "as_system", "as_dae", "resolve_model", "spec_of", "split_overrides", "model_name",
-           "build_keywords"]
+__all__ = ["ModelSpec", "as_system", "as_dae", "resolve_model", "run_overrides", "spec_of", "split_overrides",
+           "model_name", "build_keywords"]
 
 
 def split_overrides(overrides: dict | None) -> tuple[dict, dict]:
@@ -187,6 +187,15 @@ def resolve_model(model, params: dict | None = None, *, damping_refreshed: bool 
             return flatten(model.system.with_parameters(params))
         return model
     return as_dae(model, params)
+
+
+def run_overrides(model, dae: Dae, params: dict | None) -> dict:
+    """The overrides a run on ``dae = as_dae(model, params)`` still applies through its parameter vector: the
+    non-structural ones of a System or Dae (a Dae keeps its flattening's ``p0``); none for the other forms and
+    none structural (building or re-flattening put those in ``p0``). ``dae.parameter_vector(run_overrides(...))``
+    is the run's ``p``."""
+    own = (params or {}) if isinstance(model, (System, Dae)) else {}
+    return {k: v for k, v in own.items() if k not in dae.structural_parameters}
 
 
 def _damping_basis_changed(dae: Dae, params: dict) -> bool:

@@ -23,9 +23,7 @@ from typing import Callable
 import numpy as np
 
 from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_number
-from bscomp.kernel.dae import Dae
-from bscomp.kernel.system import System
-from bscomp.model import as_dae
+from bscomp.model import as_dae, run_overrides
 from bscomp.optimal.collocation import solve_physical
 from bscomp.optimal.coordinates import ModalDae, ModalError, modal_basis, output_rows, residual_rows
 from bscomp.optimal.guess import from_simulation, initial_guess, reference_motion
@@ -82,11 +80,7 @@ class Ocp:
                              f"{coordinates!r}")
         self.coordinates = coordinates
         self.dae = as_dae(model, params)
-        if isinstance(model, (System, Dae)):
-            self.p = self.dae.parameter_vector({k: v for k, v in (params or {}).items()
-                                                if k not in self.dae.structural_parameters})
-        else:                    # built from a name, path, spec or build function: the overrides are in p0
-            self.p = self.dae.parameter_vector({})
+        self.p = self.dae.parameter_vector(run_overrides(model, self.dae, params))
         self.N = check_number("N", N, integer=True, minimum=1)
         self.d = check_number("degree", degree, integer=True, minimum=1)
         self.bounds: dict[str, tuple] = {}

@@ -19,8 +19,7 @@ import numpy as np
 
 from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_number
 from bscomp.kernel.dae import Dae
-from bscomp.kernel.system import System
-from bscomp.model import as_dae
+from bscomp.model import as_dae, run_overrides
 from bscomp.simulation.result import SimulationResult
 
 __all__ = ["SimulationProblem", "SimulationOptions", "prepare", "input_matrix", "SampledLoop",
@@ -100,8 +99,7 @@ def prepare(model, t, inputs=None, x0=None, params=None, outputs=None, controlle
         k = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
         raise UsageError(f"t must be strictly increasing: t[{k}] = {t[k]} after t[{k - 1}] = {t[k - 1]}")
     controllers = list(controllers or [])
-    own = (params or {}) if isinstance(model, (System, Dae)) else {}  # the other forms built them in
-    p = dae.parameter_vector({k: v for k, v in own.items() if k not in dae.structural_parameters})
+    p = dae.parameter_vector(run_overrides(model, dae, params))
     xs = dae.x_start.copy()
     for k, v in check_mapping("x0", x0, "initial state values").items():
         if k not in dae.x_names:

@@ -33,9 +33,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp.errors import ArgumentTypeError, ModelLimitationWarning, UnknownNameError, UsageError, check_number
-from bscomp.kernel import Dae, System
 from bscomp.linear.response import Frf
-from bscomp.model import as_dae
+from bscomp.model import as_dae, run_overrides
 from bscomp.simulation.dispatch import simulate
 
 __all__ = ["stepped_sine", "SteppedSine"]
@@ -163,7 +162,7 @@ def stepped_sine(model, input: str, output, freqs, amplitude: float, *, offset: 
     dae = as_dae(model, params)
     if input not in dae.u_names:
         raise UnknownNameError(f"stepped_sine: '{input}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
-    own = params if isinstance(model, (System, Dae)) else None     # the other forms built them in
+    own = run_overrides(model, dae, params) or None     # structural ones are in dae already: no re-flattening
     show = (len(f) > 3 and sys.stderr.isatty()) if progress is None else bool(progress)
     H = np.zeros((len(f), len(outs), 1), complex)
     dist = np.zeros((len(f), len(outs)))
