@@ -32,7 +32,7 @@ _LAZY = {
     "linearize": "bscomp.linear", "second_order": "bscomp.linear", "modes": "bscomp.linear",
     "frf": "bscomp.linear", "transfer_function": "bscomp.linear", "position_sweep": "bscomp.linear",
     "cms_reduce": "bscomp.linear", "simulate": "bscomp.simulation", "SimulationResult": "bscomp.simulation",
-    "stepped_sine": "bscomp.simulation",
+    "stepped_sine": "bscomp.simulation", "describing_frf": "bscomp.simulation",
     "CompiledModel": "bscomp.simulation", "Ocp": "bscomp.optimal", "compare": "bscomp.validate",
     "diagnose": "bscomp.validate", "calibrate": "bscomp.validate", "load": "bscomp.validate",
     "export_fmu": "bscomp.fmu", "design_study": "bscomp.design_sweep", "ModelSpec": "bscomp.model",

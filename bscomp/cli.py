@@ -155,14 +155,16 @@ def _frf(args) -> int:
     if args.fmax <= args.fmin:
         raise UsageError(f"--fmax {args.fmax:g} Hz must be above --fmin {args.fmin:g} Hz",
                          hint="give a frequency band, e.g. --fmin 1 --fmax 1000")
+    if args.method != "modal" and not args.amplitude:
+        raise UsageError(f"--method {args.method} applies to an FRF at an amplitude", hint="add --amplitude A")
     _outputs(args)
-    system = _build(args)
-    n = args.n or (24 if args.amplitude else 500)
-    if args.amplitude:                  # by simulation at a real amplitude (friction, backlash as they act)
-        from bscomp.simulation.stepped import stepped_sine
-
-        res = stepped_sine(system, args.input, args.output, np.geomspace(args.fmin, args.fmax, n), args.amplitude,
-                           method=args.method, jit=args.jit)
+    system, n = _build(args), args.n or (24 if args.amplitude and args.method != "describing" else 500)
+    if args.amplitude:                  # at a real amplitude: friction and backlash as they act there
+        from bscomp.simulation import describing_frf, stepped_sine
+        freqs = np.geomspace(args.fmin, args.fmax, n)
+        res = (describing_frf(system, args.input, args.output, freqs, args.amplitude) if args.method == "describing"
+               else stepped_sine(system, args.input, args.output, freqs, args.amplitude, method=args.method,
+                                 jit=args.jit))
     else:
         res = frf(system, args.input, args.output, fmin=args.fmin, fmax=args.fmax, n=n)
     with staged() as st:
@@ -173,14 +175,11 @@ def _frf(args) -> int:
     if not args.csv and not args.png:
         res.to_csv(sys.stdout)
     else:
-        h = np.abs(res.response())
-        k = int(np.argmax(h))
+        k = int(np.argmax(h := np.abs(res.response())))
         print(f"{system.name}: {args.input} -> {args.output}, {res.freqs.size} points "
               f"{args.fmin:g}-{args.fmax:g} Hz; largest |H| = {h[k]:.4g} at {res.freqs[k]:.4g} Hz")
         if args.amplitude:
-            j = int(np.argmax(d := res.distortion[:, 0]))
-            print(f"  stepped sine at {args.amplitude:g}: largest distortion {100 * d[j]:.3g} % at {res.freqs[j]:.4g} "
-                  "Hz (the share of the response that is not the fundamental)")
+            print(f"  {res.summary()}")
         for f_ in (args.csv, args.png):
             if f_:
                 print(f"  written {f_}")
@@ -424,11 +423,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--n", type=_number("--n", 1, 10 ** 6, integer=True, open_low=False), default=None,
                    help="number of log-spaced frequencies (default 500; 24 with --amplitude)")
     p.add_argument("--amplitude", type=_number("--amplitude", 0),
-                   help="take the FRF by simulation, driving the input with a sine of this amplitude (its unit) at "
-                        "each frequency: a stepped-sine test, friction and backlash acting as they do at that "
-                        "amplitude (default: the FRF linearized at rest)")
-    p.add_argument("--method", choices=["modal", "idas"], default="modal",
-                   help="simulation method of --amplitude (default modal)")
+                   help="the FRF at a sine of this amplitude (the input's unit), friction and backlash acting as they "
+                        "do there: a stepped-sine test by simulation (default: the FRF linearized at rest)")
+    p.add_argument("--method", choices=["modal", "idas", "describing"], default="modal",
+                   help="--amplitude: the stepped sine's simulation method (default modal), or 'describing': one "
+                        "harmonic by the describing function (milliseconds per frequency)")
     p.add_argument("--jit", action="store_true", help="--amplitude: compile the modal kernels to C (needs gcc)")
     p.add_argument("--csv", help="write the FRF to a CSV file (default: CSV on stdout when no --png)")
     p.add_argument("--png", help="write a Bode plot (.png, .pdf or .svg)")

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from bscomp.errors import BscompError, ModelDefinitionError, UnknownNameError
 
-from .chain import free_chain, mass_spring_chain  # noqa: E402
+from .chain import free_chain, friction_oscillator, mass_spring_chain  # noqa: E402
 from .small_drive import small_drive  # noqa: E402
 from .validation_drive import validation_drive  # noqa: E402
 
@@ -72,7 +72,8 @@ REGISTRY.update({
 })
 
 # test beds: bscomp.systems.testbed
-__all__ = ["small_drive", "validation_drive", "mass_spring_chain", "free_chain", "get", "available", "REGISTRY"]
+__all__ = ["small_drive", "validation_drive", "mass_spring_chain", "free_chain", "friction_oscillator", "get",
+           "available", "REGISTRY"]
 
 
 def available() -> dict[str, str]:

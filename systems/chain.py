@@ -10,10 +10,10 @@ benchmarks and a user's own checks build the same chain.
 from __future__ import annotations
 
 from bscomp import System
-from bscomp.components import Fixed, Force, Mass, Spring
+from bscomp.components import CoulombFriction, Fixed, Force, Mass, Spring
 from bscomp.errors import ParameterError
 
-__all__ = ["mass_spring_chain", "free_chain"]
+__all__ = ["mass_spring_chain", "free_chain", "friction_oscillator"]
 
 
 def mass_spring_chain(masses=(2.0, 3.0), springs=(1.0e4, 2.5e4), *, name: str = "chain", first: int = 1) -> System:
@@ -75,4 +75,27 @@ def free_chain(masses=(1.0, 2.0, 3.0), springs=(1.0e4, 3.0e4), *, name: str = "f
         s.connect(f"k{i}.flange_b", f"m{i + 1}.flange_a")
     s.add("F", Force())
     s.connect("F.flange", "m0.flange_a")
+    return s
+
+
+def friction_oscillator(m: float = 1.0, k: float = 1.0e4, F_c: float | None = 1.0, v_reg: float = 1.0e-4, *,
+                        name: str | None = None) -> System:
+    """Mass ``m`` [kg] on a spring ``k`` [N/m] to a wall, force ``F.f`` [N] on the mass and Coulomb friction ``fr``
+    (``F_c`` [N], regularised over ``v_reg`` [m/s], Eq 5.7) between mass and wall; ``F_c=None`` leaves it out.
+    Driven at ``F_0 sin(ω t)`` with ``F_0 > 4 F_c / π`` it slides through every period and its describing
+    function gives the closed form ``|X| = sqrt(F_0^2 - (4 F_c / π)^2) / |k - m ω^2|`` (Den Hartog), which the
+    stepped-sine and describing-function tests check against."""
+    friction = F_c is not None
+    s = System(name or ("osc_friction" if friction else "osc"))
+    s.add("wall", Fixed())
+    s.add("k", Spring(c=k))
+    s.add("m", Mass(m=m))
+    s.add("F", Force())
+    s.connect("k.flange_a", "wall.flange")
+    s.connect("k.flange_b", "m.flange_a")
+    s.connect("F.flange", "m.flange_b")
+    if friction:
+        s.add("fr", CoulombFriction(F_c=F_c, v_reg=v_reg))
+        s.connect("fr.flange_a", "wall.flange")
+        s.connect("fr.flange_b", "m.flange_b")
     return s

@@ -108,7 +108,8 @@ def linearized_parts(dae, p=None) -> tuple:
 
 #: what a frequency-domain analysis of a nonlinear model should be replaced by
 SIMULATE_INSTEAD = ("for the response at a real amplitude, take a stepped-sine FRF by simulation: "
-                    "bscomp.stepped_sine(model, input, output, freqs, amplitude)")
+                    "bscomp.stepped_sine(model, input, output, freqs, amplitude), or its one-harmonic estimate in "
+                    "milliseconds: bscomp.describing_frf(model, input, output, freqs, amplitude)")
 
 
 def warn_linearized(parts: tuple, what: str, instead: str, stacklevel: int = 2, measured: str = "") -> None:

@@ -62,6 +62,12 @@ class SteppedSine(Frf):
     distortion: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     settle_periods: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
+    def summary(self) -> str:
+        """One line: the amplitude and the largest distortion (of the first output)."""
+        j = int(np.argmax(d := self.distortion[:, 0]))
+        return (f"stepped sine at {self.amplitude:g}: largest distortion {100 * d[j]:.3g} % at {self.freqs[j]:.4g} Hz "
+                "(the share of the response that is not the fundamental)")
+
 
 def _harmonic(t, y, w):
     """``(Y, residual rms)`` of ``y(t) ~ c0 + c1 t + Re(Y e^{jwt})`` by least squares (columns of ``y``)."""

@@ -7,28 +7,15 @@ import numpy as np
 import pytest
 
 import bscomp
-from bscomp import System, flatten
-from bscomp.components import CoulombFriction, Fixed, Force, Mass, Spring
+from bscomp import flatten
 from bscomp.errors import ArgumentTypeError, ModelLimitationWarning, UnknownNameError, UsageError
-from bscomp.systems import get
+from bscomp.systems import friction_oscillator, get
 
 K, M, F_C = 1.0e4, 1.0, 1.0          # oscillator: omega_n = 100 rad/s; Coulomb friction 1 N
 
 
 def oscillator(friction=True):
-    s = System("osc_friction" if friction else "osc")
-    s.add("wall", Fixed())
-    s.add("k", Spring(c=K))
-    s.add("m", Mass(m=M))
-    s.add("F", Force())
-    s.connect("k.flange_a", "wall.flange")
-    s.connect("k.flange_b", "m.flange_a")
-    s.connect("F.flange", "m.flange_b")
-    if friction:
-        s.add("fr", CoulombFriction(F_c=F_C, v_reg=1e-4))
-        s.connect("fr.flange_a", "wall.flange")
-        s.connect("fr.flange_b", "m.flange_b")
-    return flatten(s)
+    return flatten(friction_oscillator(M, K, F_C if friction else None))
 
 
 def test_a_linear_drive_gives_its_frf():

@@ -32,7 +32,9 @@ def test_example_imports_without_running(path):
 def test_stepped_sine_example_runs(tmp_path, monkeypatch):
     mod = _load(next(p for p in EXAMPLES if p.stem == "stepped_sine"))
     monkeypatch.setattr(mod, "FREQS", np.array([10.0, 200.0]))
-    lin, runs = mod.main(tmp_path)
+    monkeypatch.setattr(mod, "DENSE", np.array([10.0, 50.0, 200.0]))
+    lin, runs, desc = mod.main(tmp_path)
     assert (tmp_path / "stepped_sine.png").stat().st_size > 10_000
     ratio = np.abs(runs[2.0].H[0, 1, 0] / lin.H[0, 1, 0])       # table.a at 10 Hz: the table slides at 2 V
     assert ratio > 10 and abs(np.abs(runs[0.2].H[1, 1, 0] / lin.H[1, 1, 0]) - 1) < 0.05
+    assert abs(desc[2.0].H[0, 1, 0] / runs[2.0].H[0, 1, 0] - 1) < 0.25     # the describing function: one harmonic

@@ -1,0 +1,342 @@
+r"""Describing-function FRF: the first-harmonic balance of a drive with friction and backlash at an excitation
+amplitude, a few milliseconds per frequency.
+
+:func:`~bscomp.simulation.stepped.stepped_sine` measures the FRF at an amplitude by simulating every frequency
+until the response is periodic (~0.2 s per frequency on the test bed). The classical shortcut of the field is
+the *describing function* (harmonic balance with one harmonic): every nonlinear element is assumed to move
+sinusoidally about its rest point, ``s(θ) = s_0 + Re(Ŝ e^{jθ})``, ``v(θ) = v_0 + Re(V̂ e^{jθ})``, and only the
+first harmonic of its force is kept,
+
+.. math:: \hat F = \frac{1}{\pi}\int_0^{2\pi} f\big(s(θ), v(θ)\big)\, e^{-jθ}\, dθ .
+
+For Coulomb friction ``f = F_c sign(v)`` this is ``F̂ = (4 F_c / π) V̂ / |V̂|``; for a clearance ``b`` with contact
+stiffness ``c`` (a dead zone, thesis Eq 5.8) ``F̂ = c (1 - (2/π)(asin β + β sqrt(1 - β²))) Ŝ``,
+``β = b / (2 |Ŝ|)`` (``tests/bscomp/test_describing.py`` checks both). Here the integral is taken numerically,
+at ``points`` phases, on the element's own law (Eq 5.7 friction, the contact law of Eq 5.8-5.9), so any
+element ``method="modal"`` can cut works.
+
+The rest of the drive is linear. With every element's tangent at rest ``(k_0, d_0)`` in the linear part (the
+:class:`~bscomp.simulation.modal_channels.LinearPart` that ``method="modal"`` integrates; the corrections
+``g = f - k_0 s - d_0 v`` are its force inputs) the phasors obey
+
+.. math:: jω X = A X + B Û + E ĝ, \qquad [Ŝ;\ V̂;\ Ŷ] = C (jω - A)^{-1} (B Û + E ĝ) + D_u Û + D_g ĝ ,
+
+so at each frequency the balance ``ĝ = F̂(Ŝ, V̂) - k_0 Ŝ - d_0 V̂`` is a damped Newton solve in as many complex
+unknowns as there are elements, and ``H = Ŷ / Û``. ``(jω - A)^{-1}`` comes from one eigen-decomposition of
+``A`` (a direct solve per frequency when the eigenvectors are ill-conditioned).
+
+Limits (``docs/nonlinear.md``, "Describing-function FRF", measures them against the stepped sine): one
+harmonic -- where friction sticks for part of each period, or a body rattles in a clearance, the motion is
+not sinusoidal and the result is an approximation (the distortion :func:`stepped_sine` reports says how
+far); one solution -- the Newton solve starts from the previous frequency's, so of several coexisting
+responses (the jump of a softening resonance) the one continued from low frequency is taken; no bias -- the
+elements oscillate about their rest point (``offset`` is not supported: use :func:`stepped_sine`); a moving
+joint is held at its start position by its tangent there, as :func:`bscomp.frf` does.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+import scipy.linalg as sla
+
+from bscomp.errors import (
+    ArgumentTypeError,
+    BscompError,
+    ModelLimitationWarning,
+    UnknownNameError,
+    UsageError,
+    check_number,
+)
+from bscomp.linear.response import Frf
+from bscomp.model import as_dae, run_overrides
+from bscomp.simulation.modal_channels import Channels, LinearPart
+
+__all__ = ["describing_frf", "DescribingFrf", "DescribingFunctionError", "first_harmonic"]
+
+#: eigenvector condition number above which the resolvent is solved directly per frequency
+COND_MAX = 1e8
+AMPLITUDE_LADDER = (1 / 64, 1 / 16, 1 / 4, 1 / 2, 1.0)   # continuation when Newton fails from the last solution
+
+
+class DescribingFunctionError(BscompError):
+    """The model has a nonlinearity the describing function does not treat (outside the friction and backlash
+    elements), or no nonlinear element at all."""
+
+
+@dataclass
+class DescribingFrf(Frf):
+    """A describing-function FRF (:func:`describing_frf`): :class:`~bscomp.linear.Frf` with ``H[freq, output, 0]``
+    plus
+
+    Attributes
+    ----------
+    amplitude : float
+        Excitation amplitude (the input's unit).
+    elements : list of str
+        The nonlinear elements balanced (friction, backlash).
+    motion : (nf, n_el) complex ndarray
+        The first harmonic ``Ŝ`` of each element's relative displacement [m].
+    velocity : (nf, n_el) complex ndarray
+        ... and of its relative velocity ``V̂`` [m/s].
+    residual : (nf,) ndarray
+        ``max |ĝ - F̂ + k_0 Ŝ + d_0 V̂|`` at the solution over the elements' force scale.
+    """
+
+    amplitude: float = 0.0
+    elements: list = field(default_factory=list)
+    motion: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), complex))
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), complex))
+    residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def summary(self) -> str:
+        """One line: the amplitude, the elements and the largest residual."""
+        return (f"describing function at {self.amplitude:g} of {', '.join(self.elements)} (one harmonic; largest "
+                f"balance residual {self.residual.max(initial=0.0):.1e}; stepped_sine for every harmonic)")
+
+
+def first_harmonic(law, pvec, s0, v0, S, V, points=256):
+    """``F̂ = (1/π) ∫ f(s_0 + Re(S e^{jθ}), v_0 + Re(V e^{jθ})) e^{-jθ} dθ`` of a law ``(s, v, p) -> f`` (a CasADi
+    Function), by the midpoint rule at ``points`` phases (exact for trigonometric polynomials below
+    ``points - 1``). The phases are counted from the velocity's (the displacement's when the velocity is zero),
+    so a jump at a velocity reversal -- Coulomb friction's sign -- falls between two phases symmetrically and
+    costs ``O(1/points^2)`` instead of ``O(1/points)`` (``points`` a multiple of 4)."""
+    phase = np.angle(V) if V != 0 else np.angle(S)
+    th = 2 * np.pi * (np.arange(points) + 0.5) / points - phase
+    e = np.exp(1j * th)
+    f = _mapped(law, points)(s0 + (S * e).real, v0 + (V * e).real, pvec)
+    return 2.0 / points * np.sum(np.asarray(f).ravel() * np.conj(e))
+
+
+_MAPPED = {}
+
+
+def _mapped(law, points):
+    key = (id(law), points)
+    F = _MAPPED.get(key)
+    if F is None or F[0] is not law:
+        F = _MAPPED[key] = (law, law.map(points))
+    return F[1]
+
+
+class _Balance:
+    """The linear maps ``ĝ -> (Ŝ, V̂, Ŷ)`` per frequency and the elements' first harmonics (module docstring)."""
+
+    def __init__(self, dae, p, input, outs, points):
+        ch = Channels(dae, p)
+        if not ch.elements:
+            moving = (f"; its moving joints {[j.path for j in ch.joints]} change with the position, not the "
+                      "amplitude: bscomp.frf at each position (position_sweep), or bscomp.stepped_sine"
+                      if ch.joints else ": its FRF is the same at every amplitude (use bscomp.frf)")
+            raise DescribingFunctionError(f"'{dae.name}' has no friction or backlash element{moving}")
+        self.ch, self.points = ch, int(points)
+        self.names = [el.path for el in ch.elements]
+        lin = LinearPart(ch, [tuple(r[2:4]) for r in ch.rest], [jt.z0 for jt in ch.joints])
+        self.lin = lin
+        A, B, E, _, Zx, Zu, Zg, _ = lin.explicit()
+        n = len(ch.elements)
+        iu = dae.u_names.index(input)
+        cols = np.column_stack([B[:, iu], E[:, :n]])             # [u, g_1 .. g_n]
+        zcols = np.column_stack([Zu[:, iu], Zg[:, :n]])
+        _, Ryd, Ry, Rz, Ru = ch.el_rows
+        Oyd, Oy, Oz, Ou = _output_rows(dae, outs, ch, p)
+        Ryd, Ry, Rz = (np.vstack([a, b]) for a, b in ((Ryd, Oyd), (Ry, Oy), (Rz, Oz)))
+        Ru = np.vstack([Ru, Ou])[:, iu]
+        # y = Ryd x' + Ry x + Rz z + Ru u, x' = A X + cols w, z = Zx X + zcols w, w = [U; ĝ]
+        self.C = Ryd @ A + Ry + (Rz @ Zx if dae.nz else 0.0)
+        self.D = Ryd @ cols + (Rz @ zcols if dae.nz else 0.0)
+        self.D[:, 0] += Ru
+        self.A, self.cols = A, cols
+        lam, V = sla.eig(A)
+        self.direct = not np.all(np.isfinite(V)) or np.linalg.cond(V) > COND_MAX
+        if not self.direct:
+            self.lam, self.CV, self.W = lam, self.C @ V, np.linalg.solve(V, cols)
+        self.y0 = ch.el_rows[0]
+        self.k0 = np.array([r[2] for r in ch.rest])
+        self.d0 = np.array([r[3] for r in ch.rest])
+        self.n = n
+
+    def maps(self, w):
+        """``T(ω)`` (rows: s_1, v_1, ..., outputs; columns: U, ĝ_1, ...)."""
+        if self.direct:
+            X = np.linalg.solve(1j * w * np.eye(self.A.shape[0]) - self.A, self.cols)
+            return self.C @ X + self.D
+        return self.CV @ (self.W / (1j * w - self.lam)[:, None]) + self.D
+
+    def residual(self, g, T, U):
+        """``(r, scale, S, V)``: the balance's residual per element at corrections ``g`` (complex)."""
+        y = T[:, 0] * U + T[:, 1:] @ g
+        S, V = y[0:2 * self.n:2], y[1:2 * self.n:2]
+        F = np.array([first_harmonic(el.law, el.pvec, self.y0[2 * i], self.y0[2 * i + 1], S[i], V[i], self.points)
+                      for i, el in enumerate(self.ch.elements)])
+        tangent = self.k0 * S + self.d0 * V
+        r = g - (F - tangent)
+        scale = max(np.abs(F).max(), np.abs(tangent).max(), np.abs(g).max(), 1e-300)
+        return r, scale, S, V
+
+    def solve(self, T, U, g0, tol, max_iter=40):
+        """Damped Newton on the real and imaginary parts of ``ĝ`` (finite-difference Jacobian): ``(g, rel)``."""
+        g = np.array(g0, complex)
+        r, scale, *_ = self.residual(g, T, U)
+        for _ in range(max_iter):
+            if np.abs(r).max() <= tol * scale:
+                break
+            x = np.r_[g.real, g.imag]
+            J = np.empty((x.size, x.size))
+            for k in range(x.size):
+                h = 1e-7 * max(abs(x[k]), scale)
+                xk = x.copy()
+                xk[k] += h
+                rk = self.residual(xk[:self.n] + 1j * xk[self.n:], T, U)[0]
+                J[:, k] = (np.r_[rk.real, rk.imag] - np.r_[r.real, r.imag]) / h
+            try:
+                dx = np.linalg.solve(J, -np.r_[r.real, r.imag])
+            except np.linalg.LinAlgError:
+                break
+            norm0, alpha = np.abs(r).max(), 1.0
+            while alpha > 1e-3:                            # backtracking: the residual must fall
+                xn = x + alpha * dx
+                gn = xn[:self.n] + 1j * xn[self.n:]
+                rn, sn, *_ = self.residual(gn, T, U)
+                if np.abs(rn).max() < (1 - alpha / 4) * norm0:
+                    break
+                alpha /= 2
+            else:
+                break
+            g, r, scale = gn, rn, sn
+        return g, float(np.abs(r).max() / scale)
+
+
+def _output_rows(dae, outs, ch, p):
+    """``(Jxd, Jx, Jz, Ju)`` of the outputs at the start point; an output that is nonlinear in the states (an
+    element's force) is taken by its tangent there, with a warning."""
+    y = dae.output_expr(outs)
+    args = [dae.xds, dae.xs, dae.zs, dae.us]
+    jac = [ca.jacobian(y, a) for a in args]
+    bad = [o for i, o in enumerate(outs)
+           if any(ca.depends_on(J[i, :], ca.vertcat(*args)) for J in jac if J.numel())]
+    if bad:
+        warnings.warn(f"describing_frf on '{dae.name}': outputs {bad} are nonlinear in the states; their tangent at "
+                      "the start point is used (the first harmonic of a nonlinear output needs stepped_sine)",
+                      ModelLimitationWarning, stacklevel=4)
+    f = ca.Function("orows", [*args, dae.ps], jac)
+    vals = f(np.zeros(dae.nx), ch.x_a, ch.z_a, np.zeros(dae.nu), p)
+    return [np.asarray(ca.DM(v).full(), float) for v in vals]
+
+
+def _check_channels(bal, dae, iu, amplitude):
+    """The linear part plus the element corrections is the model (else a nonlinearity outside the elements --
+    a current limit, a nonlinear spring -- would be linearized silently): DescribingFunctionError naming the
+    equation."""
+    rng = np.random.default_rng(0)
+    dx = rng.normal(size=dae.nx) * 1e-6
+    for dxi, a in ((0.0 * dx, amplitude), (0.0 * dx, -amplitude), (dx, 0.0)):
+        u = np.zeros(dae.nu)
+        u[iu] = a
+        err, scale, row = bal.lin.mismatch(dxi, u)
+        if err > 1e-7 * scale:
+            origin = dae.eq_origin[row] if row < len(dae.eq_origin) else f"row {row}"
+            raise DescribingFunctionError(
+                f"'{dae.name}': equation '{origin}' is nonlinear outside the friction/backlash elements the "
+                f"describing function balances (residual {err:.2g} of {scale:.2g} at input amplitude {amplitude:g}, "
+                "e.g. an amplifier current limit): use bscomp.stepped_sine")
+
+
+def _check(input, output, freqs, amplitude, points, tol):
+    if not isinstance(input, str):
+        raise ArgumentTypeError(f"describing_frf: input must be one input name (str), got {type(input).__name__}")
+    outs = [output] if isinstance(output, str) else output
+    if not isinstance(outs, (list, tuple)) or not outs or not all(isinstance(o, str) for o in outs):
+        raise ArgumentTypeError(f"describing_frf: output must be a name or a list of names, got {output!r}")
+    try:
+        f = np.atleast_1d(np.asarray(freqs, float))
+    except (TypeError, ValueError):
+        raise UsageError(f"describing_frf: freqs must be an array of frequencies [Hz], got {freqs!r}") from None
+    if f.ndim != 1 or not f.size or not np.all(np.isfinite(f)) or np.any(f <= 0):
+        raise UsageError(f"describing_frf: freqs must be positive, finite frequencies [Hz], got {f}")
+    check_number("amplitude", amplitude, positive=True)
+    check_number("points", points, integer=True, minimum=16)
+    if points % 4:
+        raise UsageError(f"describing_frf: points must be a multiple of 4 (a velocity reversal between two phases), "
+                         f"got {points}")
+    check_number("tol", tol, positive=True)
+    return list(outs), f
+
+
+def describing_frf(model, input: str, output, freqs, amplitude: float, *, params: dict | None = None,
+                   points: int = 256, tol: float = 1e-8) -> DescribingFrf:
+    """Frequency response of ``output`` to a sine of amplitude ``amplitude`` on ``input`` by the describing
+    function of every friction and backlash element (module docstring): the fast, one-harmonic estimate of what
+    :func:`~bscomp.simulation.stepped.stepped_sine` simulates.
+
+    Parameters
+    ----------
+    model : str, path, System, Dae or ModelSpec
+        Anything :func:`bscomp.simulate` takes (flattened from a System: the elements are its components).
+    input : str
+        The driven input (``"amp.u"``, ``"motor.tau"``...).
+    output : str or list of str
+        Observables (``"table.a"``...), linear in the states.
+    freqs : array_like
+        Frequencies [Hz]; solved in ascending order, each from the last one's solution.
+    amplitude : float
+        Sine amplitude in the input's unit.
+    params : dict, optional
+        Parameter overrides.
+    points : int
+        Phases at which each element's law is evaluated per first harmonic.
+    tol : float
+        Newton's residual relative to the elements' force scale.
+
+    Returns
+    -------
+    DescribingFrf
+        ``H[freq, output, 0]``, the elements' first harmonics ``motion``/``velocity`` and the ``residual``.
+
+    Raises
+    ------
+    UsageError, ArgumentTypeError
+        Bad frequencies, amplitude or counts (named).
+    UnknownNameError
+        ``input`` is not an input of the model.
+    DescribingFunctionError
+        No friction/backlash element, or a nonlinearity outside them.
+    """
+    outs, f = _check(input, output, freqs, amplitude, points, tol)
+    dae = as_dae(model, params)
+    if input not in dae.u_names:
+        raise UnknownNameError(f"describing_frf: '{input}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
+    p = dae.parameter_vector(run_overrides(model, dae, params))
+    bal = _Balance(dae, p, input, outs, points)
+    _check_channels(bal, dae, dae.u_names.index(input), float(amplitude))
+    n, nf = bal.n, len(f)
+    H = np.zeros((nf, len(outs), 1), complex)
+    S_all, V_all, res = np.zeros((nf, n), complex), np.zeros((nf, n), complex), np.zeros(nf)
+    order = np.argsort(f, kind="stable")
+    g = np.zeros(n, complex)
+    failed = []
+    for i in order:
+        T = bal.maps(2 * np.pi * f[i])
+        g, rel = bal.solve(T, amplitude, g, tol)
+        if not rel <= tol:                        # continuation in the amplitude from the linear response
+            g = np.zeros(n, complex)
+            for a in AMPLITUDE_LADDER:
+                g, rel = bal.solve(T, a * amplitude, g, tol)
+        if not rel <= 10 * tol:
+            failed.append(float(f[i]))
+        _, _, S, V = bal.residual(g, T, amplitude)
+        y = T[2 * n:, 0] * amplitude + T[2 * n:, 1:] @ g
+        H[i, :, 0] = y / amplitude
+        S_all[i], V_all[i], res[i] = S, V, rel
+    notes = [f"describing function of {bal.names}, {input} = {amplitude:g} sin(2 pi f t), {points} phases"]
+    if bal.ch.joints:
+        notes.append(f"moving joints {[j.path for j in bal.ch.joints]} held at their start position (tangent)")
+    if failed:
+        warnings.warn(f"describing_frf on '{dae.name}': the harmonic balance did not converge at {failed[:6]} Hz "
+                      f"(residual above {10 * tol:g}); use stepped_sine there", ModelLimitationWarning, stacklevel=2)
+        notes.append(f"not converged at {failed} Hz")
+    return DescribingFrf(freqs=f, H=H, inputs=[input], outputs=outs, name=dae.name, notes=notes,
+                         amplitude=float(amplitude), elements=bal.names, motion=S_all, velocity=V_all, residual=res)
