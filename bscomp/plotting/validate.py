@@ -27,7 +27,8 @@ def _slug(text):
 
 def frf_comparison_plot(fc, path=None, title=None):
     """Measured and model magnitude [dB] and phase [deg] per pair, resonances marked (x measured,
-    dotted lines model modes, red: unpaired)."""
+    dotted lines model modes, red: unpaired); dashed, the model at the measured excitation amplitude when the
+    file declares one (:attr:`~bscomp.validate.frf_comparison.FrfComparison.at_amplitude`)."""
     plt = _plt()
     pairs = list(fc.measured)
     fig, axes = plt.subplots(2, len(pairs), sharex=True, figsize=(6.5 * len(pairs), 6), squeeze=False)
@@ -39,6 +40,12 @@ def frf_comparison_plot(fc, path=None, title=None):
         am.semilogx(f, 20 * np.log10(np.abs(hh) + 1e-300), "C0-", lw=1.2, label="model")
         ap.semilogx(f, np.degrees(np.angle(hm)), "k.", ms=2.5)
         ap.semilogx(f, np.degrees(np.angle(hh)), "C0-", lw=1.2)
+        a = fc.at_amplitude or {}
+        if "model" in a and p[0] in a["excitation"]:          # the model at the measured sine amplitude
+            ha = a["model"][p]
+            am.semilogx(f, 20 * np.log10(np.abs(ha) + 1e-300), "C1--", lw=1.2,
+                        label=f"model at {p[0]} = {a['excitation'][p[0]]:g} (describing function)")
+            ap.semilogx(f, np.degrees(np.angle(ha)), "C1--", lw=1.2)
         for m in fc.modes:
             if m.model_f is not None:
                 am.axvline(m.model_f, color="C0" if m.measured is not None else "r", ls=":", lw=0.8)

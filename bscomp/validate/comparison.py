@@ -88,6 +88,13 @@ class Comparison:
             fits = ", ".join(f"{o}/{i} {c.fit[(i, o)]:.1f} %" for i, o in c.measured)
             L.append(f"FRF {c.source}: fit {fits}; magnitude error {c.rms_mag_db:.2f} dB rms, phase error "
                      f"{c.rms_phase_deg:.1f} deg rms")
+            a = c.at_amplitude
+            if a is not None:
+                exc = ", ".join(f"{k} = {v:g}" for k, v in a["excitation"].items())
+                L.append(f"  at the measured excitation ({exc} sine) by the describing function of "
+                         f"{', '.join(a['elements'])}: magnitude error {a['rms_mag_db']:.2f} dB rms, phase error "
+                         f"{a['rms_phase_deg']:.1f} deg rms (the figures above: the small-signal model)"
+                         if "error" not in a else f"  not compared at the measured excitation ({exc}): {a['error']}")
             if len(c.pair_errors) > 1:
                 L.append("  per pair: " + "; ".join(
                     f"{o}/{i} magnitude {e['mag_db_rms']:.2f} dB rms (mean |dlog10| {e['mag_mean_abs_dlog10']:.3f}), "

@@ -128,6 +128,10 @@ class FrfData:
     locations : dict
         Where things were declared in the file (``("column", pair)`` / ``("unit", pair)`` -> (line,
         column)), so later checks can point at the file.
+    excitation : dict input -> float
+        Amplitude of the sine the response was measured with, per input (SI; ``# excitation amp.u: 2 V``).
+        :func:`~bscomp.validate.compare` then also compares the model at that amplitude (describing
+        function of its friction and backlash).
     """
 
     freqs: np.ndarray
@@ -137,6 +141,7 @@ class FrfData:
     coherence: dict = field(default_factory=dict)
     source: str = ""
     locations: dict = field(default_factory=dict, repr=False)
+    excitation: dict = field(default_factory=dict)
 
     kind = "frf"
 
@@ -161,6 +166,15 @@ class FrfData:
         self.units = {tuple(k): v for k, v in (self.units or {}).items()}
         for pair, g in self.coherence.items():
             check_coherence(pair, g, self.source, self.locations.get(("column", pair), (None, None)))
+        for name, a in (self.excitation or {}).items():
+            ln, col = self.locations.get(("excitation", name), (None, None))
+            if name not in self.inputs:
+                raise MeasurementFileError(self.source, ln, col, f"excitation given for {name!r}, which is not an "
+                                           f"input of the file's pairs (inputs: {self.inputs})", name)
+            if not (np.isfinite(a) and a > 0):
+                raise MeasurementFileError(self.source, ln, col, f"excitation of {name!r} must be a positive "
+                                           f"amplitude, got {a!r}", name)
+            self.excitation[name] = float(a)
 
 
 @dataclass

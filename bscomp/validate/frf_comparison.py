@@ -4,6 +4,12 @@ resonances (the poles of a local modal fit of the complex FRF started from the p
 :func:`~bscomp.validate.peaks.peak_pick`) against the model's poles (:func:`bscomp.linear.modal.modes`).
 The model FRF's resonances are found by the same estimator (they decide which model modes the measured
 pairs can show). Residuals are measured minus model (:mod:`bscomp.validate.residuals`).
+
+The model is the system's small-signal equivalent (friction reduced to its viscous part, backlash engaged: what
+calibrate and diagnose fit). When the file declares the sine amplitude it was measured at (``# excitation
+amp.u: 2 V``) and the model has friction or backlash, the model at that amplitude is compared too
+(:func:`bscomp.simulation.describing.describing_frf`; :attr:`FrfComparison.at_amplitude`), so a user sees how much
+of the error is the amplitude and how much a missing effect.
 """
 
 from __future__ import annotations
@@ -12,10 +18,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bscomp.errors import NotLinearError
+from bscomp.errors import BscompError, NotLinearError
 from bscomp.kernel.flattening import flatten
 from bscomp.linear.modal import modes
 from bscomp.linear.response import frf
+from bscomp.simulation.compiled import nonlinear_elements
+from bscomp.simulation.describing import describing_frf
 from bscomp.validate.datasets import FrfData
 from bscomp.validate.peaks import Resonance, merge_resonances, peak_pick
 from bscomp.validate.residuals import check_channels, fit_percent, frf_errors
@@ -112,6 +120,11 @@ class FrfComparison:
         Delay fitted to the unwrapped phase error, :math:`\\Delta\\varphi \\approx -2\\pi f \\tau + c`.
     cost : float
         Mean squared residual of this dataset.
+    at_amplitude : dict or None
+        With a declared excitation amplitude and a model with friction/backlash: ``excitation`` ({input:
+        amplitude}), ``elements``, ``model`` ({pair: H} at that amplitude by the describing function; the
+        small-signal H for pairs of other inputs), ``rms_mag_db``, ``rms_phase_deg``, ``residual`` (the
+        harmonic balance's, largest); or ``error`` (why it could not be taken).
     """
 
     source: str
@@ -134,6 +147,7 @@ class FrfComparison:
     conditions: dict = field(default_factory=dict)
     pair_errors: dict = field(default_factory=dict)
     index: int | None = None
+    at_amplitude: dict | None = None
 
     def user_errors(self) -> dict:
         """``{"frf": [{"pair", "mag_mean_abs_dlog10", "mag_db_rms", "phase_deg_rms"}, ...], "time": []}``."""
@@ -180,7 +194,14 @@ class FrfComparison:
                 "pair_errors": {pk(p): e for p, e in self.pair_errors.items()},
                 "bands": [dict(b, pair=pk(b["pair"])) for b in self.bands],
                 "modes": [m.to_dict() for m in self.modes],
-                "phase_delay_s": self.phase_delay_s, "phase_delay_r2": self.phase_delay_r2}
+                "phase_delay_s": self.phase_delay_s, "phase_delay_r2": self.phase_delay_r2,
+                "at_amplitude": _amplitude_dict(self.at_amplitude, pk)}
+
+
+def _amplitude_dict(a, pk):
+    if a is None or "model" not in a:
+        return a
+    return dict(a, model={pk(p): {"re": h.real.tolist(), "im": h.imag.tolist()} for p, h in a["model"].items()})
 
 
 
@@ -219,8 +240,9 @@ def _model_frf(dae, data, extra_freqs):
     """Model FRF at the measured frequencies and at ``extra_freqs`` (one FRF evaluation):
     ``({pair: H}, {pair: H at extra_freqs})``."""
     n = data.freqs.size
-    res = frf(dae, input=data.inputs, output=data.outputs, freqs=np.concatenate([data.freqs, extra_freqs]),
-              warn=False)
+    with np.errstate(divide="ignore", invalid="ignore"):        # an undamped model at its own pole: inf
+        res = frf(dae, input=data.inputs, output=data.outputs, freqs=np.concatenate([data.freqs, extra_freqs]),
+                  warn=False)
     H = {(i, o): res.H[:, res.outputs.index(o), res.inputs.index(i)] for i, o in data.H}
     return {p: h[:n] for p, h in H.items()}, {p: h[n:] for p, h in H.items()}
 
@@ -282,10 +304,7 @@ def compare_frf(system, data: FrfData, bands=None, tol: float = 0.3) -> FrfCompa
     total = sum(float(s.sum()) for s in sq.values())
     n_res = 2 * sum(s.size for s in sq.values())
     cst = total / n_res if n_res else 0.0
-    W = np.concatenate([wts[p] for p in data.H])
-    W2 = max(float(np.sum(W ** 2)), 1e-300)
-    rms_mag = float(np.sqrt(np.sum((W * np.concatenate([mag_db[p] for p in data.H])) ** 2) / W2))
-    rms_ph = float(np.sqrt(np.sum((W * np.concatenate([ph_deg[p] for p in data.H])) ** 2) / W2))
+    rms_mag, rms_ph = _weighted_rms(errs, data)
     fit = {p: fit_percent(Hm[p], data.H[p]) for p in data.H}
     fit_lm = {p: fit_percent(20 * np.log10(np.abs(Hm[p]) + 1e-300), 20 * np.log10(np.abs(data.H[p]) + 1e-300))
               for p in data.H}
@@ -323,7 +342,36 @@ def compare_frf(system, data: FrfData, bands=None, tol: float = 0.3) -> FrfCompa
                          mag_error_db=mag_db, phase_error_deg=ph_deg, weights=wts, fit=fit, fit_logmag=fit_lm,
                          rms_mag_db=rms_mag, rms_phase_deg=rms_ph, bands=band_rows, modes=rows,
                          phase_delay_s=delay, phase_delay_r2=r2, cost=cst, conditions=dict(data.conditions),
-                         pair_errors={r.pop("pair"): r for r in frf_user_rows(errs)})
+                         pair_errors={r.pop("pair"): r for r in frf_user_rows(errs)},
+                         at_amplitude=_at_amplitude(system, data, Hm) if data.excitation else None)
+
+
+def _weighted_rms(errs, data):
+    """Coherence-weighted RMS magnitude [dB] and phase [deg] errors over every pair."""
+    W = np.concatenate([errs[p][2] for p in data.H])
+    W2 = max(float(np.sum(W ** 2)), 1e-300)
+    mag = np.concatenate([20 * errs[p][0] for p in data.H])
+    ph = np.concatenate([np.degrees(errs[p][1]) for p in data.H])
+    return float(np.sqrt(np.sum((W * mag) ** 2) / W2)), float(np.sqrt(np.sum((W * ph) ** 2) / W2))
+
+
+def _at_amplitude(system, data, Hm):
+    """The model at the measured excitation amplitudes (module docstring): ``FrfComparison.at_amplitude``."""
+    if not nonlinear_elements(system):
+        return None
+    dae = flatten(system)
+    H, elements, residual = dict(Hm), [], 0.0
+    try:
+        for inp, a in data.excitation.items():
+            outs = [o for i, o in data.H if i == inp]
+            r = describing_frf(dae, inp, outs, data.freqs, a)
+            H.update({(inp, o): r.H[:, j, 0] for j, o in enumerate(outs)})
+            elements, residual = r.elements, max(residual, float(r.residual.max(initial=0.0)))
+    except BscompError as exc:          # e.g. a current limit the describing function does not treat
+        return {"excitation": dict(data.excitation), "error": str(exc)}
+    mag, ph = _weighted_rms(frf_errors(H, data), data)
+    return {"excitation": dict(data.excitation), "elements": elements, "model": H, "rms_mag_db": mag,
+            "rms_phase_deg": ph, "residual": residual}
 
 
 

@@ -50,6 +50,7 @@ class Meta:
     conditions: dict = field(default_factory=dict)
     units: dict = field(default_factory=dict)      # name -> (text, where: (file, line, col))
     roles: dict = field(default_factory=dict)      # name -> "input" | "output"
+    excitation: dict = field(default_factory=dict)  # input -> sine amplitude of an FRF measurement [SI]
     where: dict = field(default_factory=dict)      # key -> (file, line, col)
 
 
@@ -103,6 +104,12 @@ def meta_set(meta, key, value, where):
         elif head == "source":
             meta.source = str(value).strip()
         return
+    if head == "excitation" and len(words) == 2:
+        name = words[1].strip()
+        _set_once(meta, meta.excitation, head, name, _amplitude(name, value, where), where,
+                  lambda a, b: math.isclose(a, b, rel_tol=1e-12))
+        meta.where.setdefault((head, name), where)
+        return
     if head in ("condition", "unit", "input", "output") and len(words) == 2:
         name = words[1].strip()
         if isinstance(value, (dict, list)):
@@ -127,7 +134,22 @@ def meta_set(meta, key, value, where):
         return
     raise MeasurementFileError(where[0], where[1], where[2],
                                f"unknown metadata key {key!r}: use 'kind', 'source', 'condition NAME', "
-                               "'unit NAME', 'input NAME' or 'output NAME'")
+                               "'unit NAME', 'input NAME', 'output NAME' or 'excitation NAME'")
+
+
+def _amplitude(name, value, where) -> float:
+    """``excitation NAME: 2 V`` (or a bare number, SI): the sine amplitude an FRF was measured at, in SI."""
+    text = str(value).strip()
+    num, _, unit = text.partition(" ")
+    try:
+        a = float(num) * (parse_unit(unit).scale if unit.strip() else 1.0)
+    except (ValueError, UnitSyntaxError) as exc:
+        raise MeasurementFileError(where[0], where[1], where[2], f"excitation {name!r} must be the sine's amplitude, "
+                                   f"a number with an optional unit (e.g. '2 V'), got {text!r} ({exc})", name) from None
+    if not (math.isfinite(a) and a > 0):
+        raise MeasurementFileError(where[0], where[1], where[2], f"excitation {name!r} must be a positive, finite "
+                                   f"amplitude, got {text!r}", name)
+    return a
 
 
 def _line_of(text, needle):
@@ -201,17 +223,18 @@ def _sidecar(path: Path, meta: Meta):
         for k, v in d.items():
             if k in ("kind", "source", "description", "name"):
                 meta_set(meta, k, v, at(k))
-            elif k in ("conditions", "units", "inputs", "outputs"):
+            elif k in ("conditions", "units", "inputs", "outputs", "excitation"):
                 if not isinstance(v, dict):
                     w = at(k)
                     raise MeasurementFileError(w[0], w[1], w[2], f"'{k}' must map names to values")
-                sub = {"conditions": "condition", "units": "unit", "inputs": "input", "outputs": "output"}[k]
+                sub = {"conditions": "condition", "units": "unit", "inputs": "input", "outputs": "output",
+                       "excitation": "excitation"}[k]
                 for name, val in v.items():
                     meta_set(meta, f"{sub} {name}", val, at(name))
             else:
                 w = at(k)
                 raise MeasurementFileError(w[0], w[1], w[2], f"unknown sidecar key {k!r}: use kind, source, "
-                                           "conditions, units, inputs, outputs")
+                                           "conditions, units, inputs, outputs, excitation")
         return sc
     return None
 

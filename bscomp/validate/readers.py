@@ -172,7 +172,14 @@ def _frf_from(path, meta, header, hl, rows):
         raise MeasurementFileError(w[0], w[1], w[2], f"unit given for {extra[0]!r}, which has no columns in the "
                                    f"file (pairs: {[f'{o}/{i}' for i, o in H]})", extra[0])
     cond, src = _conditions_and_source(meta, path)
-    return FrfData(freqs=f, H=H, units=units, conditions=cond, coherence=coh, source=src, locations=loc)
+    for name in meta.excitation:
+        w = meta.where[("excitation", name)]
+        if name not in {i for i, _ in H}:
+            raise MeasurementFileError(w[0], w[1], w[2], f"excitation given for {name!r}, which is not an input of "
+                                       f"the file's pairs (inputs: {list(dict.fromkeys(i for i, _ in H))})", name)
+        loc[("excitation", name)] = (w[1], w[2])
+    return FrfData(freqs=f, H=H, units=units, conditions=cond, coherence=coh, source=src, locations=loc,
+                   excitation={k: v for k, v in meta.excitation.items()})
 
 
 def _frequency_scale(path, meta, header, hl) -> float:
@@ -264,6 +271,10 @@ def read_time_csv(path) -> TimeData:
 def _time_from(path, meta, header, hl, rows):
     if meta.kind not in (None, "time"):
         raise MeasurementFileError(path, None, None, f"metadata says kind: {meta.kind}, not a time-series file")
+    for name in meta.excitation:
+        w = meta.where[("excitation", name)]
+        raise MeasurementFileError(w[0], w[1], w[2], f"excitation {name!r} is the sine amplitude of an FRF "
+                                   "measurement; a time series gives its input signal as a column", name)
     if header[0].lower() not in _TIME_NAMES:
         raise MeasurementFileError(path, hl, 1, f"the first column of a time-series file must be the time "
                                    f"('t'), got {header[0]!r}", header[0])

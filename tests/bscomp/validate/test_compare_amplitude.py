@@ -1,0 +1,99 @@
+"""compare() of an FRF measured at a declared sine amplitude (``# excitation NAME: 2 V``): the model is also
+compared at that amplitude by the describing function of its friction and backlash.
+
+The "measurement" is made by what the model under test did not make: a mass-spring with arc-tangent friction
+(systems.truths.AtanFriction, not the model's tanh law) whose FRF is taken by the stepped-sine simulation (time
+integration, every harmonic); the model is systems.friction_oscillator with the same Coulomb force; and the
+independent FE truth of systems.truths with its own friction, against the FE test bed. The metadata key's reading
+and its errors (file, line) are checked too."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import bscomp
+from bscomp import systems
+from bscomp.systems import friction_oscillator
+from bscomp.systems.thesis_effects import with_friction_backlash
+from bscomp.systems.truths import AtanFriction, truth_system
+from bscomp.validate import MeasurementFileError, compare, load
+
+F0 = 10.0                                  # N, against F_c = 1 N: the mass slides through every period
+FREQS = np.array([9.0, 12.0, 25.0, 35.0, 48.0])      # Hz; omega_n / 2 pi = 15.9 Hz
+
+
+def truth():
+    s = friction_oscillator(F_c=None, name="atan_truth")
+    s.add("fr", AtanFriction(F_c=1.0, v_s=5e-5))
+    s.connect("fr.flange_a", "wall.flange")
+    s.connect("fr.flange_b", "m.flange_b")
+    return s
+
+
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    path = tmp_path_factory.mktemp("amp") / "frf_3N.csv"
+    bscomp.stepped_sine(truth(), "F.f", "m.s", FREQS, F0).to_csv(path, units={"F.f": "N", "m.s": "m"})
+    path.write_text("# excitation F.f: 10 N\n" + path.read_text())
+    return path
+
+
+def test_the_model_at_the_measured_amplitude_explains_what_the_small_signal_model_cannot(measured, tmp_path):
+    """The small-signal model (friction's viscous part: none, an undamped oscillator) misses the phase lag
+    the friction causes, 7.3 deg rms; at the declared 10 N, by the describing function, the model
+    is the measurement to 0.1 dB and 0.2 deg rms (measured 0.047 dB, 0.014 deg) -- the error was the amplitude,
+    not a missing effect. (At F_c / F_0 = 1/3, or below 0.6 omega_n where the mass sticks for part of each
+    period, one harmonic is less exact: docs/nonlinear.md.)"""
+    data = load(measured)
+    assert data.excitation == {"F.f": 10.0}
+    c = compare(friction_oscillator, [data])
+    fc = c.frf[0]
+    a = fc.at_amplitude
+    assert a["elements"] == ["fr"] and a["excitation"] == {"F.f": 10.0}
+    assert fc.rms_phase_deg > 5.0
+    assert a["rms_mag_db"] < 0.1 and a["rms_phase_deg"] < 0.2 and a["residual"] < 1e-7
+    assert "at the measured excitation (F.f = 10 sine) by the describing function of fr" in c.summary()
+    d = json.loads(c.to_json())["frf"][0]["at_amplitude"]
+    assert d["rms_mag_db"] == pytest.approx(a["rms_mag_db"]) and "m.s/F.f" in d["model"]
+    assert any(Path(f).stat().st_size > 10_000 for f in c.plot(tmp_path))       # the overlay draws it
+    # a model without friction or backlash: nothing to take at the amplitude
+    assert compare(lambda: friction_oscillator(F_c=None), [data]).frf[0].at_amplitude is None
+
+
+def test_excitation_metadata_errors_name_the_file_and_line(tmp_path, measured):
+    text = measured.read_text().split("\n", 1)[1]
+    for line, msg in (("# excitation F.g: 10 N", "not an input"), ("# excitation F.f: ten", "amplitude"),
+                      ("# excitation F.f: -1 N", "positive"), ("# excitation F.f: 3 parsecs_x", "amplitude")):
+        p = tmp_path / "bad.csv"
+        p.write_text(line + "\n" + text)
+        with pytest.raises(MeasurementFileError, match=msg) as e:
+            load(p)
+        assert e.value.line == 1, line
+    p = tmp_path / "mV.csv"
+    p.write_text("# excitation F.f: 3000 mN\n" + text)
+    assert load(p).excitation == {"F.f": pytest.approx(3.0)}
+    t = tmp_path / "time.csv"
+    t.write_text("# excitation F.f: 3 N\n# input F.f: N\n# output m.s: m\nt,F.f,m.s\n0,0,0\n0.001,1,0\n0.002,1,0\n")
+    with pytest.raises(MeasurementFileError, match="time series gives its input"):
+        load(t)
+
+
+def test_fe_truth_with_friction_measured_at_200_mV(tmp_path):
+    """The independent FE truth of systems.truths, case ``friction`` (52 instead of 39 elements in section C, table
+    mass +6.2 %, coupling +6.7 %, arc-tangent guideway friction F_c = 1151 N), its FRF amp.u -> rotor.w, table.a
+    taken by the stepped sine at 0.2 V (the table stays stuck), against the FE model with Table 5.2 friction
+    (tanh, F_c = 2066 N): the small-signal model, whose table slides on the viscous part, is > 20 dB rms off
+    (measured 30.2 dB, 104 deg); at the declared 200 mV within 4 dB and 5 deg (measured 2.6 dB, 0.8 deg) -- what
+    remains is the mesh, the mis-set parameters and the friction laws' sticking slopes."""
+    tr, info = truth_system("friction", nut_joint="point")
+    assert info["hidden"]["friction"]["F_c"] == pytest.approx(1151.26, rel=1e-4)
+    path = tmp_path / "truth_200mV.csv"
+    ss = bscomp.stepped_sine(tr, "amp.u", ["rotor.w", "table.a"], [10.0, 20.0, 60.0, 150.0], 0.2, settle=6,
+                             periods=2)
+    ss.to_csv(path, units={"amp.u": "V"})
+    path.write_text("# excitation amp.u: 200 mV\n" + path.read_text())
+    fc = compare(lambda: with_friction_backlash(systems.testbed_axial_torsional(), backlash=False), [load(path)]).frf[0]
+    assert fc.rms_mag_db > 20.0
+    assert fc.at_amplitude["rms_mag_db"] < 4.0 and fc.at_amplitude["rms_phase_deg"] < 5.0
