@@ -90,11 +90,14 @@ class Comparison:
                      f"{c.rms_phase_deg:.1f} deg rms")
             a = c.at_amplitude
             if a is not None:
-                exc = ", ".join(f"{k} = {v:g}" for k, v in a["excitation"].items())
-                L.append(f"  at the measured excitation ({exc} sine) by the describing function of "
+                exc = ", ".join(f"a sine of {v:g} on {k}" for k, v in a["excitation"].items())
+                L.append(f"  at the measured excitation ({exc}) by the describing function of "
                          f"{', '.join(a['elements'])}: magnitude error {a['rms_mag_db']:.2f} dB rms, phase error "
                          f"{a['rms_phase_deg']:.1f} deg rms (the figures above: the small-signal model)"
                          if "error" not in a else f"  not compared at the measured excitation ({exc}): {a['error']}")
+                if a.get("resonances"):
+                    L.append("    the model's resonances at that amplitude: " + ", ".join(
+                        f"{f_:.4g} Hz (zeta {z:.3g})" for f_, z in a["resonances"]))
             if len(c.pair_errors) > 1:
                 L.append("  per pair: " + "; ".join(
                     f"{o}/{i} magnitude {e['mag_db_rms']:.2f} dB rms (mean |dlog10| {e['mag_mean_abs_dlog10']:.3f}), "

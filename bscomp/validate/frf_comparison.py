@@ -124,7 +124,8 @@ class FrfComparison:
         With a declared excitation amplitude and a model with friction/backlash: ``excitation`` ({input:
         amplitude}), ``elements``, ``model`` ({pair: H} at that amplitude by the describing function; the
         small-signal H for pairs of other inputs), ``rms_mag_db``, ``rms_phase_deg``, ``residual`` (the
-        harmonic balance's, largest); or ``error`` (why it could not be taken).
+        harmonic balance's, largest), ``resonances`` ([(f, zeta)] of the model at that amplitude, by the
+        measurement's own estimator); or ``error`` (why it could not be taken).
     """
 
     source: str
@@ -370,8 +371,10 @@ def _at_amplitude(system, data, Hm):
     except BscompError as exc:          # e.g. a current limit the describing function does not treat
         return {"excitation": dict(data.excitation), "error": str(exc)}
     mag, ph = _weighted_rms(frf_errors(H, data), data)
+    peaks = merge_resonances([peak_pick(data.freqs, H[p], p, min_prominence_db=1.0) for p in data.H
+                              if p[0] in data.excitation])
     return {"excitation": dict(data.excitation), "elements": elements, "model": H, "rms_mag_db": mag,
-            "rms_phase_deg": ph, "residual": residual}
+            "rms_phase_deg": ph, "residual": residual, "resonances": [(r.f, r.zeta) for r in peaks]}
 
 
 

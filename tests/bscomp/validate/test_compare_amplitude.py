@@ -54,7 +54,7 @@ def test_the_model_at_the_measured_amplitude_explains_what_the_small_signal_mode
     assert a["elements"] == ["fr"] and a["excitation"] == {"F.f": 10.0}
     assert fc.rms_phase_deg > 5.0
     assert a["rms_mag_db"] < 0.1 and a["rms_phase_deg"] < 0.2 and a["residual"] < 1e-7
-    assert "at the measured excitation (F.f = 10 sine) by the describing function of fr" in c.summary()
+    assert "at the measured excitation (a sine of 10 on F.f) by the describing function of fr" in c.summary()
     d = json.loads(c.to_json())["frf"][0]["at_amplitude"]
     assert d["rms_mag_db"] == pytest.approx(a["rms_mag_db"]) and "m.s/F.f" in d["model"]
     assert any(Path(f).stat().st_size > 10_000 for f in c.plot(tmp_path))       # the overlay draws it
