@@ -97,3 +97,12 @@ def test_fe_truth_with_friction_measured_at_200_mV(tmp_path):
     fc = compare(lambda: with_friction_backlash(systems.testbed_axial_torsional(), backlash=False), [load(path)]).frf[0]
     assert fc.rms_mag_db > 20.0
     assert fc.at_amplitude["rms_mag_db"] < 4.0 and fc.at_amplitude["rms_phase_deg"] < 5.0
+
+
+def test_diagnose_says_it_fits_such_files_by_the_small_signal_model(measured):
+    """diagnose has no describing function in its fits: it says so, naming the file and its excitation."""
+    from bscomp.errors import ModelLimitationWarning
+    from bscomp.validate import diagnose
+
+    with pytest.warns(ModelLimitationWarning, match=r"small-signal equivalent; \['atan_truth \(10 on F.f\)'\]"):
+        diagnose(friction_oscillator, [load(measured)], max_effects=1, uncertain=["m.m"], progress=False)
