@@ -44,7 +44,6 @@ import numpy as np
 import scipy.linalg as sla
 
 from bscomp.errors import (
-    ArgumentTypeError,
     BscompError,
     ModelLimitationWarning,
     UnknownNameError,
@@ -54,6 +53,7 @@ from bscomp.errors import (
 from bscomp.linear.response import Frf
 from bscomp.model import as_dae, run_overrides
 from bscomp.simulation.modal_channels import Channels, LinearPart
+from bscomp.simulation.stepped import check_sine_request
 
 __all__ = ["describing_frf", "DescribingFrf", "DescribingFunctionError", "first_harmonic"]
 
@@ -246,18 +246,7 @@ def _check_channels(bal, dae, iu, amplitude):
 
 
 def _check(input, output, freqs, amplitude, points, tol):
-    if not isinstance(input, str):
-        raise ArgumentTypeError(f"describing_frf: input must be one input name (str), got {type(input).__name__}")
-    outs = [output] if isinstance(output, str) else output
-    if not isinstance(outs, (list, tuple)) or not outs or not all(isinstance(o, str) for o in outs):
-        raise ArgumentTypeError(f"describing_frf: output must be a name or a list of names, got {output!r}")
-    try:
-        f = np.atleast_1d(np.asarray(freqs, float))
-    except (TypeError, ValueError):
-        raise UsageError(f"describing_frf: freqs must be an array of frequencies [Hz], got {freqs!r}") from None
-    if f.ndim != 1 or not f.size or not np.all(np.isfinite(f)) or np.any(f <= 0):
-        raise UsageError(f"describing_frf: freqs must be positive, finite frequencies [Hz], got {f}")
-    check_number("amplitude", amplitude, positive=True)
+    outs, f = check_sine_request("describing_frf", input, output, freqs, amplitude)
     check_number("points", points, integer=True, minimum=16)
     if points % 4:
         raise UsageError(f"describing_frf: points must be a multiple of 4 (a velocity reversal between two phases), "

@@ -93,24 +93,31 @@ def _input_harmonic(t, u, w):
     return 2.0 / (t[-1] - t[0]) * np.sum(u * seg)
 
 
-def _check(input, output, freqs, amplitude, samples, settle, periods, max_settle, tol):
+def check_sine_request(who, input, output, freqs, amplitude):
+    """``(outputs, freqs)`` of an FRF-at-an-amplitude request (``who``: the function, in the messages), or a
+    named :class:`~bscomp.errors.ArgumentTypeError` / :class:`~bscomp.errors.UsageError`."""
     if not isinstance(input, str):
-        raise ArgumentTypeError(f"stepped_sine: input must be one input name (str), got {type(input).__name__}")
+        raise ArgumentTypeError(f"{who}: input must be one input name (str), got {type(input).__name__}")
     outs = [output] if isinstance(output, str) else output
     if not isinstance(outs, (list, tuple)) or not outs or not all(isinstance(o, str) for o in outs):
-        raise ArgumentTypeError(f"stepped_sine: output must be a name or a list of names, got {output!r}")
+        raise ArgumentTypeError(f"{who}: output must be a name or a list of names, got {output!r}")
     try:
         f = np.atleast_1d(np.asarray(freqs, float))
     except (TypeError, ValueError):
-        raise UsageError(f"stepped_sine: freqs must be an array of frequencies [Hz], got {freqs!r}") from None
+        raise UsageError(f"{who}: freqs must be an array of frequencies [Hz], got {freqs!r}") from None
     if f.ndim != 1 or not f.size or not np.all(np.isfinite(f)) or np.any(f <= 0):
-        raise UsageError(f"stepped_sine: freqs must be positive, finite frequencies [Hz], got {f}")
+        raise UsageError(f"{who}: freqs must be positive, finite frequencies [Hz], got {f}")
     check_number("amplitude", amplitude, positive=True)
+    return list(outs), f
+
+
+def _check(input, output, freqs, amplitude, samples, settle, periods, max_settle, tol):
+    outs, f = check_sine_request("stepped_sine", input, output, freqs, amplitude)
     for name, v, lo in (("samples", samples, 16), ("settle", settle, 1), ("periods", periods, 1),
                         ("max_settle", max_settle, 1)):
         check_number(name, v, integer=True, minimum=lo)
     check_number("tol", tol, positive=True)
-    return list(outs), f
+    return outs, f
 
 
 def stepped_sine(model, input: str, output, freqs, amplitude: float, *, offset: float = 0.0, params: dict | None = None,
