@@ -118,6 +118,8 @@ def _mapped(law, points):
     key = (id(law), points)
     F = _MAPPED.get(key)
     if F is None or F[0] is not law:
+        if len(_MAPPED) >= 64:              # laws of models no longer in use: drop them
+            _MAPPED.clear()
         F = _MAPPED[key] = (law, law.map(points))
     return F[1]
 
