@@ -44,8 +44,7 @@ def measure(out):
         ss = bscomp.stepped_sine(truth, "amp.u", ["rotor.w", "table.a"], FREQS, volts, jit=True)
         ss.name = f"truth '{info['case']}', stepped sine at {volts:g} V"
         path = out / f"frf_{volts:g}V.csv"
-        ss.to_csv(path, units={"amp.u": "V"})
-        path.write_text(f"# excitation amp.u: {volts:g} V\n" + path.read_text())
+        ss.to_csv(path, units={"amp.u": "V"})               # with '# excitation amp.u: <volts>' (SI)
         paths.append(path)
         print(f"measured {path.name} on the truth ({info['hidden']['friction']['F_c']:.0f} N friction) in "
               f"{time.perf_counter() - t0:.1f} s; largest distortion {100 * ss.distortion.max():.0f} %")

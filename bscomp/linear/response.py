@@ -99,8 +99,10 @@ class Frf:
         ``<input>-><output> re`` and so on): a plain table that :func:`bscomp.validate.load` reads back.
 
         The values are SI. Read back, each response's unit is :meth:`pair_unit` of its names (the Modelica
-        naming convention); given ``units`` or ``conditions``, ``#`` metadata lines above the header
-        (``kind``, ``source``, ``condition``, ``unit`` per pair) record them with the data.
+        naming convention); given ``units`` or ``conditions``, or for an FRF taken at an excitation amplitude
+        (:func:`~bscomp.simulation.stepped.stepped_sine`, :func:`~bscomp.simulation.describing.describing_frf`),
+        ``#`` metadata lines above the header (``kind``, ``source``, ``condition``, ``excitation``, ``unit`` per
+        pair) record them with the data.
 
         Parameters
         ----------
@@ -113,9 +115,10 @@ class Frf:
             Operating conditions of the model (``{"nut_position": 0.43}``), written with the data.
         """
         lines = []
-        if units or conditions:
+        if units or conditions or self._excitation():
             lines = ["# kind: frf", f"# source: {self.name or 'bscomp.frf'}"]
             lines += [f"# condition {k}: {v}" for k, v in (conditions or {}).items()]
+            lines += [f"# excitation {k}: {v!r}" for k, v in self._excitation().items()]
             for j, i in self._pairs():
                 out, inp = self.outputs[j], self.inputs[i]
                 lines.append(f"# unit {out}/{inp}: {self.pair_unit(out, inp, units)}")
@@ -135,6 +138,12 @@ class Frf:
                     row += [repr(float(h.real)), repr(float(h.imag)), repr(float(mag[k, j, i])),
                             repr(float(ph[k, j, i]))]
                 w.writerow(row)
+
+    def _excitation(self) -> dict:
+        """``{input: amplitude}`` of an FRF taken at an excitation amplitude (written as ``# excitation`` lines;
+        none for a linear FRF)."""
+        amp = getattr(self, "amplitude", 0.0)
+        return {self.inputs[0]: float(amp)} if amp and len(self.inputs) == 1 else {}
 
     @staticmethod
     def pair_unit(output: str, input: str, units: dict | None = None) -> str:

@@ -37,6 +37,8 @@ __all__ = ["Meta", "Table", "read_table", "MAX_FILE_BYTES", "MAX_SIDECAR_BYTES"]
 MAX_FILE_BYTES = 2 * 1024 ** 3
 #: largest sidecar read (metadata only)
 MAX_SIDECAR_BYTES = 1024 ** 2
+#: a number and an optional unit: "2 V", "2V", "200 mV", "2.0"
+_NUMBER_UNIT = re.compile(r"^([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:nan|inf))\s*(.*)$", re.I)
 #: deepest nesting of a sidecar (its format needs 2)
 MAX_SIDECAR_DEPTH = 8
 
@@ -140,9 +142,11 @@ def meta_set(meta, key, value, where):
 def _amplitude(name, value, where) -> float:
     """``excitation NAME: 2 V`` (or a bare number, SI): the sine amplitude an FRF was measured at, in SI."""
     text = str(value).strip()
-    num, _, unit = text.partition(" ")
+    m = _NUMBER_UNIT.match(text)
     try:
-        a = float(num) * (parse_unit(unit).scale if unit.strip() else 1.0)
+        if m is None:
+            raise ValueError("no number first")
+        a = float(m.group(1)) * (parse_unit(m.group(2)).scale if m.group(2).strip() else 1.0)
     except (ValueError, UnitSyntaxError) as exc:
         raise MeasurementFileError(where[0], where[1], where[2], f"excitation {name!r} must be the sine's amplitude, "
                                    f"a number with an optional unit (e.g. '2 V'), got {text!r} ({exc})", name) from None

@@ -44,6 +44,7 @@ def write_frf_csv(data: FrfData, path, form: str = "reim") -> Path:
         raise ValueError(f"form must be 'reim' or 'magphase', got {form!r}")
     path = Path(path)
     lines = _meta_lines("frf", data.source, data.conditions)
+    lines += [f"# excitation {k}: {v!r}" for k, v in data.excitation.items()]
     head = ["f"]
     cols = [np.asarray(data.freqs, float)]
     for (inp, out), h in data.H.items():

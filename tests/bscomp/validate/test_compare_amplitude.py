@@ -18,7 +18,7 @@ from bscomp import systems
 from bscomp.systems import friction_oscillator
 from bscomp.systems.thesis_effects import with_friction_backlash
 from bscomp.systems.truths import AtanFriction, truth_system
-from bscomp.validate import MeasurementFileError, compare, load
+from bscomp.validate import MeasurementFileError, compare, load, write_frf_csv
 
 F0 = 10.0                                  # N, against F_c = 1 N: the mass slides through every period
 FREQS = np.array([9.0, 12.0, 25.0, 35.0, 48.0])      # Hz; omega_n / 2 pi = 15.9 Hz
@@ -36,7 +36,7 @@ def truth():
 def measured(tmp_path_factory):
     path = tmp_path_factory.mktemp("amp") / "frf_3N.csv"
     bscomp.stepped_sine(truth(), "F.f", "m.s", FREQS, F0).to_csv(path, units={"F.f": "N", "m.s": "m"})
-    path.write_text("# excitation F.f: 10 N\n" + path.read_text())
+    assert "# excitation F.f: 10.0" in path.read_text()       # a stepped sine states its amplitude
     return path
 
 
@@ -63,7 +63,9 @@ def test_the_model_at_the_measured_amplitude_explains_what_the_small_signal_mode
 
 
 def test_excitation_metadata_errors_name_the_file_and_line(tmp_path, measured):
-    text = measured.read_text().split("\n", 1)[1]
+    data = load(measured)
+    assert load(write_frf_csv(data, tmp_path / "again.csv")).excitation == {"F.f": 10.0}    # written back
+    text = "\n".join(ln for ln in measured.read_text().split("\n") if not ln.startswith("# excitation"))
     for line, msg in (("# excitation F.g: 10 N", "not an input"), ("# excitation F.f: ten", "amplitude"),
                       ("# excitation F.f: -1 N", "positive"), ("# excitation F.f: 3 parsecs_x", "amplitude")):
         p = tmp_path / "bad.csv"
@@ -72,8 +74,9 @@ def test_excitation_metadata_errors_name_the_file_and_line(tmp_path, measured):
             load(p)
         assert e.value.line == 1, line
     p = tmp_path / "mV.csv"
-    p.write_text("# excitation F.f: 3000 mN\n" + text)
-    assert load(p).excitation == {"F.f": pytest.approx(3.0)}
+    for amp in ("3000 mN", "3N", "3"):
+        p.write_text(f"# excitation F.f: {amp}\n" + text)
+        assert load(p).excitation == {"F.f": pytest.approx(3.0)}, amp
     t = tmp_path / "time.csv"
     t.write_text("# excitation F.f: 3 N\n# input F.f: N\n# output m.s: m\nt,F.f,m.s\n0,0,0\n0.001,1,0\n0.002,1,0\n")
     with pytest.raises(MeasurementFileError, match="time series gives its input"):
