@@ -3,7 +3,8 @@
 The "measurements" come from the independent FE truth of ``bscomp.systems.truths`` (case ``friction``: another
 mesh, mis-set table mass and coupling, arc-tangent guideway friction with F_c = 1151 N), taken the way a test
 engineer would: a stepped sine on ``amp.u`` at 0.2 V and at 2 V, 14 frequencies 10-200 Hz, the fundamental of
-``rotor.w`` and ``table.a``. Each file states its excitation (``# excitation amp.u: 0.2 V``). The model is the
+``rotor.w`` and ``table.a``. Each file states its excitation (``# excitation amp.u: 0.2``, written by
+``SteppedSine.to_csv``; a measured file says ``# excitation amp.u: 200 mV``). The model is the
 axial + torsional test bed with Table 5.2 friction (tanh, F_c = 2066 N). ``compare`` reports the small-signal
 model (friction reduced to its viscous part: a table sliding freely) and the model at the measured amplitude by
 the describing function; the report's overlay plots draw both.
