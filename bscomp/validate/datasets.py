@@ -18,7 +18,7 @@ import numpy as np
 from bscomp.errors import BscompError
 
 __all__ = ["FrfData", "TimeData", "MeasurementFileError", "MeasurementWarning", "check_condition",
-           "MIN_COHERENCE"]
+           "MIN_COHERENCE", "warn_small_signal_fit"]
 
 #: a pair whose coherence stays below this everywhere carries no usable signal (error)
 MIN_COHERENCE = 0.1
@@ -103,6 +103,20 @@ def check_coherence(pair, g, source, where=(None, None)):
     if low > 0.5:
         warnings.warn(f"{source}: coherence of {label} is below 0.5 at {100 * low:.0f}% of the frequencies: "
                       "the comparison rests on few points", MeasurementWarning, stacklevel=3)
+
+
+def warn_small_signal_fit(datasets, who: str, stacklevel: int = 3) -> None:
+    """Warn (:class:`~bscomp.errors.ModelLimitationWarning`) that ``who`` fits FRFs by the small-signal model
+    when some of ``datasets`` were measured at a stated sine amplitude (``FrfData.excitation``)."""
+    from bscomp.errors import ModelLimitationWarning
+
+    at_amp = [f"{d.source} ({', '.join(f'{v:g} on {k}' for k, v in d.excitation.items())})" for d in datasets
+              if isinstance(d, FrfData) and d.excitation]
+    if at_amp:
+        warnings.warn(f"{who} fits FRFs by the model's small-signal equivalent; {at_amp} were measured at a stated "
+                      "sine amplitude, where friction and backlash act as they do there: an effect or a parameter "
+                      "fitted to them may stand for the amplitude (compare shows the model at that amplitude; give "
+                      "time series for friction and backlash)", ModelLimitationWarning, stacklevel=stacklevel)
 
 
 # ---- data classes -------------------------------------------------------------------------------------

@@ -43,18 +43,16 @@ from __future__ import annotations
 import math
 import sys
 import time
-import warnings
 
 import numpy as np
 from scipy.optimize import minimize_scalar
 from threadpoolctl import threadpool_limits
 
-from bscomp.errors import ModelLimitationWarning
 from bscomp.kernel.interface import NotApplicable
 from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
 from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
-from bscomp.validate.datasets import FrfData
+from bscomp.validate.datasets import FrfData, warn_small_signal_fit
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
 from bscomp.validate.equivalence import mark_equivalent
 from bscomp.validate.evaluation import Problem
@@ -207,13 +205,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     datasets = load_all(datasets)
     if not datasets:
         raise ValueError("diagnose needs at least one dataset")
-    at_amp = [f"{d.source} ({', '.join(f'{v:g} on {k}' for k, v in d.excitation.items())})" for d in datasets
-              if isinstance(d, FrfData) and d.excitation]
-    if at_amp:
-        warnings.warn(f"diagnose fits FRFs by the model's small-signal equivalent; {at_amp} were measured at a "
-                      "stated sine amplitude, where friction and backlash act as they do there: an effect found in "
-                      "them may stand for the amplitude, not for missing physics (compare shows the model at that "
-                      "amplitude; give time series for friction and backlash)", ModelLimitationWarning, stacklevel=3)
+    warn_small_signal_fit(datasets, "diagnose", stacklevel=4)
     log = print if verbose else (lambda *a, **k: None)
     progress = sys.stderr.isatty() if progress is None else progress
     setup = FitSetup.build(system_or_build, datasets, uncertain, overrides, default_spread)
