@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bscomp.errors import BscompError
+from bscomp.errors import BscompError, ModelLimitationWarning
 
 __all__ = ["FrfData", "TimeData", "MeasurementFileError", "MeasurementWarning", "check_condition",
            "MIN_COHERENCE", "warn_small_signal_fit"]
@@ -108,8 +108,6 @@ def check_coherence(pair, g, source, where=(None, None)):
 def warn_small_signal_fit(datasets, who: str, stacklevel: int = 3) -> None:
     """Warn (:class:`~bscomp.errors.ModelLimitationWarning`) that ``who`` fits FRFs by the small-signal model
     when some of ``datasets`` were measured at a stated sine amplitude (``FrfData.excitation``)."""
-    from bscomp.errors import ModelLimitationWarning
-
     at_amp = [f"{d.source} ({', '.join(f'{v:g} on {k}' for k, v in d.excitation.items())})" for d in datasets
               if isinstance(d, FrfData) and d.excitation]
     if at_amp:
