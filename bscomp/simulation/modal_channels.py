@@ -295,6 +295,19 @@ class LinearPart:
                               Zaug[:, nu:nu + ng], Zaug[:, -1])
         return self._explicit
 
+    def outside(self, u_low, u_high, u_mid):
+        """The first equation the decomposition does not reproduce -- at rest with the inputs ``u_low`` and
+        ``u_high``, and at a random state near rest with ``u_mid`` -- as ``(origin, residual, scale)``, or None
+        when every nonlinearity of the model is a channel (a current limit, a nonlinear spring would be linearized
+        silently by whoever uses this decomposition)."""
+        dae = self.ch.dae
+        dx = np.random.default_rng(0).normal(size=dae.nx) * 1e-6
+        for dxi, u in ((0.0 * dx, u_low), (0.0 * dx, u_high), (dx, u_mid)):
+            err, scale, row = self.mismatch(dxi, u)
+            if err > 1e-7 * scale:
+                return (dae.eq_origin[row] if row < len(dae.eq_origin) else f"row {row}"), err, scale
+        return None
+
     def mismatch(self, dx, u):
         """``(max |F - F_L - G g|, scale, row)`` at the state ``x_a + dx`` (``x' = 0``, ``z = z_a``) and input
         ``u``: zero (round-off) when every nonlinearity of the model is a channel (the decomposition of the

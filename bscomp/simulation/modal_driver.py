@@ -369,16 +369,13 @@ class ModalSimulator:
         if key in self._checked:
             return
         lin = self.part(tuple(0 for _ in self.ch.elements), [jt.z0 for jt in self.ch.joints]).lin
-        rng = np.random.default_rng(0)
-        dx = rng.normal(size=self.dae.nx) * 1e-6
-        for dxi, u in ((0.0 * dx, U.min(axis=0)), (0.0 * dx, U.max(axis=0)), (dx, U[0])):
-            err, scale, row = lin.mismatch(dxi, u)
-            if err > 1e-7 * scale:
-                origin = self.dae.eq_origin[row] if row < len(self.dae.eq_origin) else f"row {row}"
-                raise ModalSimulationError(
-                    f"'{self.dae.name}': equation '{origin}' is nonlinear outside the friction/backlash elements and "
-                    f"moving joints method='modal' corrects (residual {err:.2g} of {scale:.2g} at the run's input "
-                    "extremes; e.g. an amplifier current limit): use method='idas' or 'split'")
+        bad = lin.outside(U.min(axis=0), U.max(axis=0), U[0])
+        if bad is not None:
+            origin, err, scale = bad
+            raise ModalSimulationError(
+                f"'{self.dae.name}': equation '{origin}' is nonlinear outside the friction/backlash elements and "
+                f"moving joints method='modal' corrects (residual {err:.2g} of {scale:.2g} at the run's input "
+                "extremes; e.g. an amplifier current limit): use method='idas' or 'split'")
         self._checked.add(key)
 
     def _ctl(self, tol):
