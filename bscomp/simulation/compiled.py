@@ -46,6 +46,7 @@ from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import dense, modal_frf
 from bscomp.linear.linearization import second_order
 from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin
+from bscomp.simulation.harmonic_balance import HarmonicBalance
 
 __all__ = ["CompiledModel", "ModalModel", "nonlinear_elements"]
 
@@ -199,6 +200,7 @@ class CompiledModel(TimeSeriesMixin):
         self._steps = {}
         self._runs = {}
         self._modal_cache = {}
+        self._el_rest = None
         self.stats = {"evaluations": 0}
 
     # ---- parameters -------------------------------------------------------------------------------
@@ -457,19 +459,66 @@ class CompiledModel(TimeSeriesMixin):
         return ModalModel(lam, phi, Ckk, Rt, so, keep, delay, self.f_keep, c_modal=c, C_struct=csd)
 
     # ---- FRF ------------------------------------------------------------------------------------------
-    def frf(self, params, freqs, pairs, extra_damping: float = 0.0, delay: float = 0.0, mm: ModalModel = None):
-        """``{(input, output): H(freqs)}`` of the linear equivalent at ``params``."""
+    def frf(self, params, freqs, pairs, extra_damping: float = 0.0, delay: float = 0.0, mm: ModalModel = None,
+            amplitude: dict | None = None, points: int = 256, tol: float = 1e-8):
+        """``{(input, output): H(freqs)}`` of the linear equivalent at ``params``.
+
+        With ``amplitude`` (``{input: A}``, the input's unit) the pairs of those inputs are the response to a sine
+        of that amplitude by the describing function of the nonlinear elements (thesis Eq 5.7-5.9 laws, first
+        harmonic: :class:`~bscomp.simulation.describing.HarmonicBalance`, as :func:`bscomp.describing_frf` does
+        on the flattened model), the linear part being this modal model; a model without nonlinear elements
+        has the same FRF at every amplitude."""
         mm = mm or self.modal(params, extra_damping, delay)
+        amp = {k: float(v) for k, v in (amplitude or {}).items() if v} if self.elements else {}
+        out = {}
+        small = [pq for pq in pairs if pq[0] not in amp]
+        if small:
+            so = mm.so
+            ins = list(dict.fromkeys(i for i, _ in small))
+            outs = list(dict.fromkeys(o for _, o in small))
+            bi = [so.inputs.index(i) for i in ins]
+            yo = [so.outputs.index(o) for o in outs]
+            B = dense(so.B, float)[:, bi]
+            Cq, Cv, Ca = (dense(m, float)[yo] for m in (so.Cq, so.Cv, so.Ca))
+            D = dense(so.D, float)[yo][:, bi]
+            H = modal_frf(mm.lam, mm.phi, mm.c_modal, mm.C_struct, B, Cq, Cv, Ca, D, freqs, modes=mm.keep,
+                          delay=delay)
+            out.update({(i, o): H[:, outs.index(o), ins.index(i)] for i, o in small})
+        for inp in dict.fromkeys(i for i, _ in pairs if i in amp):
+            outs = list(dict.fromkeys(o for i, o in pairs if i == inp))
+            H = self._describing(mm, params, freqs, inp, outs, amp[inp], delay, points, tol)
+            out.update({(inp, o): H[:, k] for k, o in enumerate(outs)})
+        return {pq: out[pq] for pq in pairs}
+
+    def _describing(self, mm, params, freqs, inp, outs, amplitude, delay, points, tol):
+        """``H[freq, output]`` of ``outs`` to ``inp`` at ``amplitude`` (:meth:`frf`)."""
         so = mm.so
-        ins = list(dict.fromkeys(i for i, _ in pairs))
-        outs = list(dict.fromkeys(o for _, o in pairs))
-        bi = [so.inputs.index(i) for i in ins]
-        yo = [so.outputs.index(o) for o in outs]
-        B = dense(so.B, float)[:, bi]
-        Cq, Cv, Ca = (dense(m, float)[yo] for m in (so.Cq, so.Cv, so.Ca))
-        D = dense(so.D, float)[yo][:, bi]
-        H = modal_frf(mm.lam, mm.phi, mm.c_modal, mm.C_struct, B, Cq, Cv, Ca, D, freqs, modes=mm.keep,
-                      delay=delay)
-        return {(i, o): H[:, outs.index(o), ins.index(i)] for i, o in pairs}
+        _lin, law, _struct = self._split(dict(params or {}))
+        plaw = self.law_values(law)
+        pvecs, k0, d0, off = [], [], [], 0
+        for el in self.elements:
+            k = len(el.pnames)
+            pvecs.append(plaw[off:off + k])
+            k0.append(plaw[off + k])
+            d0.append(plaw[off + k + 2])
+            off += k + 3
+        if self._el_rest is None:                 # the elements' (s, v) at the operating point
+            yf = self.dae.output_function(self.nl_outputs)
+            x0 = self.dae.x_start
+            xd0, z0 = self.dae.initialize(x0, np.zeros(self.dae.nu), self.dae.p0)
+            self._el_rest = np.asarray(yf(xd0, x0, z0, np.zeros(self.dae.nu), self.dae.p0), float).ravel()
+        rows = [so.outputs.index(n) for n in self.nl_outputs + outs]
+        cols = [so.inputs.index(n) for n in [inp] + self.w_inputs]
+        B = dense(so.B, float)[:, cols]
+        Cq, Cv, Ca = (dense(m, float)[rows] for m in (so.Cq, so.Cv, so.Ca))
+        D = dense(so.D, float)[rows][:, cols]
+        T = modal_frf(mm.lam, mm.phi, mm.c_modal, mm.C_struct, B, Cq, Cv, Ca, D, freqs, modes=mm.keep)
+        if delay:                                 # the input is delayed, the element forces are not
+            T[:, :, 0] *= np.exp(-2j * np.pi * np.asarray(freqs, float) * delay)[:, None]
+        hb = HarmonicBalance([el.law for el in self.elements], pvecs, self._el_rest[0::2], self._el_rest[1::2],
+                             k0, d0, points)
+        Y, _S, _V, rel = hb.sweep(freqs, lambda i: T[i], amplitude, tol)
+        self.stats["describing_residual"] = float(np.max(rel, initial=0.0))
+        return Y / amplitude
 
     # ---- time series ------------------------------------------------------------------------------------

@@ -52,14 +52,14 @@ from bscomp.errors import (
 )
 from bscomp.linear.response import Frf
 from bscomp.model import as_dae, run_overrides
+from bscomp.simulation.harmonic_balance import HarmonicBalance, first_harmonic
 from bscomp.simulation.modal_channels import Channels, LinearPart
 from bscomp.simulation.stepped import check_sine_request
 
-__all__ = ["describing_frf", "DescribingFrf", "DescribingFunctionError", "first_harmonic"]
+__all__ = ["describing_frf", "DescribingFrf", "DescribingFunctionError", "first_harmonic", "HarmonicBalance"]
 
 #: eigenvector condition number above which the resolvent is solved directly per frequency
 COND_MAX = 1e8
-AMPLITUDE_LADDER = (1 / 64, 1 / 16, 1 / 4, 1 / 2, 1.0)   # continuation when Newton fails from the last solution
 
 
 class DescribingFunctionError(BscompError):
@@ -98,34 +98,8 @@ class DescribingFrf(Frf):
                 f"balance residual {self.residual.max(initial=0.0):.1e}; stepped_sine for every harmonic)")
 
 
-def first_harmonic(law, pvec, s0, v0, S, V, points=256):
-    """``F̂ = (1/π) ∫ f(s_0 + Re(S e^{jθ}), v_0 + Re(V e^{jθ})) e^{-jθ} dθ`` of a law ``(s, v, p) -> f`` (a CasADi
-    Function), by the midpoint rule at ``points`` phases (exact for trigonometric polynomials below
-    ``points - 1``). The phases are counted from the velocity's (the displacement's when the velocity is zero),
-    so a jump at a velocity reversal -- Coulomb friction's sign -- falls between two phases symmetrically and
-    costs ``O(1/points^2)`` instead of ``O(1/points)`` (``points`` a multiple of 4)."""
-    phase = np.angle(V) if V != 0 else np.angle(S)
-    th = 2 * np.pi * (np.arange(points) + 0.5) / points - phase
-    e = np.exp(1j * th)
-    f = _mapped(law, points)(s0 + (S * e).real, v0 + (V * e).real, pvec)
-    return 2.0 / points * np.sum(np.asarray(f).ravel() * np.conj(e))
-
-
-_MAPPED = {}
-
-
-def _mapped(law, points):
-    key = (id(law), points)
-    F = _MAPPED.get(key)
-    if F is None or F[0] is not law:
-        if len(_MAPPED) >= 64:              # laws of models no longer in use: drop them
-            _MAPPED.clear()
-        F = _MAPPED[key] = (law, law.map(points))
-    return F[1]
-
-
-class _Balance:
-    """The linear maps ``ĝ -> (Ŝ, V̂, Ŷ)`` per frequency and the elements' first harmonics (module docstring)."""
+class _Balance(HarmonicBalance):
+    """The linear maps ``ĝ -> (Ŝ, V̂, Ŷ)`` per frequency of a flattened model (module docstring)."""
 
     def __init__(self, dae, p, input, outs, points):
         ch = Channels(dae, p)
@@ -134,7 +108,10 @@ class _Balance:
                       "amplitude: bscomp.frf at each position (position_sweep), or bscomp.stepped_sine"
                       if ch.joints else ": its FRF is the same at every amplitude (use bscomp.frf)")
             raise DescribingFunctionError(f"'{dae.name}' has no friction or backlash element{moving}")
-        self.ch, self.points = ch, int(points)
+        y0 = ch.el_rows[0]
+        super().__init__([el.law for el in ch.elements], [el.pvec for el in ch.elements], y0[0::2], y0[1::2],
+                         [r[2] for r in ch.rest], [r[3] for r in ch.rest], points)
+        self.ch = ch
         self.names = [el.path for el in ch.elements]
         lin = LinearPart(ch, [tuple(r[2:4]) for r in ch.rest], [jt.z0 for jt in ch.joints])
         self.lin = lin
@@ -156,60 +133,14 @@ class _Balance:
         self.direct = not np.all(np.isfinite(V)) or np.linalg.cond(V) > COND_MAX
         if not self.direct:
             self.lam, self.CV, self.W = lam, self.C @ V, np.linalg.solve(V, cols)
-        self.y0 = ch.el_rows[0]
-        self.k0 = np.array([r[2] for r in ch.rest])
-        self.d0 = np.array([r[3] for r in ch.rest])
-        self.n = n
 
-    def maps(self, w):
-        """``T(ω)`` (rows: s_1, v_1, ..., outputs; columns: U, ĝ_1, ...)."""
+    def maps(self, f_hz):
+        """``T`` at ``f_hz`` [Hz] (rows: s_1, v_1, ..., outputs; columns: U, ĝ_1, ...)."""
+        w = 2 * np.pi * f_hz
         if self.direct:
             X = np.linalg.solve(1j * w * np.eye(self.A.shape[0]) - self.A, self.cols)
             return self.C @ X + self.D
         return self.CV @ (self.W / (1j * w - self.lam)[:, None]) + self.D
-
-    def residual(self, g, T, U):
-        """``(r, scale, S, V)``: the balance's residual per element at corrections ``g`` (complex)."""
-        y = T[:, 0] * U + T[:, 1:] @ g
-        S, V = y[0:2 * self.n:2], y[1:2 * self.n:2]
-        F = np.array([first_harmonic(el.law, el.pvec, self.y0[2 * i], self.y0[2 * i + 1], S[i], V[i], self.points)
-                      for i, el in enumerate(self.ch.elements)])
-        tangent = self.k0 * S + self.d0 * V
-        r = g - (F - tangent)
-        scale = max(np.abs(F).max(), np.abs(tangent).max(), np.abs(g).max(), 1e-300)
-        return r, scale, S, V
-
-    def solve(self, T, U, g0, tol, max_iter=40):
-        """Damped Newton on the real and imaginary parts of ``ĝ`` (finite-difference Jacobian): ``(g, rel)``."""
-        g = np.array(g0, complex)
-        r, scale, *_ = self.residual(g, T, U)
-        for _ in range(max_iter):
-            if np.abs(r).max() <= tol * scale:
-                break
-            x = np.r_[g.real, g.imag]
-            J = np.empty((x.size, x.size))
-            for k in range(x.size):
-                h = 1e-7 * max(abs(x[k]), scale)
-                xk = x.copy()
-                xk[k] += h
-                rk = self.residual(xk[:self.n] + 1j * xk[self.n:], T, U)[0]
-                J[:, k] = (np.r_[rk.real, rk.imag] - np.r_[r.real, r.imag]) / h
-            try:
-                dx = np.linalg.solve(J, -np.r_[r.real, r.imag])
-            except np.linalg.LinAlgError:
-                break
-            norm0, alpha = np.abs(r).max(), 1.0
-            while alpha > 1e-3:                            # backtracking: the residual must fall
-                xn = x + alpha * dx
-                gn = xn[:self.n] + 1j * xn[self.n:]
-                rn, sn, *_ = self.residual(gn, T, U)
-                if np.abs(rn).max() < (1 - alpha / 4) * norm0:
-                    break
-                alpha /= 2
-            else:
-                break
-            g, r, scale = gn, rn, sn
-        return g, float(np.abs(r).max() / scale)
 
 
 def _output_rows(dae, outs, ch, p):
@@ -300,25 +231,9 @@ def describing_frf(model, input: str, output, freqs, amplitude: float, *, params
     p = dae.parameter_vector(run_overrides(model, dae, params))
     bal = _Balance(dae, p, input, outs, points)
     _check_channels(bal, dae, dae.u_names.index(input), float(amplitude))
-    n, nf = bal.n, len(f)
-    H = np.zeros((nf, len(outs), 1), complex)
-    S_all, V_all, res = np.zeros((nf, n), complex), np.zeros((nf, n), complex), np.zeros(nf)
-    order = np.argsort(f, kind="stable")
-    g = np.zeros(n, complex)
-    failed = []
-    for i in order:
-        T = bal.maps(2 * np.pi * f[i])
-        g, rel = bal.solve(T, amplitude, g, tol)
-        if not rel <= tol:                        # continuation in the amplitude from the linear response
-            g = np.zeros(n, complex)
-            for a in AMPLITUDE_LADDER:
-                g, rel = bal.solve(T, a * amplitude, g, tol)
-        if not rel <= 10 * tol:
-            failed.append(float(f[i]))
-        _, _, S, V = bal.residual(g, T, amplitude)
-        y = T[2 * n:, 0] * amplitude + T[2 * n:, 1:] @ g
-        H[i, :, 0] = y / amplitude
-        S_all[i], V_all[i], res[i] = S, V, rel
+    Y, S_all, V_all, res = bal.sweep(f, lambda i: bal.maps(f[i]), float(amplitude), tol)
+    H = (Y / amplitude)[:, :, None]
+    failed = [float(x) for x in f[~(res <= 10 * tol)]]
     notes = [f"describing function of {bal.names}, {input} = {amplitude:g} sin(2 pi f t), {points} phases"]
     if bal.ch.joints:
         notes.append(f"moving joints {[j.path for j in bal.ch.joints]} held at their start position (tangent)")
