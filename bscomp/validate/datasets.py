@@ -114,7 +114,9 @@ def warn_small_signal_fit(datasets, who: str, stacklevel: int = 3) -> None:
         warnings.warn(f"{who} fits FRFs by the model's small-signal equivalent; {at_amp} were measured at a stated "
                       "sine amplitude, where friction and backlash act as they do there: an effect or a parameter "
                       "fitted to them may stand for the amplitude (compare shows the model at that amplitude; give "
-                      "time series for friction and backlash)", ModelLimitationWarning, stacklevel=stacklevel)
+                      "time series for friction and backlash; a describing-function fit is biased on such data: "
+                      "docs/measurements.md, 'Fitting FRFs measured at an amplitude')", ModelLimitationWarning,
+                      stacklevel=stacklevel)
 
 
 # ---- data classes -------------------------------------------------------------------------------------
