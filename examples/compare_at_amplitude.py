@@ -7,7 +7,8 @@ engineer would: a stepped sine on ``amp.u`` at 0.2 V and at 2 V, 14 frequencies 
 ``SteppedSine.to_csv``; a measured file says ``# excitation amp.u: 200 mV``). The model is the
 axial + torsional test bed with Table 5.2 friction (tanh, F_c = 2066 N). ``compare`` reports the small-signal
 model (friction reduced to its viscous part: a table sliding freely) and the model at the measured amplitude by
-the describing function; the report's overlay plots draw both.
+the describing function; the report's overlay plots draw both. Before any model, the two files are compared
+with each other (``Comparison.amplitude``): they differ beyond noise, so the drive is amplitude-dependent.
 
 Run ``python examples/compare_at_amplitude.py [OUTPUT_FOLDER]`` (default ``out/compare_at_amplitude``); writes
 ``frf_0.2V.csv``, ``frf_2V.csv`` and ``report/index.html``, prints both summaries (~15 s).

@@ -18,7 +18,7 @@ import numpy as np
 from bscomp.plotting.base import _finish, _plt, save_figure
 
 __all__ = ["comparison_plots", "frf_comparison_plot", "band_error_plot", "time_comparison_plot", "resid_plot",
-           "signature_plot", "plot_diagnosis", "calibration_plot"]
+           "signature_plot", "plot_diagnosis", "calibration_plot", "amplitude_plot"]
 
 
 def _slug(text):
@@ -158,6 +158,32 @@ def signature_plot(signatures, path=None, title=None, names=None):
     return _finish(fig, plt, path)
 
 
+def amplitude_plot(found, path=None, title=None):
+    """The same pairs measured at two amplitudes: ``20 log10 |H_high/H_low|`` [dB] and the phase difference [deg]
+    over frequency, filled where they differ by more than twice their noise (``z > 2``). ``found``: a list of
+    :class:`~bscomp.validate.amplitude.AmplitudeDependence` (read, never asked to compute)."""
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
+    for k, a in enumerate(found):
+        i, o = a.pair
+        lbl = f"{o}/{i}: {a.amplitudes[1]:g} vs {a.amplitudes[0]:g} ({a.verdict})"
+        a1.semilogx(a.freqs, a.db, "o-", color=f"C{k}", label=lbl, ms=4)
+        a2.semilogx(a.freqs, a.phase_deg, "o-", color=f"C{k}", ms=4)
+        beyond = a.z > 2.0
+        a1.plot(a.freqs[beyond], a.db[beyond], "o", color=f"C{k}", ms=9, mfc="none")
+        a1.fill_between(a.freqs, -2 * a.noise[0], 2 * a.noise[0], color=f"C{k}", alpha=0.12, lw=0)
+    a1.axhline(0, color="k", lw=0.5)
+    a2.axhline(0, color="k", lw=0.5)
+    a1.set_ylabel("|H| high / low [dB]")
+    a2.set_ylabel("phase difference [deg]")
+    a2.set_xlabel("frequency [Hz]")
+    a1.legend(fontsize=8)
+    for ax in (a1, a2):
+        ax.grid(True, which="both", alpha=0.3)
+    a1.set_title(title or "the same pairs at two excitation amplitudes (circled: beyond twice the noise band)")
+    return _finish(fig, plt, path)
+
+
 def comparison_plots(comparison, out_dir, signature_names=None) -> list:
     """All figures of a Comparison as PNGs in ``out_dir``; returns their paths.
 
@@ -182,6 +208,10 @@ def comparison_plots(comparison, out_dir, signature_names=None) -> list:
     if comparison.time:
         p = out / "signatures.png"
         signature_plot(comparison.signatures, p, names=signature_names)
+        paths.append(p)
+    if getattr(comparison, "amplitude", None):
+        p = out / "amplitude_dependence.png"
+        amplitude_plot(comparison.amplitude, p)
         paths.append(p)
     return paths
 

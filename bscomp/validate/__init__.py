@@ -8,6 +8,8 @@
 * :mod:`~bscomp.validate.comparison` -- :func:`compare` -> :class:`Comparison` (where the model fails), with
   :mod:`~bscomp.validate.frf_comparison`, :mod:`~bscomp.validate.time_comparison` and
   :mod:`~bscomp.validate.signatures`;
+* :mod:`~bscomp.validate.amplitude` -- :func:`amplitude_dependence`: FRFs measured at two amplitudes compared
+  with themselves (is the drive nonlinear in the band?);
 * :mod:`~bscomp.validate.calibration` -- :func:`calibrate` -> :class:`Calibration` (the uncertain parameters
   fitted, no effect added);
 * :mod:`~bscomp.validate.diagnostics` -- :func:`diagnose` -> :class:`Diagnosis` (which effect is missing),
@@ -19,6 +21,7 @@ Results draw themselves through :mod:`bscomp.plotting.validate`, imported (with 
 figure is asked for.
 """
 
+from bscomp.validate.amplitude import AmplitudeDependence, amplitude_dependence
 from bscomp.validate.calibration import Calibration, calibrate
 from bscomp.validate.comparison import Comparison, compare, user_errors
 from bscomp.validate.diagnosis import Diagnosis
@@ -44,4 +47,5 @@ from bscomp.validate.time_comparison import TimeComparison
 __all__ = ["FrfData", "TimeData", "MeasurementFileError", "load", "load_all", "read_frf_csv", "read_time_csv",
            "write_frf_csv", "write_time_csv", "model_frf", "model_time", "frf_residuals", "time_residuals", "cost",
            "fit_percent", "compare", "Comparison", "FrfComparison", "TimeComparison", "ModePair", "user_errors",
-           "peak_pick", "resid", "ResidTest", "calibrate", "Calibration", "diagnose", "Diagnosis", "write_report"]
+           "peak_pick", "resid", "ResidTest", "calibrate", "Calibration", "diagnose", "Diagnosis", "write_report",
+           "amplitude_dependence", "AmplitudeDependence"]

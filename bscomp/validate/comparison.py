@@ -34,6 +34,7 @@ import numpy as np
 from bscomp.files import atomic_write
 from bscomp.model import model_name
 from bscomp.plotting.validate import comparison_plots
+from bscomp.validate.amplitude import amplitude_dependence
 from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.frf_comparison import compare_frf, frf_user_rows
 from bscomp.validate.readers import load_all
@@ -62,6 +63,10 @@ class Comparison:
     evidence : dict str -> float
         Other numbers for the diagnosis (keys in :data:`~bscomp.validate.signatures.EVIDENCE`): apparent
         delays, largest resonance frequency error, counts of unpaired resonances.
+    amplitude : list of AmplitudeDependence
+        FRF pairs measured at two stated amplitudes compared with themselves, without the model
+        (:func:`~bscomp.validate.amplitude.amplitude_dependence`): where they differ beyond noise the drive is
+        nonlinear there.
     """
 
     system: str
@@ -70,6 +75,7 @@ class Comparison:
     cost: float
     signatures: dict
     evidence: dict = field(default_factory=dict)
+    amplitude: list = field(default_factory=list)
 
     @property
     def datasets(self):
@@ -120,6 +126,9 @@ class Comparison:
                     and c.rms_phase_deg > 1.0:
                 L.append(f"  phase error grows linearly with frequency: an apparent delay of "
                          f"{1e3 * c.phase_delay_s:.3g} ms (R^2 {c.phase_delay_r2:.2f})")
+        if self.amplitude:
+            L.append("FRFs measured at two amplitudes (the data alone): " + "; ".join(a.summary()
+                                                                                    for a in self.amplitude))
         for c in self.time:
             fits = ", ".join(f"{k} {v:.1f} %" for k, v in c.fit.items())
             L.append(f"Time series {c.source}: fit {fits}")
@@ -151,7 +160,7 @@ class Comparison:
     def to_dict(self):
         return {"system": self.system, "cost": self.cost, "signatures": self.signatures, "evidence": self.evidence,
                 "summary": self.summary(), "frf": [c.to_dict() for c in self.frf],
-                "time": [c.to_dict() for c in self.time]}
+                "time": [c.to_dict() for c in self.time], "amplitude": [a.to_dict() for a in self.amplitude]}
 
     def to_json(self, path=None) -> str:
         """JSON text of the whole comparison; written to ``path`` if given."""
@@ -273,7 +282,8 @@ def compare(system_or_build, datasets, params: dict | None = None, bands=None, p
     all_c = frf_c + time_c
     cst = float(np.mean([c.cost for c in all_c])) if all_c else 0.0
     sigs, ev = _signatures_and_evidence(frf_c, time_c)
-    return Comparison(system=name, frf=frf_c, time=time_c, cost=cst, signatures=sigs, evidence=ev)
+    return Comparison(system=name, frf=frf_c, time=time_c, cost=cst, signatures=sigs, evidence=ev,
+                      amplitude=amplitude_dependence(datasets))
 
 
 def _signatures_and_evidence(frf_c, time_c):

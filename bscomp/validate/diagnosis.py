@@ -157,6 +157,10 @@ class Diagnosis:
     calibration : Calibration
         The re-calibration step (:func:`~bscomp.validate.calibration.calibrate`'s result: values, spreads,
         errors per channel before and after).
+    amplitude : list of AmplitudeDependence
+        FRF pairs measured at two stated amplitudes, compared with themselves
+        (:func:`~bscomp.validate.amplitude.amplitude_dependence`): where they differ beyond noise a nonlinearity
+        acts, which the small-signal FRF fit cannot see.
     message : str
     """
 
@@ -174,6 +178,7 @@ class Diagnosis:
     final_values: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     calibration: object = None
+    amplitude: list = field(default_factory=list)
 
     @property
     def found(self) -> bool:
@@ -193,6 +198,9 @@ class Diagnosis:
             if r.verdict and not r.accepted:
                 lines.append(f"     not accepted: {r.verdict}")
             lines += r.equivalence_lines(skip=[q.name for q in self.ranked[:i - 1]])   # each pair once
+        if self.amplitude:
+            lines += ["", "FRFs measured at two amplitudes (the data alone, no model):"]
+            lines += [f"  {a.summary()}" for a in self.amplitude]
         for k, rr in enumerate(self.rounds[1:], 2):
             lines += ["", f"round {k} (with the effects accepted before), best three:"]
             for r in [r for r in rr if r.refined][:3]:
@@ -259,7 +267,7 @@ class Diagnosis:
                 "skipped": [s.to_dict() for s in self.skipped],
                 "staircase": [[lbl, e] for lbl, e in self.staircase],
                 "user_errors": [[lbl, u] for lbl, u in self.user_errors], "noise": self.noise,
-                "code": self.code(), "stats": self.stats}
+                "amplitude": [a.to_dict() for a in self.amplitude], "code": self.code(), "stats": self.stats}
 
     def to_json(self, path=None) -> str:
         text = json.dumps(self.to_dict(), indent=2, default=json_default)

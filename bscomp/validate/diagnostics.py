@@ -49,6 +49,7 @@ from scipy.optimize import minimize_scalar
 from threadpoolctl import threadpool_limits
 
 from bscomp.kernel.interface import NotApplicable
+from bscomp.validate.amplitude import amplitude_dependence
 from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
 from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
@@ -206,6 +207,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     if not datasets:
         raise ValueError("diagnose needs at least one dataset")
     warn_small_signal_fit(datasets, "diagnose", stacklevel=4)
+    amplitude = amplitude_dependence(datasets)
     log = print if verbose else (lambda *a, **k: None)
     progress = sys.stderr.isatty() if progress is None else progress
     setup = FitSetup.build(system_or_build, datasets, uncertain, overrides, default_spread)
@@ -301,13 +303,31 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     elif not message:
         message = ("no missing effect found: no candidate explains the remaining error well enough (see why "
                    "each was not accepted)")
+    message += _amplitude_note(amplitude, datasets)
     return Diagnosis(system=ref, uncertain=list(unc),
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
                      ranked=ranked, accepted=accepted, rounds=rounds, staircase=staircase, message=message,
                      skipped=skipped, user_errors=user_errs,
                      noise=[[np.asarray(b, float).tolist() if np.ndim(b) else float(b) for b in s] for s in sigmas],
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
-                            "conditions": len(setup.systems)}, calibration=calibration)
+                            "conditions": len(setup.systems)}, calibration=calibration, amplitude=amplitude)
+
+
+def _amplitude_note(amplitude, datasets) -> str:
+    """A sentence for the message when FRFs measured at two amplitudes differ beyond noise."""
+    sig = [a for a in amplitude if a.significant]
+    if not sig:
+        return ""
+    a = sig[0]
+    b = a.band
+    where = f" between {b[0]:.4g} and {b[1]:.4g} Hz" if b else ""
+    has_time = any(not isinstance(d, FrfData) for d in datasets)
+    what = ("the friction and backlash candidates were fitted to the time series" if has_time else
+            "diagnose fits FRFs by the small-signal model and finds friction and backlash from time series only: "
+            "give a record of a square wave or a reversal")
+    return (f". The FRFs measured at {a.amplitudes[0]:g} and {a.amplitudes[1]:g} on {a.pair[0]} differ beyond their "
+            f"noise ({a.pair[1]} {a.rms_db:.1f} dB rms apart{where}, chi^2 {a.chi2:.3g}): a nonlinearity acts there; "
+            f"{what}")
 
 
 def _titles(r) -> str:

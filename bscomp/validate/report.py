@@ -109,6 +109,15 @@ def _comparison_html(c: Comparison, out: Path, k: int) -> str:
     sig = [p for p in figs if Path(p).name == "signatures.png"]
     if sig:
         parts.append(_imgs(sig, out))
+    if c.amplitude:
+        parts.append("<h3>The same pairs at two excitation amplitudes (the data alone)</h3>")
+        rows = [[_e(f"{a.pair[1]}/{a.pair[0]}"), _e(f"{a.amplitudes[0]:g} / {a.amplitudes[1]:g}"), _f(a.rms_db, ".2f"),
+                 _f(a.chi2, ".3g"), _f(a.limit, ".3g"),
+                 _e(a.verdict) if a.verdict != "amplitude-dependent" else f"<span class='bad'>{_e(a.verdict)}</span>",
+                 _e("" if a.band is None else f"{a.band[0]:.4g}-{a.band[1]:.4g} Hz")] for a in c.amplitude]
+        parts.append(_table("amplitude dependence", ["pair", "amplitudes", "apart [dB rms]", "chi^2", "limit",
+                                                     "verdict", "where"], rows))
+        parts.append(_imgs([p for p in figs if Path(p).name == "amplitude_dependence.png"], out))
     return "\n".join(parts)
 
 
