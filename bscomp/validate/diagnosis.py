@@ -157,6 +157,9 @@ class Diagnosis:
     calibration : Calibration
         The re-calibration step (:func:`~bscomp.validate.calibration.calibrate`'s result: values, spreads,
         errors per channel before and after).
+    unconfirmed : list of EffectFit
+        Linear candidates that passed every rule but were not accepted because nothing confirms FRFs measured
+        at one stated amplitude (:func:`~bscomp.validate.diagnostics.frf_confirmation`).
     amplitude : list of AmplitudeDependence
         FRF pairs measured at two stated amplitudes, compared with themselves
         (:func:`~bscomp.validate.amplitude.amplitude_dependence`): where they differ beyond noise a nonlinearity
@@ -179,6 +182,7 @@ class Diagnosis:
     stats: dict = field(default_factory=dict)
     calibration: object = None
     amplitude: list = field(default_factory=list)
+    unconfirmed: list = field(default_factory=list)
 
     @property
     def found(self) -> bool:
@@ -267,7 +271,8 @@ class Diagnosis:
                 "skipped": [s.to_dict() for s in self.skipped],
                 "staircase": [[lbl, e] for lbl, e in self.staircase],
                 "user_errors": [[lbl, u] for lbl, u in self.user_errors], "noise": self.noise,
-                "amplitude": [a.to_dict() for a in self.amplitude], "code": self.code(), "stats": self.stats}
+                "amplitude": [a.to_dict() for a in self.amplitude],
+                "unconfirmed": [r.to_dict() for r in self.unconfirmed], "code": self.code(), "stats": self.stats}
 
     def to_json(self, path=None) -> str:
         text = json.dumps(self.to_dict(), indent=2, default=json_default)

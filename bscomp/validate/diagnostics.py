@@ -208,6 +208,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         raise ValueError("diagnose needs at least one dataset")
     warn_small_signal_fit(datasets, "diagnose", stacklevel=4)
     amplitude = amplitude_dependence(datasets)
+    unconfirmed_why, unconfirmed = frf_confirmation(amplitude, datasets), []
     log = print if verbose else (lambda *a, **k: None)
     progress = sys.stderr.isatty() if progress is None else progress
     setup = FitSetup.build(system_or_build, datasets, uncertain, overrides, default_spread)
@@ -259,7 +260,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         mark_equivalent(results, current, datasets, sigmas, ref)   # one group where the data cannot tell
         rounds.append(results)
         log(f"round {rnd}: " + ", ".join(f"{r.name} {r.error_after:.3g} dBIC {r.delta_bic:.0f}" for r in results))
-        chosen = _choose(results, current, datasets, thresholds)
+        chosen = _choose(results, current, datasets, thresholds, unconfirmed_why, unconfirmed)
         if chosen is None:
             break
         # accept and polish: the uncertain parameters and every accepted effect re-fitted together
@@ -300,17 +301,50 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                 r.__dict__.pop(attr, None)
     if accepted:
         message = f"{len(accepted)} missing effect(s) found: " + ", ".join(_titles(a) for a in accepted)
+    elif unconfirmed:
+        u = unconfirmed[0]
+        message = (f"no missing effect confirmed: {u.candidate.title} would explain the FRFs (error "
+                   f"{u.error_before:.4g} -> {u.error_after:.4g}), but {unconfirmed_why}")
     elif not message:
         message = ("no missing effect found: no candidate explains the remaining error well enough (see why "
                    "each was not accepted)")
-    message += _amplitude_note(amplitude, datasets)
+    if not (unconfirmed and not accepted):
+        message += _amplitude_note(amplitude, datasets)
     return Diagnosis(system=ref, uncertain=list(unc),
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
                      ranked=ranked, accepted=accepted, rounds=rounds, staircase=staircase, message=message,
                      skipped=skipped, user_errors=user_errs,
                      noise=[[np.asarray(b, float).tolist() if np.ndim(b) else float(b) for b in s] for s in sigmas],
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
-                            "conditions": len(setup.systems)}, calibration=calibration, amplitude=amplitude)
+                            "conditions": len(setup.systems)}, calibration=calibration, amplitude=amplitude,
+                     unconfirmed=unconfirmed)
+
+
+def frf_confirmation(amplitude, datasets) -> str:
+    """Why a linear effect fitted to ``datasets`` is not confirmed, or ``""``.
+
+    FRFs measured at a stated sine amplitude (``FrfData.excitation``) on a drive that may have friction or
+    backlash are fitted by the small-signal model; with nothing else a linear effect fitted to them may stand
+    for those acting at that amplitude (on the FE truths' stepped sines at 2 V: a fake bearing housing for
+    Coulomb friction, a fake nut-table joint for arc-tangent friction; ``docs/validation.md``). It is
+    confirmed by a time series (held-out halves) or by the same pairs at a second amplitude found the same
+    (:func:`~bscomp.validate.amplitude.amplitude_dependence`); pairs found amplitude-dependent refute every
+    linear explanation."""
+    at_amp = [d for d in datasets if isinstance(d, FrfData) and d.excitation]
+    if not at_amp or any(not isinstance(d, FrfData) for d in datasets):
+        return ""
+    sig = [a for a in amplitude if a.significant]
+    if sig:
+        a = sig[0]
+        return (f"the FRFs measured at {a.amplitudes[0]:g} and {a.amplitudes[1]:g} on {a.pair[0]} differ beyond "
+                f"their noise ({a.pair[1]} {a.rms_db:.1f} dB rms apart): no linear effect explains both; record a "
+                "time series (a square wave or a reversal) for friction and backlash")
+    if any(a.verdict == "same" for a in amplitude):
+        return ""
+    exc = "; ".join(sorted({", ".join(f"{v:g} on {k}" for k, v in d.excitation.items()) for d in at_amp}))
+    return (f"the FRFs were measured at one stated amplitude ({exc}) and nothing else confirms them: a linear "
+            "effect fitted to them may stand for friction or backlash acting at that amplitude; measure the FRFs "
+            "at a second amplitude (found the same: linear) or record a time series")
 
 
 def _amplitude_note(amplitude, datasets) -> str:
@@ -437,9 +471,10 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
     return results, n_evals
 
 
-def _choose(results, current, datasets, thresholds):
+def _choose(results, current, datasets, thresholds, unconfirmed_why="", unconfirmed=None):
     """The first refined candidate (in ranking order) that passes every acceptance rule; each gets its
-    verdict and evidence in words."""
+    verdict and evidence in words. With ``unconfirmed_why`` (:func:`frf_confirmation`) a linear candidate that
+    passes every rule is not accepted but appended to ``unconfirmed``."""
     user_now = user_summary(current["outputs"], datasets)
     for r in results:
         if not r.refined:
@@ -455,6 +490,12 @@ def _choose(results, current, datasets, thresholds):
             r.own_share, r.trades_with = tradeoff[0], [p for p, _ in tradeoff[1]]
         ok, why = _verdict(current, r._after, r.delta_bic, bound, _clearly_worse(user_now, r.user_after),
                            thresholds, tradeoff)
+        if ok and unconfirmed_why and not r.candidate.nonlinear:
+            r.verdict = f"passes every rule but is not confirmed: {unconfirmed_why}"
+            r.evidence = _evidence(current, r._after, datasets, r.candidate)
+            if unconfirmed is not None:
+                unconfirmed.append(r)
+            continue
         r.verdict = "accepted" if ok else why
         r.evidence = _evidence(current, r._after, datasets, r.candidate)
         if ok:
