@@ -28,7 +28,10 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    cannot tell apart (Vuong's test prefers neither, and they remove the same error:
    :mod:`~bscomp.validate.equivalence`) are reported as **one group** with the one accepted
    (``EffectFit.equivalent``, with what to measure to separate them), not one picked by round-off.
-   Repeat (greedy) up to ``max_effects``.
+   Repeat (greedy) up to ``max_effects``. FRFs measured at one stated sine amplitude with nothing else to
+   confirm them (no time series, no second amplitude found the same: :func:`frf_confirmation`) confirm no
+   linear effect: one that passes every rule is reported in :attr:`Diagnosis.unconfirmed`, not accepted (on a
+   drive with friction it may stand for the friction acting at that amplitude).
 
 The model is evaluated by the library's shared engine (:class:`bscomp.simulation.compiled.CompiledModel`, through
 :class:`~bscomp.validate.evaluation.Evaluator`): one flattening per model structure and measurement
