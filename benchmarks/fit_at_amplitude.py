@@ -1,11 +1,10 @@
-"""Can friction be fitted to FRFs measured at a sine amplitude by the describing function? Measured, not assumed.
+"""What fits by the describing function return on FRFs measured at a sine amplitude: measured, not assumed.
 
-``calibrate`` and ``diagnose`` fit FRF files by the model's small-signal equivalent and warn when a file states
-the amplitude it was measured at. The fit engine can balance the describing function of its friction and
-backlash elements (``CompiledModel.frf(amplitude=)``, = ``bscomp.describing_frf`` to 1e-5), so why not fit by
-it? This script measures what such fits return on data they did not make: stepped-sine FRFs (time
-integration, every harmonic) of two FE truths of ``bscomp.systems.truths`` (another mesh of section C, table
-mass and coupling mis-set), 14 frequencies 10-200 Hz, ``rotor.w`` and ``table.a`` per ``amp.u``:
+``calibrate`` and ``diagnose`` compare an FRF file that states its amplitude with the model at that amplitude:
+the describing function of its friction and backlash elements (``CompiledModel.frf(amplitude=)``, =
+``bscomp.describing_frf`` to 1e-5). This script measures what fits by it return on data they did not make:
+stepped-sine FRFs (time integration, every harmonic) of two FE truths of ``bscomp.systems.truths`` (another mesh
+of section C, table mass and coupling mis-set), 14 frequencies 10-200 Hz, ``rotor.w`` and ``table.a`` per ``amp.u``:
 
 * ``coulomb``: the truth ``control`` plus the model's own friction law (tanh Coulomb, ``v_reg`` 1e-4 m/s),
   F_c = 1500 N, at 0.5 V and 2 V; fitted: F_c, ``table.m``, ``coupling.k_T`` (model: the test bed with the
@@ -14,10 +13,11 @@ mass and coupling mis-set), 14 frequencies 10-200 Hz, ``rotor.w`` and ``table.a`
   0.2 V and 2 V; fitted: F_c, an added viscous ``d``, ``v_reg`` and the same two parameters.
 
 Least squares on dB magnitude and phase / 10 deg (``scipy.optimize.least_squares``). With ``--diagnose`` it
-also runs ``diagnose`` on the ``atan`` files twice: as the library does (small-signal, warned) and with the
-evaluator patched to balance the describing function at the files' amplitudes.
+also runs ``diagnose`` on the ``atan`` files (FRFs alone, and the 2 V file beside the truth's bundled
+square-wave record), as the library does (the describing function at the files' amplitudes) and with the
+evaluator forced to the small-signal FRF, as before.
 
-    python benchmarks/fit_at_amplitude.py [--diagnose]     (~1 min; --diagnose ~5 min more)
+    python benchmarks/fit_at_amplitude.py [--diagnose]     (~1 min; --diagnose ~6 min more)
 
 Stepped-sine files are cached in ``benchmarks/.cache/fit_at_amplitude``. Results: ``docs/measurements.md``,
 "Fitting FRFs measured at an amplitude".
@@ -142,39 +142,46 @@ def calibrations():
 
 
 def diagnoses():
-    """diagnose on the atan truth's files: as the library does, and with the evaluator at the amplitudes."""
+    """diagnose on the atan truth's files as the library does (the describing function at the files' amplitudes)
+    and with its evaluator forced to the small-signal FRF (as before 2026-12-04): FRFs alone, and the 2 V file
+    beside the truth's bundled square-wave record."""
+    from importlib import resources
+
     from bscomp.validate import evaluation
-    from bscomp.validate.datasets import FrfData
     from bscomp.validate.diagnostics import diagnose
+    from bscomp.validate.measurements import load_all
 
     data, info = measured("atan", (0.2, 2.0))
-    print(f"diagnose on the 'friction' truth's stepped-sine FRFs at 0.2 V and 2 V (hidden: {info['hidden']}):")
+    root = resources.files("bscomp.systems") / "data" / "truths" / "axial_torsional" / "friction"
+    (record,) = load_all([str(root / "time.csv")])
+    print(f"diagnose on the 'friction' truth's stepped-sine FRFs (hidden: {info['hidden']}):")
     original = evaluation.Evaluator.outputs
 
-    def at_amplitude(self, overrides, hooks=None, only_frf=False, fitted_only=False):
-        out = original(self, overrides, hooks, only_frf, fitted_only)
-        delay = float((hooks or {}).get("input_delay", 0.0))
-        for i, (d, key) in enumerate(zip(self.datasets, self.keys, strict=True)):
-            cm = self.models[key]
-            if isinstance(d, FrfData) and d.excitation and cm.elements:
-                mine = {k: v for k, v in overrides.items() if cm.has_parameter(k)}
-                out[i] = cm.frf(mine, d.freqs, list(d.H), delay=delay, amplitude=d.excitation,
-                                extra_damping=float((hooks or {}).get("extra_modal_damping", 0.0)))
-        return out
-
-    for label, patch in (("small-signal (the library)", False), ("describing function (patched)", True)):
-        evaluation.Evaluator.outputs = at_amplitude if patch else original
-        t0 = time.perf_counter()
+    def small_signal(self, overrides, hooks=None, only_frf=False, fitted_only=False):
+        saved = [getattr(d, "excitation", None) for d in self.datasets]
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", ModelLimitationWarning)
-                dg = diagnose("testbed_axial_torsional", data, max_effects=2)
+            for d in self.datasets:
+                if hasattr(d, "excitation"):
+                    d.excitation = {}
+            return original(self, overrides, hooks, only_frf, fitted_only)
         finally:
-            evaluation.Evaluator.outputs = original
-        first = dg.ranked[0] if dg.ranked else None
-        print(f"  {label}: {dg.message}; named first {first.name if first else '-'} "
-              f"({first.values if first else ''}: {first.verdict if first else ''}); staircase "
-              f"{[(n, round(e, 1)) for n, e in dg.staircase]}; {time.perf_counter() - t0:.0f} s", flush=True)
+            for d, e in zip(self.datasets, saved, strict=True):
+                if e is not None:
+                    d.excitation = e
+
+    for what, ds in (("0.2 V and 2 V", data), ("2 V + square-wave record", [data[1], record])):
+        for label, patch in (("describing function (the library)", None), ("small-signal (before)", small_signal)):
+            evaluation.Evaluator.outputs = patch or original
+            t0 = time.perf_counter()
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", ModelLimitationWarning)
+                    dg = diagnose("testbed_axial_torsional", ds, max_effects=2)
+            finally:
+                evaluation.Evaluator.outputs = original
+            acc = [(a.name, {k: round(v, 4) for k, v in a.values.items()}) for a in dg.accepted]
+            print(f"  {what}, {label}: accepted {acc}, unconfirmed {[u.name for u in dg.unconfirmed]}; staircase "
+                  f"{[(n, round(e, 1)) for n, e in dg.staircase]}; {time.perf_counter() - t0:.0f} s", flush=True)
 
 
 if __name__ == "__main__":

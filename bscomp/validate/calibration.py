@@ -39,7 +39,7 @@ from bscomp.kernel.interface import interface_of
 from bscomp.kernel.system import System
 from bscomp.plotting.validate import calibration_plot
 from bscomp.validate.comparison import user_errors
-from bscomp.validate.datasets import FrfData, TimeData, warn_small_signal_fit
+from bscomp.validate.datasets import FrfData, TimeData, warn_amplitude_fit
 from bscomp.validate.evaluation import Problem, Structures, noise_levels, residual_blocks
 from bscomp.validate.readers import load_all
 from bscomp.validate.residuals import build_for
@@ -351,7 +351,7 @@ def calibrate(model, datasets, uncertain=None, *, overrides: dict | None = None,
     if isinstance(datasets, (FrfData, TimeData, str, Path)):
         datasets = [datasets]
     datasets = load_all(list(datasets))
-    warn_small_signal_fit(datasets, "calibrate")
+    warn_amplitude_fit(datasets, "calibrate")
     if not datasets:
         raise ValueError("calibrate needs at least one dataset")
     with threadpool_limits(limits=1, user_api="blas"):

@@ -28,10 +28,13 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    cannot tell apart (Vuong's test prefers neither, and they remove the same error:
    :mod:`~bscomp.validate.equivalence`) are reported as **one group** with the one accepted
    (``EffectFit.equivalent``, with what to measure to separate them), not one picked by round-off.
-   Repeat (greedy) up to ``max_effects``. FRFs measured at one stated sine amplitude with nothing else to
-   confirm them (no time series, no second amplitude found the same: :func:`frf_confirmation`) confirm no
-   linear effect: one that passes every rule is reported in :attr:`Diagnosis.unconfirmed`, not accepted (on a
-   drive with friction it may stand for the friction acting at that amplitude).
+   Repeat (greedy) up to ``max_effects``. FRF files that state their sine amplitude are compared with the
+   model at that amplitude (the describing function of its friction and backlash,
+   :class:`~bscomp.validate.evaluation.Evaluator`). With FRFs at an amplitude and no time series
+   (:func:`frf_confirmation`), a linear effect is confirmed only by a second amplitude found the same, a
+   nonlinear one not at all: one that passes every rule is reported in :attr:`Diagnosis.unconfirmed`, not
+   accepted (a linear one may stand for friction acting at that amplitude; a clearance's describing function
+   can imitate friction's).
 
 The model is evaluated by the library's shared engine (:class:`bscomp.simulation.compiled.CompiledModel`, through
 :class:`~bscomp.validate.evaluation.Evaluator`): one flattening per model structure and measurement
@@ -56,7 +59,7 @@ from bscomp.validate.amplitude import amplitude_dependence
 from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
 from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
-from bscomp.validate.datasets import FrfData, warn_small_signal_fit
+from bscomp.validate.datasets import FrfData, warn_amplitude_fit
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
 from bscomp.validate.equivalence import mark_equivalent
 from bscomp.validate.evaluation import Problem
@@ -209,7 +212,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     datasets = load_all(datasets)
     if not datasets:
         raise ValueError("diagnose needs at least one dataset")
-    warn_small_signal_fit(datasets, "diagnose", stacklevel=4)
+    warn_amplitude_fit(datasets, "diagnose", stacklevel=4)
     amplitude = amplitude_dependence(datasets)
     unconfirmed_why, unconfirmed = frf_confirmation(amplitude, datasets), []
     log = print if verbose else (lambda *a, **k: None)
@@ -307,11 +310,12 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     elif unconfirmed:
         u = unconfirmed[0]
         message = (f"no missing effect confirmed: {u.candidate.title} would explain the FRFs (error "
-                   f"{u.error_before:.4g} -> {u.error_after:.4g}), but {unconfirmed_why}")
+                   f"{u.error_before:.4g} -> {u.error_after:.4g}), but "
+                   f"{unconfirmed_why[1 if u.candidate.nonlinear else 0]}")
     elif not message:
         message = ("no missing effect found: no candidate explains the remaining error well enough (see why "
                    "each was not accepted)")
-    if not (unconfirmed and not accepted):
+    if "differ beyond their noise" not in message:
         message += _amplitude_note(amplitude, datasets)
     return Diagnosis(system=ref, uncertain=list(unc),
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
@@ -323,31 +327,34 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                      unconfirmed=unconfirmed)
 
 
-def frf_confirmation(amplitude, datasets) -> str:
-    """Why a linear effect fitted to ``datasets`` is not confirmed, or ``""``.
+def frf_confirmation(amplitude, datasets) -> tuple:
+    """``(why a linear effect is not confirmed, why a nonlinear one is not)`` by ``datasets``, ``""`` each where it is.
 
-    FRFs measured at a stated sine amplitude (``FrfData.excitation``) on a drive that may have friction or
-    backlash are fitted by the small-signal model; with nothing else a linear effect fitted to them may stand
-    for those acting at that amplitude (on the FE truths' stepped sines at 2 V: a fake bearing housing for
-    Coulomb friction, a fake nut-table joint for arc-tangent friction; ``docs/validation.md``). It is
-    confirmed by a time series (held-out halves) or by the same pairs at a second amplitude found the same
-    (:func:`~bscomp.validate.amplitude.amplitude_dependence`); pairs found amplitude-dependent refute every
-    linear explanation."""
+    FRFs measured at a stated sine amplitude (``FrfData.excitation``) confirm little on their own. A linear
+    effect fitted to them may stand for friction or backlash acting at that amplitude (on the FE truths' stepped
+    sines at 2 V: a fake bearing housing for Coulomb friction, a fake nut-table joint for arc-tangent friction;
+    ``docs/validation.md``); it is confirmed by a time series (held-out halves) or by the same pairs at a second
+    amplitude found the same (:func:`~bscomp.validate.amplitude.amplitude_dependence`), and refuted by pairs
+    found amplitude-dependent. A nonlinear effect is fitted to them by one harmonic of its law, which a
+    clearance's can imitate for friction's (the FE truth ``friction`` at 2 V: a compliant backlash accepted);
+    only a time series confirms it."""
     at_amp = [d for d in datasets if isinstance(d, FrfData) and d.excitation]
     if not at_amp or any(not isinstance(d, FrfData) for d in datasets):
-        return ""
+        return "", ""
+    nonlinear = ("it was fitted by the describing function (one harmonic) to FRFs alone, where a clearance can "
+                 "imitate friction and the reverse; record a time series (a square wave or a reversal)")
     sig = [a for a in amplitude if a.significant]
     if sig:
         a = sig[0]
         return (f"the FRFs measured at {a.amplitudes[0]:g} and {a.amplitudes[1]:g} on {a.pair[0]} differ beyond "
                 f"their noise ({a.pair[1]} {a.rms_db:.1f} dB rms apart): no linear effect explains both; record a "
-                "time series (a square wave or a reversal) for friction and backlash")
+                "time series (a square wave or a reversal) for friction and backlash"), nonlinear
     if any(a.verdict == "same" for a in amplitude):
-        return ""
+        return "", nonlinear
     exc = "; ".join(sorted({", ".join(f"{v:g} on {k}" for k, v in d.excitation.items()) for d in at_amp}))
     return (f"the FRFs were measured at one stated amplitude ({exc}) and nothing else confirms them: a linear "
             "effect fitted to them may stand for friction or backlash acting at that amplitude; measure the FRFs "
-            "at a second amplitude (found the same: linear) or record a time series")
+            "at a second amplitude (found the same: linear) or record a time series"), nonlinear
 
 
 def _amplitude_note(amplitude, datasets) -> str:
@@ -474,10 +481,11 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
     return results, n_evals
 
 
-def _choose(results, current, datasets, thresholds, unconfirmed_why="", unconfirmed=None):
+def _choose(results, current, datasets, thresholds, unconfirmed_why=("", ""), unconfirmed=None):
     """The first refined candidate (in ranking order) that passes every acceptance rule; each gets its
-    verdict and evidence in words. With ``unconfirmed_why`` (:func:`frf_confirmation`) a linear candidate that
-    passes every rule is not accepted but appended to ``unconfirmed``."""
+    verdict and evidence in words. With ``unconfirmed_why`` (:func:`frf_confirmation`: for linear, for
+    nonlinear candidates) a candidate that passes every rule but is not confirmed is appended to
+    ``unconfirmed``, not accepted."""
     user_now = user_summary(current["outputs"], datasets)
     for r in results:
         if not r.refined:
@@ -493,8 +501,9 @@ def _choose(results, current, datasets, thresholds, unconfirmed_why="", unconfir
             r.own_share, r.trades_with = tradeoff[0], [p for p, _ in tradeoff[1]]
         ok, why = _verdict(current, r._after, r.delta_bic, bound, _clearly_worse(user_now, r.user_after),
                            thresholds, tradeoff)
-        if ok and unconfirmed_why and not r.candidate.nonlinear:
-            r.verdict = f"passes every rule but is not confirmed: {unconfirmed_why}"
+        why_not_confirmed = unconfirmed_why[1 if r.candidate.nonlinear else 0] if unconfirmed_why else ""
+        if ok and why_not_confirmed:
+            r.verdict = f"passes every rule but is not confirmed: {why_not_confirmed}"
             r.evidence = _evidence(current, r._after, datasets, r.candidate)
             if unconfirmed is not None:
                 unconfirmed.append(r)

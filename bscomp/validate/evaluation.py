@@ -14,7 +14,11 @@ has :math:`\chi^2 \approx 1` in every block.
 
 Time series are split in two halves in time: the first half is *fitted*, the second is *held out*
 to confirm an effect (an effect that only fits noise or stands in for another one does not carry over).
-FRFs are fitted whole; a linear effect fitted to them is confirmed by the time series.
+FRFs are fitted whole; a linear effect fitted to them is confirmed by the time series. An FRF file that states
+the sine amplitude it was measured at (``FrfData.excitation``) is compared with the model at that amplitude: the
+describing function of its friction and backlash elements (:meth:`CompiledModel.frf` ``amplitude=``; one
+harmonic, so biased where the drive sticks and slips: ``docs/measurements.md``); a model without them has one
+FRF at every amplitude.
 """
 
 from __future__ import annotations
@@ -124,7 +128,8 @@ class Evaluator:
                 modal[key] = cm.modal(mine, extra_damping=zeta, delay=delay)
             mm = modal[key]
             if isinstance(d, FrfData):
-                out.append(cm.frf(mine, d.freqs, list(d.H), delay=delay, mm=mm))
+                # at the amplitude the file states: the describing function of the model's friction and backlash
+                out.append(cm.frf(mine, d.freqs, list(d.H), delay=delay, mm=mm, amplitude=d.excitation))
             elif only_frf:
                 out.append(None)
             else:

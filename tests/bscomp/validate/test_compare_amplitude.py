@@ -102,14 +102,14 @@ def test_fe_truth_with_friction_measured_at_200_mV(tmp_path):
     assert fc.at_amplitude["rms_mag_db"] < 4.0 and fc.at_amplitude["rms_phase_deg"] < 5.0
 
 
-def test_diagnose_and_calibrate_say_they_fit_such_files_by_the_small_signal_model(measured):
-    """diagnose and calibrate have no describing function in their fits: they say so, naming the file and its
-    excitation."""
+def test_diagnose_and_calibrate_say_they_fit_such_files_by_the_describing_function(measured):
+    """diagnose and calibrate fit such files by the describing function (one harmonic, biased where the drive
+    sticks and slips): they say so, naming the file and its excitation."""
     from bscomp.errors import ModelLimitationWarning
     from bscomp.validate import calibrate, diagnose
 
-    with pytest.warns(ModelLimitationWarning, match=r"diagnose fits FRFs by the model's small-signal equivalent; "
-                      r"\['atan_truth \(10 on F.f\)'\]"):
+    with pytest.warns(ModelLimitationWarning, match=r"diagnose compares \['atan_truth \(10 on F.f\)'\], measured at "
+                      r"a stated sine amplitude, with the model at that amplitude: the describing function"):
         diagnose(friction_oscillator, [load(measured)], max_effects=1, uncertain=["m.m"], progress=False)
-    with pytest.warns(ModelLimitationWarning, match="calibrate fits FRFs"):
+    with pytest.warns(ModelLimitationWarning, match="calibrate compares"):
         calibrate(friction_oscillator, [load(measured)], uncertain=["m.m"])
