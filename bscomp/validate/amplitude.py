@@ -36,7 +36,8 @@ import numpy as np
 from bscomp.validate.datasets import FrfData
 from bscomp.validate.noise import FLOOR, noise_levels, robust_sigma
 
-__all__ = ["AmplitudeDependence", "amplitude_dependence", "CHI2_LIMIT", "RESOLUTION", "NOISE_CREDIBLE", "H0_Q99"]
+__all__ = ["AmplitudeDependence", "amplitude_dependence", "frf_confirmation", "amplitude_note", "CHI2_LIMIT",
+           "RESOLUTION", "NOISE_CREDIBLE", "H0_Q99"]
 
 CHI2_LIMIT = 4.0
 """Normalised difference above which two amplitudes' FRFs differ by more than noise."""
@@ -226,3 +227,50 @@ def amplitude_dependence(datasets) -> list:
                                            stated=stated))
     out.sort(key=lambda x: -x.chi2)
     return out
+
+
+def frf_confirmation(amplitude, datasets) -> tuple:
+    """``(why a linear effect is not confirmed, why a nonlinear one is not)`` by ``datasets``, ``""`` each where it is.
+
+    FRFs measured at a stated sine amplitude (``FrfData.excitation``) confirm little on their own. A linear
+    effect fitted to them may stand for friction or backlash acting at that amplitude (on the FE truths' stepped
+    sines at 2 V: a fake bearing housing for Coulomb friction, a fake nut-table joint for arc-tangent friction;
+    ``docs/validation.md``); it is confirmed by a time series (held-out halves) or by the same pairs at a second
+    amplitude found the same (:func:`~bscomp.validate.amplitude.amplitude_dependence`), and refuted by pairs
+    found amplitude-dependent. A nonlinear effect is fitted to them by one harmonic of its law, which a
+    clearance's can imitate for friction's (the FE truth ``friction`` at 2 V: a compliant backlash accepted);
+    only a time series confirms it."""
+    at_amp = [d for d in datasets if isinstance(d, FrfData) and d.excitation]
+    if not at_amp or any(not isinstance(d, FrfData) for d in datasets):
+        return "", ""
+    nonlinear = ("it was fitted by the describing function (one harmonic) to FRFs alone, where a clearance can "
+                 "imitate friction and the reverse; record a time series (a square wave or a reversal)")
+    sig = [a for a in amplitude if a.significant]
+    if sig:
+        a = sig[0]
+        return (f"the FRFs measured at {a.amplitudes[0]:g} and {a.amplitudes[1]:g} on {a.pair[0]} differ beyond "
+                f"their noise ({a.pair[1]} {a.rms_db:.1f} dB rms apart): no linear effect explains both; record a "
+                "time series (a square wave or a reversal) for friction and backlash"), nonlinear
+    if any(a.verdict == "same" for a in amplitude):
+        return "", nonlinear
+    exc = "; ".join(sorted({", ".join(f"{v:g} on {k}" for k, v in d.excitation.items()) for d in at_amp}))
+    return (f"the FRFs were measured at one stated amplitude ({exc}) and nothing else confirms them: a linear "
+            "effect fitted to them may stand for friction or backlash acting at that amplitude; measure the FRFs "
+            "at a second amplitude (found the same: linear) or record a time series"), nonlinear
+
+
+def amplitude_note(amplitude, datasets) -> str:
+    """A sentence for the message when FRFs measured at two amplitudes differ beyond noise."""
+    sig = [a for a in amplitude if a.significant]
+    if not sig:
+        return ""
+    a = sig[0]
+    b = a.band
+    where = f" between {b[0]:.4g} and {b[1]:.4g} Hz" if b else ""
+    has_time = any(not isinstance(d, FrfData) for d in datasets)
+    what = ("the friction and backlash candidates were fitted to the time series" if has_time else
+            "diagnose fits FRFs by the small-signal model and finds friction and backlash from time series only: "
+            "give a record of a square wave or a reversal")
+    return (f". The FRFs measured at {a.amplitudes[0]:g} and {a.amplitudes[1]:g} on {a.pair[0]} differ beyond their "
+            f"noise ({a.pair[1]} {a.rms_db:.1f} dB rms apart{where}, chi^2 {a.chi2:.3g}): a nonlinearity acts there; "
+            f"{what}")

@@ -159,7 +159,7 @@ class Diagnosis:
         errors per channel before and after).
     unconfirmed : list of EffectFit
         Linear candidates that passed every rule but were not accepted because nothing confirms FRFs measured
-        at one stated amplitude (:func:`~bscomp.validate.diagnostics.frf_confirmation`).
+        at one stated amplitude (:func:`~bscomp.validate.amplitude.frf_confirmation`).
     amplitude : list of AmplitudeDependence
         FRF pairs measured at two stated amplitudes, compared with themselves
         (:func:`~bscomp.validate.amplitude.amplitude_dependence`): where they differ beyond noise a nonlinearity

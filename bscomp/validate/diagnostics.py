@@ -31,10 +31,10 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    Repeat (greedy) up to ``max_effects``. FRF files that state their sine amplitude are compared with the
    model at that amplitude (the describing function of its friction and backlash,
    :class:`~bscomp.validate.evaluation.Evaluator`). With FRFs at an amplitude and no time series
-   (:func:`frf_confirmation`), a linear effect is confirmed only by a second amplitude found the same, a
-   nonlinear one not at all: one that passes every rule is reported in :attr:`Diagnosis.unconfirmed`, not
-   accepted (a linear one may stand for friction acting at that amplitude; a clearance's describing function
-   can imitate friction's).
+   (:func:`~bscomp.validate.amplitude.frf_confirmation`), a linear effect is confirmed only by a second
+   amplitude found the same, a nonlinear one not at all: one that passes every rule is reported in
+   :attr:`Diagnosis.unconfirmed`, not accepted (a linear one may stand for friction acting at that amplitude;
+   a clearance's describing function can imitate friction's).
 
 The model is evaluated by the library's shared engine (:class:`bscomp.simulation.compiled.CompiledModel`, through
 :class:`~bscomp.validate.evaluation.Evaluator`): one flattening per model structure and measurement
@@ -55,7 +55,7 @@ from scipy.optimize import minimize_scalar
 from threadpoolctl import threadpool_limits
 
 from bscomp.kernel.interface import NotApplicable
-from bscomp.validate.amplitude import amplitude_dependence
+from bscomp.validate.amplitude import amplitude_dependence, amplitude_note, frf_confirmation
 from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
 from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
@@ -316,7 +316,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         message = ("no missing effect found: no candidate explains the remaining error well enough (see why "
                    "each was not accepted)")
     if "differ beyond their noise" not in message:
-        message += _amplitude_note(amplitude, datasets)
+        message += amplitude_note(amplitude, datasets)
     return Diagnosis(system=ref, uncertain=list(unc),
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
                      ranked=ranked, accepted=accepted, rounds=rounds, staircase=staircase, message=message,
@@ -325,53 +325,6 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
                             "conditions": len(setup.systems)}, calibration=calibration, amplitude=amplitude,
                      unconfirmed=unconfirmed)
-
-
-def frf_confirmation(amplitude, datasets) -> tuple:
-    """``(why a linear effect is not confirmed, why a nonlinear one is not)`` by ``datasets``, ``""`` each where it is.
-
-    FRFs measured at a stated sine amplitude (``FrfData.excitation``) confirm little on their own. A linear
-    effect fitted to them may stand for friction or backlash acting at that amplitude (on the FE truths' stepped
-    sines at 2 V: a fake bearing housing for Coulomb friction, a fake nut-table joint for arc-tangent friction;
-    ``docs/validation.md``); it is confirmed by a time series (held-out halves) or by the same pairs at a second
-    amplitude found the same (:func:`~bscomp.validate.amplitude.amplitude_dependence`), and refuted by pairs
-    found amplitude-dependent. A nonlinear effect is fitted to them by one harmonic of its law, which a
-    clearance's can imitate for friction's (the FE truth ``friction`` at 2 V: a compliant backlash accepted);
-    only a time series confirms it."""
-    at_amp = [d for d in datasets if isinstance(d, FrfData) and d.excitation]
-    if not at_amp or any(not isinstance(d, FrfData) for d in datasets):
-        return "", ""
-    nonlinear = ("it was fitted by the describing function (one harmonic) to FRFs alone, where a clearance can "
-                 "imitate friction and the reverse; record a time series (a square wave or a reversal)")
-    sig = [a for a in amplitude if a.significant]
-    if sig:
-        a = sig[0]
-        return (f"the FRFs measured at {a.amplitudes[0]:g} and {a.amplitudes[1]:g} on {a.pair[0]} differ beyond "
-                f"their noise ({a.pair[1]} {a.rms_db:.1f} dB rms apart): no linear effect explains both; record a "
-                "time series (a square wave or a reversal) for friction and backlash"), nonlinear
-    if any(a.verdict == "same" for a in amplitude):
-        return "", nonlinear
-    exc = "; ".join(sorted({", ".join(f"{v:g} on {k}" for k, v in d.excitation.items()) for d in at_amp}))
-    return (f"the FRFs were measured at one stated amplitude ({exc}) and nothing else confirms them: a linear "
-            "effect fitted to them may stand for friction or backlash acting at that amplitude; measure the FRFs "
-            "at a second amplitude (found the same: linear) or record a time series"), nonlinear
-
-
-def _amplitude_note(amplitude, datasets) -> str:
-    """A sentence for the message when FRFs measured at two amplitudes differ beyond noise."""
-    sig = [a for a in amplitude if a.significant]
-    if not sig:
-        return ""
-    a = sig[0]
-    b = a.band
-    where = f" between {b[0]:.4g} and {b[1]:.4g} Hz" if b else ""
-    has_time = any(not isinstance(d, FrfData) for d in datasets)
-    what = ("the friction and backlash candidates were fitted to the time series" if has_time else
-            "diagnose fits FRFs by the small-signal model and finds friction and backlash from time series only: "
-            "give a record of a square wave or a reversal")
-    return (f". The FRFs measured at {a.amplitudes[0]:g} and {a.amplitudes[1]:g} on {a.pair[0]} differ beyond their "
-            f"noise ({a.pair[1]} {a.rms_db:.1f} dB rms apart{where}, chi^2 {a.chi2:.3g}): a nonlinearity acts there; "
-            f"{what}")
 
 
 def _titles(r) -> str:
@@ -483,9 +436,9 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
 
 def _choose(results, current, datasets, thresholds, unconfirmed_why=("", ""), unconfirmed=None):
     """The first refined candidate (in ranking order) that passes every acceptance rule; each gets its
-    verdict and evidence in words. With ``unconfirmed_why`` (:func:`frf_confirmation`: for linear, for
-    nonlinear candidates) a candidate that passes every rule but is not confirmed is appended to
-    ``unconfirmed``, not accepted."""
+    verdict and evidence in words. With ``unconfirmed_why``
+    (:func:`~bscomp.validate.amplitude.frf_confirmation`: for linear, for nonlinear candidates) a candidate
+    that passes every rule but is not confirmed is appended to ``unconfirmed``, not accepted."""
     user_now = user_summary(current["outputs"], datasets)
     for r in results:
         if not r.refined:
