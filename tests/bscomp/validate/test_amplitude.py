@@ -179,3 +179,22 @@ def test_a_time_series_with_an_frf_at_an_amplitude_names_friction(measured):
     assert [a.name for a in dg.accepted] in (["guideway_friction"], ["guideway_stribeck"]), dg.table()
     F_c = truth_system("friction", nut_joint="point")[1]["hidden"]["friction"]["F_c"]
     assert abs(dg.accepted[0].values["F_c"] / F_c - 1) < 0.05, dg.accepted[0].values
+
+
+def test_a_stated_coherence_sets_the_noise():
+    """Two H1 files with coherence 0.99 (the noise per frequency from it, at least 0.1 dB and 1 deg): the same H
+    with its own 1 % noise at two amplitudes is "same" (measured chi^2 0.39); with 3 dB more at 2 V below 30 Hz
+    it is amplitude-dependent there (chi^2 138, the band 5-28 Hz)."""
+    rng = np.random.default_rng(11)
+    f = np.geomspace(5.0, 500.0, 60)
+    H = 1.0 / (1.0 - (f / 80.0) ** 2 + 0.1j * f / 80.0)
+
+    def d(a, gain=1.0):
+        h = H * gain * (1 + 0.01 * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)) / np.sqrt(2))
+        return FrfData(freqs=f, H={("u", "y"): h}, coherence={("u", "y"): np.full(f.size, 0.99)}, source=f"{a}",
+                       excitation={"u": a})
+
+    (same,) = amplitude_dependence([d(0.2), d(2.0)])
+    assert same.stated and same.verdict == "same" and same.chi2 < CHI2_LIMIT, same.summary()
+    (apart,) = amplitude_dependence([d(0.2), d(2.0, gain=np.where(f < 30.0, 10 ** (3 / 20), 1.0))])
+    assert apart.stated and apart.verdict == "amplitude-dependent" and apart.band[1] < 30.0, apart.summary()
