@@ -9,7 +9,7 @@ and the share of their improvements in common, the accepted ones, their main par
 hidden values (relative error), the error after re-calibration and at the end (mean chi^2, 1 = noise floor)
 with the drop, and the wall clock.
 
-    python benchmarks/diagnose_table.py [--model axial_torsional|full] [--case joint ...] [--json out.json]
+    python benchmarks/diagnose_table.py [--model axial_torsional|full] [--case joint ...] [--json out.json] [--stepped]
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import time  # noqa: E402
 from importlib import resources  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 from bscomp.validate.diagnostics import diagnose  # noqa: E402
 from bscomp.validate.measurements import load_all  # noqa: E402
@@ -35,10 +36,44 @@ MAIN = {"table_subassembly": ("joint", (("m", "m"), ("k", "k"))), "guideway_fric
         "compliant_backlash": ("backlash", (("b", "b"), ("k", "c"))), "amplifier_delay": ("delay", (("T", "T"),))}
 
 
-def run(model: str, case: str) -> dict:
+def stepped_frfs(model: str, case: str, conditions: dict) -> list:
+    """Stepped-sine FRFs of the truth at 0.2 V and 2 V (14 frequencies 10-200 Hz, rotor.w and table.a per amp.u,
+    1 % complex noise; the truth's hidden delay is not in its System, so not the ``delay`` case), each stating its
+    amplitude -- the FRFs a test engineer measures on a drive with friction,
+    instead of the bundled small-signal one (cached in benchmarks/.cache/stepped_truths)."""
+    import zlib
+
+    import numpy as np
+
+    import bscomp
+    from bscomp.systems.truths import truth_system
+    from bscomp.validate import load
+
+    cache = Path(__file__).resolve().parent / ".cache" / "stepped_truths"
+    cache.mkdir(parents=True, exist_ok=True)
+    truth, _ = truth_system(case, model, nut_joint="point")
+    out, rng = [], np.random.default_rng(zlib.crc32(f"{model}/{case}".encode()))
+    for v in (0.2, 2.0):
+        path = cache / f"{model}_{case}_{v:g}V.csv"
+        if not path.exists():
+            ss = bscomp.stepped_sine(truth, "amp.u", ["rotor.w", "table.a"], np.geomspace(10.0, 200.0, 14), v,
+                                     jit=True)
+            ss.to_csv(path, units={"amp.u": "V"})
+        d = load(path)
+        d.conditions.update(conditions)
+        for k in d.H:
+            n = d.freqs.size
+            d.H[k] = d.H[k] * (1 + 0.01 * (rng.standard_normal(n) + 1j * rng.standard_normal(n)) / np.sqrt(2))
+        out.append(d)
+    return out
+
+
+def run(model: str, case: str, stepped: bool = False) -> dict:
     root = resources.files("bscomp.systems") / "data" / "truths" / model / case
     truth = json.loads((root / "truth.json").read_text())
     data = load_all([str(root / "frf.csv"), str(root / "time.csv")])
+    if stepped:                     # the stepped sines at two amplitudes instead of the small-signal FRF
+        data = stepped_frfs(model, case, data[1].conditions) + [data[1]]
     t0 = time.perf_counter()
     d = diagnose(MODELS[model], data, max_effects=2)
     wall = time.perf_counter() - t0
@@ -75,13 +110,17 @@ def main(argv=None) -> int:
     ap.add_argument("--model", choices=list(MODELS), action="append")
     ap.add_argument("--case", choices=CASES, action="append")
     ap.add_argument("--json", help="also write the rows to this JSON file")
+    ap.add_argument("--stepped", action="store_true", help="stepped-sine FRFs at 0.2 V and 2 V (stating their "
+                    "amplitude) instead of the bundled small-signal FRF, beside the same time series")
     args = ap.parse_args(argv)
     rows = []
     print("| model | case | named first | runner-up (Vuong z, shared) | accepted | main parameters vs truth | "
           "error re-calibrated -> final | wall |\n|---|---|---|---|---|---|---|---:|")
     for model in args.model or list(MODELS):
         for case in args.case or CASES:
-            r = run(model, case)
+            if args.stepped and case == "delay":        # the truth's delay is applied to its data, not a System
+                continue
+            r = run(model, case, args.stepped)
             rows.append(r)
             print(f"| {model} | {case} | {r['first']} | {r['runner_up']} | {', '.join(r['accepted']) or 'nothing'} | "
                   f"{', '.join(r['params']) or '-'} | {r['recalibrated']:.3g} -> {r['final']:.3g} "
