@@ -113,10 +113,11 @@ def warn_amplitude_fit(datasets, who: str, stacklevel: int = 3) -> None:
               if isinstance(d, FrfData) and d.excitation]
     if at_amp:
         warnings.warn(f"{who} compares {at_amp}, measured at a stated sine amplitude, with the model at that "
-                      "amplitude: the describing function of its friction and backlash (one harmonic; where the "
-                      "drive sticks and slips fits by it are biased: F_c -13..-30 %, the table mass -17..+29 % on "
-                      "the FE truths, docs/measurements.md, 'Fitting FRFs measured at an amplitude'); a time series "
-                      "identifies friction and backlash", ModelLimitationWarning, stacklevel=stacklevel)
+                      "amplitude: the describing function of its friction and backlash, where it has them (one "
+                      "harmonic; where the drive sticks and slips fits by it are biased: F_c -13..-30 %, the table "
+                      "mass -17..+29 % on the FE truths, docs/measurements.md, 'Fitting FRFs measured at an "
+                      "amplitude'; a model without them has one FRF at every amplitude); a time series identifies "
+                      "friction and backlash", ModelLimitationWarning, stacklevel=stacklevel)
 
 
 # ---- data classes -------------------------------------------------------------------------------------
