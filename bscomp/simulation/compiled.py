@@ -188,10 +188,11 @@ class CompiledModel(TimeSeriesMixin):
                                      "delay (CompiledModel.frf/simulate delay=)")
         self.damping = getattr(dae, "system_damping", None)
         self._Cadd0 = sp.csr_matrix(dae.system_damping_basis[2]) if self.damping is not None else None
-        yf = dae.output_function(self.outputs)
+        yf = dae.output_function(self.outputs + self.nl_outputs)
         x0 = dae.x_start
         xd0, z0 = dae.initialize(x0, np.zeros(dae.nu), dae.p0)
-        self.y_op = np.asarray(yf(xd0, x0, z0, np.zeros(dae.nu), dae.p0)).ravel()
+        y0 = np.asarray(yf(xd0, x0, z0, np.zeros(dae.nu), dae.p0), float).ravel()
+        self.y_op, self._el_rest = y0[:len(self.outputs)], y0[len(self.outputs):]   # outputs; elements' (s, v)
         self._sens = {}
         self._reflatten = set()
         self._lin_sens = {}          # non-structural parameter -> (v0, dM, dK, dC) or None (not affine)
@@ -200,7 +201,6 @@ class CompiledModel(TimeSeriesMixin):
         self._steps = {}
         self._runs = {}
         self._modal_cache = {}
-        self._el_rest = None
         self.stats = {"evaluations": 0}
 
     # ---- parameters -------------------------------------------------------------------------------
@@ -373,6 +373,16 @@ class CompiledModel(TimeSeriesMixin):
     def _n_plaw(self):
         return max(sum(len(el.pnames) + 3 for el in self.elements), 1)
 
+    def law_slices(self, plaw) -> list:
+        """Per element of packed law values (:meth:`law_values`; numbers or CasADi symbols): ``(its law's
+        parameters, k_lin, s0_lin, d_lin)``."""
+        out, off = [], 0
+        for el in self.elements:
+            k = len(el.pnames)
+            out.append((plaw[off:off + k], plaw[off + k], plaw[off + k + 1], plaw[off + k + 2]))
+            off += k + 3
+        return out
+
     def law_values(self, law: dict) -> np.ndarray:
         """Packed element parameters: per element its law parameters, then the small-signal equivalent's
         ``(k, s_rel0, d)`` (a Spring, a Damper or nothing)."""
@@ -465,7 +475,7 @@ class CompiledModel(TimeSeriesMixin):
 
         With ``amplitude`` (``{input: A}``, the input's unit) the pairs of those inputs are the response to a sine
         of that amplitude by the describing function of the nonlinear elements (thesis Eq 5.7-5.9 laws, first
-        harmonic: :class:`~bscomp.simulation.describing.HarmonicBalance`, as :func:`bscomp.describing_frf` does
+        harmonic: :class:`~bscomp.simulation.harmonic_balance.HarmonicBalance`, as :func:`bscomp.describing_frf` does
         on the flattened model), the linear part being this modal model; a model without nonlinear elements
         has the same FRF at every amplitude."""
         mm = mm or self.modal(params, extra_damping, delay)
@@ -473,16 +483,9 @@ class CompiledModel(TimeSeriesMixin):
         out = {}
         small = [pq for pq in pairs if pq[0] not in amp]
         if small:
-            so = mm.so
             ins = list(dict.fromkeys(i for i, _ in small))
             outs = list(dict.fromkeys(o for _, o in small))
-            bi = [so.inputs.index(i) for i in ins]
-            yo = [so.outputs.index(o) for o in outs]
-            B = dense(so.B, float)[:, bi]
-            Cq, Cv, Ca = (dense(m, float)[yo] for m in (so.Cq, so.Cv, so.Ca))
-            D = dense(so.D, float)[yo][:, bi]
-            H = modal_frf(mm.lam, mm.phi, mm.c_modal, mm.C_struct, B, Cq, Cv, Ca, D, freqs, modes=mm.keep,
-                          delay=delay)
+            H = self._modal_map(mm, freqs, ins, outs, delay)
             out.update({(i, o): H[:, outs.index(o), ins.index(i)] for i, o in small})
         for inp in dict.fromkeys(i for i, _ in pairs if i in amp):
             outs = list(dict.fromkeys(o for i, o in pairs if i == inp))
@@ -490,33 +493,27 @@ class CompiledModel(TimeSeriesMixin):
             out.update({(inp, o): H[:, k] for k, o in enumerate(outs)})
         return {pq: out[pq] for pq in pairs}
 
+    @staticmethod
+    def _modal_map(mm, freqs, inputs, outputs, delay=0.0):
+        """``H[freq, output, input]`` of the linear part (its inputs and outputs by name) at ``freqs``."""
+        so = mm.so
+        bi = [so.inputs.index(i) for i in inputs]
+        yo = [so.outputs.index(o) for o in outputs]
+        B = dense(so.B, float)[:, bi]
+        Cq, Cv, Ca = (dense(m, float)[yo] for m in (so.Cq, so.Cv, so.Ca))
+        D = dense(so.D, float)[yo][:, bi]
+        return modal_frf(mm.lam, mm.phi, mm.c_modal, mm.C_struct, B, Cq, Cv, Ca, D, freqs, modes=mm.keep,
+                         delay=delay)
+
     def _describing(self, mm, params, freqs, inp, outs, amplitude, delay, points, tol):
         """``H[freq, output]`` of ``outs`` to ``inp`` at ``amplitude`` (:meth:`frf`)."""
-        so = mm.so
         _lin, law, _struct = self._split(dict(params or {}))
-        plaw = self.law_values(law)
-        pvecs, k0, d0, off = [], [], [], 0
-        for el in self.elements:
-            k = len(el.pnames)
-            pvecs.append(plaw[off:off + k])
-            k0.append(plaw[off + k])
-            d0.append(plaw[off + k + 2])
-            off += k + 3
-        if self._el_rest is None:                 # the elements' (s, v) at the operating point
-            yf = self.dae.output_function(self.nl_outputs)
-            x0 = self.dae.x_start
-            xd0, z0 = self.dae.initialize(x0, np.zeros(self.dae.nu), self.dae.p0)
-            self._el_rest = np.asarray(yf(xd0, x0, z0, np.zeros(self.dae.nu), self.dae.p0), float).ravel()
-        rows = [so.outputs.index(n) for n in self.nl_outputs + outs]
-        cols = [so.inputs.index(n) for n in [inp] + self.w_inputs]
-        B = dense(so.B, float)[:, cols]
-        Cq, Cv, Ca = (dense(m, float)[rows] for m in (so.Cq, so.Cv, so.Ca))
-        D = dense(so.D, float)[rows][:, cols]
-        T = modal_frf(mm.lam, mm.phi, mm.c_modal, mm.C_struct, B, Cq, Cv, Ca, D, freqs, modes=mm.keep)
+        parts = self.law_slices(self.law_values(law))
+        T = self._modal_map(mm, freqs, [inp] + self.w_inputs, self.nl_outputs + outs)
         if delay:                                 # the input is delayed, the element forces are not
             T[:, :, 0] *= np.exp(-2j * np.pi * np.asarray(freqs, float) * delay)[:, None]
-        hb = HarmonicBalance([el.law for el in self.elements], pvecs, self._el_rest[0::2], self._el_rest[1::2],
-                             k0, d0, points)
+        hb = HarmonicBalance([el.law for el in self.elements], [pe for pe, *_ in parts], self._el_rest[0::2],
+                             self._el_rest[1::2], [kl for _, kl, _, _ in parts], [dl for *_, dl in parts], points)
         Y, _S, _V, rel = hb.sweep(freqs, lambda i: T[i], amplitude, tol)
         self.stats["describing_residual"] = float(np.max(rel, initial=0.0))
         return Y / amplitude

@@ -22,7 +22,7 @@ class CompiledModelError(BscompError):
 
 
 class TimeSeriesMixin:
-    """The time-series methods of CompiledModel (needs ``elements``, ``inputs``, ``outputs``, ``y_op``,
+    """The time-series methods of CompiledModel (needs ``elements``, ``inputs``, ``outputs``, ``y_op``, ``law_slices``,
     ``modal``, ``_split``, ``law_values``, ``_n_plaw``, ``_steps``, ``_runs``, ``stats``)."""
 
     def _step_function(self, n2, nu, ny, n_sub, n_newton, blocks=None):
@@ -78,12 +78,8 @@ class TimeSeriesMixin:
         Gs, Gv = ca.SX.sym("Gs", r, r), ca.SX.sym("Gv", r, r)
         pl = ca.SX.sym("pl", self._n_plaw())
         s, v = ca.SX.sym("s", r), ca.SX.sym("v", r)
-        delta, off = [], 0
-        for i, el in enumerate(self.elements):
-            k = len(el.pnames)
-            pe = pl[off:off + k]
-            k_lin, s0_lin, d_lin = pl[off + k], pl[off + k + 1], pl[off + k + 2]
-            off += k + 3
+        delta = []
+        for i, (el, (pe, k_lin, s0_lin, d_lin)) in enumerate(zip(self.elements, self.law_slices(pl), strict=True)):
             law = el.law(s[i], v[i], pe)
             delta.append(law - k_lin * (s[i] - s0_lin) - d_lin * v[i])
         dl = ca.vertcat(*delta)

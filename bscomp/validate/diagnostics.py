@@ -315,7 +315,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     elif not message:
         message = ("no missing effect found: no candidate explains the remaining error well enough (see why "
                    "each was not accepted)")
-    if "differ beyond their noise" not in message:
+    if accepted or not unconfirmed or unconfirmed[0].candidate.nonlinear:   # else the linear reason said it
         message += amplitude_note(amplitude, datasets)
     return Diagnosis(system=ref, uncertain=list(unc),
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
