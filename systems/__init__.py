@@ -12,7 +12,7 @@ import inspect
 import traceback
 from pathlib import Path
 
-from bscomp.errors import BscompError, ModelDefinitionError, UnknownNameError
+from bscomp.errors import BscompError, ModelDefinitionError, ParameterError, UnknownNameError
 
 from .chain import free_chain, friction_oscillator, mass_spring_chain  # noqa: E402
 from .small_drive import small_drive  # noqa: E402
@@ -150,3 +150,9 @@ def _call_build(build, name: str, kwargs: dict):
         if kwargs and "unexpected keyword argument" in str(exc):
             raise UnknownNameError(f"system '{name}': {exc}") from exc
         raise
+    except ParameterError as exc:
+        if not kwargs:
+            raise
+        given = ", ".join(f"{k}={v!r}" for k, v in kwargs.items())
+        raise ParameterError(f"system '{name}' built with {given}: {exc} (a build argument sets this "
+                             "component's parameter; give it a physical value)") from exc

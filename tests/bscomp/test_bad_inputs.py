@@ -447,6 +447,12 @@ CASES = [
      r"'small_drive' needs the test bed's \['table', 'table_joint'\]"),
     ("structural_block_bad_kind", lambda tmp: StructuralBlock({"a": "Spring"}, ["a.s"], K=[[1.0]]),
      ModelDefinitionError, r"port 'a' has kind 'Spring'"),
+    ("build_argument_out_of_bounds", lambda tmp: bscomp.modes("small_drive", params={"k_axial": -1.0}), ParameterError,
+     r"system 'small_drive' built with k_axial=-1.0: parameter Spring.c"),
+    ("inputs_not_names", lambda tmp: bscomp.linearize("small_drive", inputs=3), ArgumentTypeError,
+     r"inputs must be a name or a list of names"),
+    ("outputs_not_names", lambda tmp: bscomp.modes("small_drive", outputs=[1, 2]), ArgumentTypeError,
+     r"outputs must be a name or a list of names"),
 ]
 
 
@@ -473,6 +479,15 @@ def test_bad_input_raises_a_named_error(tmp_path, call, error, message):
 def test_the_table_is_large_and_ids_are_unique():
     ids = [c[0] for c in CASES]
     assert len(ids) == len(set(ids)) and len(ids) >= 40
+
+
+def test_one_name_is_one_name_not_its_characters():
+    """``inputs="motor.tau"`` is the input motor.tau (it was split into 'm', 'o', ...)."""
+    one = bscomp.linearize("small_drive", inputs="motor.tau", outputs="table.s")
+    listed = bscomp.linearize("small_drive", inputs=["motor.tau"], outputs=["table.s"])
+    assert one.ninputs == 1 and one.noutputs == 1
+    np.testing.assert_allclose(one.C @ np.linalg.solve(-one.A + 1e-9 * np.eye(one.nstates), one.B),
+                               listed.C @ np.linalg.solve(-listed.A + 1e-9 * np.eye(listed.nstates), listed.B))
 
 
 def test_python_bases_are_kept():
