@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from bscomp.components import ReducedSubstructure
-from bscomp.errors import ModelDefinitionError
+from bscomp.errors import ModelDefinitionError, UsageError
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
 from bscomp.linear.linearization import second_order
@@ -70,6 +70,18 @@ def anchor_dof(sm1: System, anchor="centre") -> str:
     return f"screw.n{int(np.argmin(np.abs(z - z[-1] / 2)))}.tz"
 
 
+def _check_exterior(ext, names, argument):
+    """Each exterior DOF is a coordinate of sub-model 1: else UsageError naming ``argument`` (the closest names)."""
+    import difflib
+
+    for name in ext:
+        if name not in names:
+            close = difflib.get_close_matches(str(name), names, n=3) or names[:3]
+            what = "'centre' nor " if argument == "anchor" else ""
+            raise UsageError(f"reduce_testbed: {argument} {name!r} is neither {what}a DOF of sub-model 1 "
+                             f"(closest: {close}; names are 'component.n<node>.<dof>', e.g. 'screw.n12.tz')")
+
+
 def reduce_testbed(full: System, n_modes: int = 3, *, anchor="centre", interface: str = "free",
                    exterior=None) -> tuple[System, ReducedModel]:
     """The CMS-reduced twin of a full axial + torsional test bed with the moving nut (Sec 5.2.3).
@@ -99,6 +111,7 @@ def reduce_testbed(full: System, n_modes: int = 3, *, anchor="centre", interface
                                    "(testbed(..., nut_joint='moving')): a point joint is baked into the screw")
     M1, K1, names, sm1, sub_dae = submodel1_matrices(full)
     ext = list(exterior) if exterior is not None else ["rotor.phi", anchor_dof(sm1, anchor)]
+    _check_exterior(ext, names, "exterior" if exterior is not None else "anchor")
     red = cms_reduce(M1, K1, ext, n_modes, interface=interface, dof_names=names)
     M_r = red.M.copy()
     if "rotor.phi" in red.names:                               # the kept rotor adds its inertia back
