@@ -32,8 +32,12 @@ from typing import Any
 
 import numpy as np
 
+from bscomp.components import RSTController
+from bscomp.control._checks import polynomial, real
+from bscomp.control.design import NotchCoefficients, RSTDesign
 from bscomp.control.loop_analysis import LoopAnalysis, freqresp, loop_metrics, margins
-from bscomp.errors import ParameterError, UnknownNameError
+from bscomp.errors import ArgumentTypeError, ParameterError, UnknownNameError, UsageError
+from bscomp.kernel.sampled import SampledBlock
 from bscomp.linear.linearization import control_labels, linearize
 
 __all__ = [
@@ -100,12 +104,10 @@ def modal_plant(J: float, B: float, r_g: float, modes, name: str = "modal") -> D
         ``R_m^2/R_w`` to ``x`` (mode-shape entries ``P_mot = sqrt(R_w)``, ``P_tab = R_m/sqrt(R_w)``,
         Eq 4.4). The thesis forms ``G_d^x = G_d G_m / G_w`` instead (Eq 4.30), equal for the rigid part.
     """
-    for k, v in dict(J=J, r_g=r_g).items():
-        if not v > 0:
-            raise ParameterError(f"{k} = {v!r} must be > 0")
-    if B < 0:
-        raise ParameterError(f"B = {B!r} must be >= 0")
-    modes = [tuple(map(float, m)) for m in modes]
+    J = real("modal_plant", "J", J, positive=True, unit="kg m^2")
+    r_g = real("modal_plant", "r_g", r_g, positive=True, unit="m/rad")
+    B = real("modal_plant", "B", B, nonnegative=True, unit="kg m^2/s")
+    modes = _modes(modes)
     n = 2 + 2 * len(modes)
     A = np.zeros((n, n))
     Bm = np.zeros((n, 2))
@@ -116,7 +118,7 @@ def modal_plant(J: float, B: float, r_g: float, modes, name: str = "modal") -> D
     C[0, 0] = C[1, 1] = 1.0
     for k, (f_n, zeta, R_w, R_m) in enumerate(modes):
         if not (f_n > 0 and zeta >= 0 and R_w > 0):
-            raise ParameterError(f"mode {k + 1}: need f_n > 0, zeta >= 0 and R_w > 0, "
+            raise ParameterError(f"modal_plant: mode {k + 1}: need f_n > 0, zeta >= 0 and R_w > 0, "
                                  f"got {(f_n, zeta, R_w, R_m)}")
         w = 2 * math.pi * f_n
         i = 2 + 2 * k
@@ -126,6 +128,30 @@ def modal_plant(J: float, B: float, r_g: float, modes, name: str = "modal") -> D
         Bm[i + 1, 0], Bm[i + 1, 1] = p_mot, p_tab
         C[0, i + 1], C[1, i] = p_mot, p_tab
     return _plant_ss(A, Bm, C, np.zeros((2, 2)), ["tau", "F_d"], name)
+
+
+_MODE_FORM = ("a sequence of modes, each (f_n [Hz], zeta, R_w, R_m), e.g. [(120.0, 0.05, 0.8, 0.01)] "
+              "(Tables 4.1/4.2); [] for the rigid body alone")
+
+
+def _modes(modes) -> list[tuple[float, float, float, float]]:
+    """``modes`` of :func:`modal_plant` as a list of 4 floats each, else a :class:`UsageError` giving the form."""
+    if isinstance(modes, (str, bytes, dict)) or not hasattr(modes, "__iter__"):
+        raise ArgumentTypeError(f"modal_plant: modes must be {_MODE_FORM}, got {type(modes).__name__} "
+                                f"{modes!r}"[:300])
+    out = []
+    for k, m in enumerate(modes):
+        try:
+            row = np.asarray(m, dtype=float)
+        except (TypeError, ValueError):
+            row = None
+        if row is None or row.shape != (4,):
+            raise UsageError(f"modal_plant: mode {k + 1} = {m!r} is not (f_n [Hz], zeta, R_w, R_m); modes must "
+                             f"be {_MODE_FORM}"[:400])
+        if not np.all(np.isfinite(row)):
+            raise ParameterError(f"modal_plant: mode {k + 1} = {tuple(row.tolist())} is not finite")
+        out.append(tuple(float(v) for v in row))
+    return out
 
 
 def plant_from_system(model, tau: str = "motor.tau", w: str = "rotor.w", x: str = "table.s",
@@ -204,6 +230,10 @@ def velocity_loop(plant: DrivePlant, K_a: float, K_t: float, H_g: float, K_v: fl
     """
     import control
 
+    f = "velocity_loop"
+    plant = _drive_plant(f, plant)
+    K_a, K_t, H_g, K_v, K_i = _gains(f, K_a=K_a, K_t=K_t, H_g=H_g, K_v=K_v, K_i=K_i)
+    t_final = real(f, "t_final", t_final, positive=True, unit="s")
     Gw = _sub(plant.sys, ["w"], ["tau"])
     pi = control.ss(0.0, 1.0, K_i, K_v)
     L = control.series(pi, _gain(K_a * K_t, "u", "tau"), Gw, _gain(H_g, "w", "w_m"))
@@ -242,8 +272,12 @@ def p_pi_loop(plant: DrivePlant, K_a: float, K_t: float, H_g: float, K_v: float,
     """
     import control
 
-    if not (Ts > 0 and K_p > 0):
-        raise ParameterError(f"need Ts > 0 and K_p > 0, got Ts = {Ts!r}, K_p = {K_p!r}")
+    f = "p_pi_loop"
+    plant = _drive_plant(f, plant)
+    K_a, K_t, H_g, K_v, K_i = _gains(f, K_a=K_a, K_t=K_t, H_g=H_g, K_v=K_v, K_i=K_i)
+    K_p = real(f, "K_p", K_p, positive=True, unit="V/m")
+    Ts = real(f, "Ts", Ts, positive=True, unit="s")
+    t_final = _t_final(f, t_final, Ts)
     cl = _velocity_closed(plant, K_a, K_t, H_g, K_v, K_i)
     outs = ["x"]
     ins = ["u_v"] + (["F_d"] if plant.has_disturbance else [])
@@ -251,7 +285,7 @@ def p_pi_loop(plant: DrivePlant, K_a: float, K_t: float, H_g: float, K_v: float,
     Pz = control.ss(Pz.A, Pz.B, Pz.C, Pz.D, Ts, inputs=ins, outputs=["x"], name="plant_z")
     K = _gain(K_p, "e", "u_p", Ts)
     if notch is not None:
-        N = _as_discrete(notch, Ts)
+        N = _as_discrete(notch, Ts, f)
         N = control.ss(N.A, N.B, N.C, N.D, Ts, inputs=["u_p"], outputs=["u_v"], name="notch")
     else:
         N = _gain(1.0, "u_p", "u_v", Ts)
@@ -271,18 +305,47 @@ def p_pi_loop(plant: DrivePlant, K_a: float, K_t: float, H_g: float, K_v: float,
     return res
 
 
-def _as_discrete(block, Ts):
+def _as_discrete(block, Ts, func="p_pi_loop"):
     import control
 
-    if hasattr(block, "ss") and callable(block.ss):
+    if isinstance(block, SampledBlock):
         sys = block.ss()
-    elif hasattr(block, "filter"):
+    elif isinstance(block, NotchCoefficients):
         sys = block.filter().ss()
-    else:
+    elif isinstance(block, control.LTI):
         sys = control.ss(block)
+    else:
+        raise ArgumentTypeError(f"{func}: notch must be a NotchFilter, the NotchCoefficients of "
+                                f"bscomp.control.notch(...) or a discrete python-control LTI system, got "
+                                f"{type(block).__name__} {block!r}"[:300])
+    if sys.ninputs != 1 or sys.noutputs != 1:
+        raise UsageError(f"{func}: notch must be SISO, got {sys.noutputs} outputs x {sys.ninputs} inputs")
     if not sys.dt or abs(sys.dt - Ts) > 1e-15 * max(1.0, Ts):
-        raise ParameterError(f"discrete block has dt = {sys.dt!r}, loop runs at Ts = {Ts!r}")
+        raise ParameterError(f"{func}: discrete block has dt = {sys.dt!r}, loop runs at Ts = {Ts!r}")
     return sys
+
+
+def _drive_plant(func, plant):
+    if not isinstance(plant, DrivePlant):
+        raise ArgumentTypeError(f"{func}: plant must be a DrivePlant (from rigid_plant, modal_plant, "
+                                f"plant_from_system or thesis_modal_plant), got {type(plant).__name__} "
+                                f"{plant!r}"[:300],
+                                hint="for a model name use plant_from_system(bscomp.systems.get(name))")
+    return plant
+
+
+def _gains(func, **kw):
+    """The loop gains of ``kw`` as finite floats (a sign is the user's choice, as in the thesis)."""
+    return [real(func, k, v) for k, v in kw.items()]
+
+
+def _t_final(func, t_final, Ts):
+    """``t_final`` of a sampled loop: > 0 and at least two sampling periods (the step response)."""
+    t_final = real(func, "t_final", t_final, positive=True, unit="s")
+    if t_final < 2 * Ts:
+        raise UsageError(f"{func}: t_final = {t_final:g} s is shorter than 2 sampling periods Ts = {Ts:g} s: "
+                         "the step response would have fewer than 2 samples; raise t_final or shorten Ts")
+    return t_final
 
 
 def rst_loop(plant, design, K_a: float = 1.0, K_t: float = 1.0, t_final: float = 0.1) -> LoopAnalysis:
@@ -305,8 +368,22 @@ def rst_loop(plant, design, K_a: float = 1.0, K_t: float = 1.0, t_final: float =
     """
     import control
 
-    ctrl = design.controller() if hasattr(design, "controller") else design
+    f = "rst_loop"
+    if isinstance(design, RSTDesign):
+        ctrl = design.controller()
+    elif isinstance(design, RSTController):
+        ctrl = design
+    else:
+        raise ArgumentTypeError(f"rst_loop: design must be an RSTDesign (from rst_design) or an "
+                                f"RSTController, got {type(design).__name__} {design!r}"[:300])
     Ts = ctrl.T_s
+    K_a, K_t = _gains(f, K_a=K_a, K_t=K_t)
+    t_final = _t_final(f, t_final, Ts)
+    if not isinstance(plant, DrivePlant):
+        if isinstance(plant, (str, bytes)) or not hasattr(plant, "__len__") or len(plant) != 2:
+            raise ArgumentTypeError(f"rst_loop: plant must be a DrivePlant or a pair of polynomials (A, B) "
+                                    f"in z, got {type(plant).__name__} {plant!r}"[:300])
+        plant = (polynomial(f, "plant A", plant[0], min_degree=1), polynomial(f, "plant B", plant[1]))
     if isinstance(plant, DrivePlant):
         ins = ["tau"] + (["F_d"] if plant.has_disturbance else [])
         P = _sub(plant.sys, ["x"], ins)

@@ -22,7 +22,8 @@ import numpy as np
 
 from bscomp.components import NotchFilter, RSTController
 from bscomp.components.notch_filter import notch_coefficients
-from bscomp.errors import ParameterError, SingularSystemError
+from bscomp.control._checks import integer, lti, polynomial, real
+from bscomp.errors import ArgumentTypeError, ParameterError, SingularSystemError, UsageError
 
 __all__ = [
     "PIGains", "pi_gains", "velocity_loop_tf", "second_order_z", "NotchCoefficients", "notch",
@@ -31,10 +32,9 @@ __all__ = [
 ]
 
 
-def _positive(**kw):
-    for k, v in kw.items():
-        if not (np.isfinite(v) and v > 0):
-            raise ParameterError(f"{k} = {v!r} must be a finite number > 0")
+def _positive(func, **kw):
+    """The values of ``kw`` as floats, each a finite real number > 0 (else an error naming ``func``)."""
+    return [real(func, k, v, positive=True) for k, v in kw.items()]
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -94,9 +94,8 @@ def pi_gains(J: float, B: float, K_a: float, K_t: float, H_g: float, wn: float, 
         If a gain, J, wn or zeta is not positive, or the requested damping is below the plant's own
         (``K_v`` would be negative).
     """
-    _positive(J=J, K_a=K_a, K_t=K_t, H_g=H_g, wn=wn, zeta=zeta)
-    if B < 0:
-        raise ParameterError(f"B = {B!r} kg m^2/s must be >= 0")
+    J, K_a, K_t, H_g, wn, zeta = _positive("pi_gains", J=J, K_a=K_a, K_t=K_t, H_g=H_g, wn=wn, zeta=zeta)
+    B = real("pi_gains", "B", B, nonnegative=True, unit="kg m^2/s")
     K = K_a * K_t * H_g
     K_v = (2 * zeta * wn * J - B) / K
     if K_v < 0:
@@ -112,6 +111,10 @@ def velocity_loop_tf(J, B, K_a, K_t, H_g, K_v, K_i):
     """
     import control
 
+    f = "velocity_loop_tf"
+    J = real(f, "J", J, positive=True)
+    B, K_a, K_t, H_g, K_v, K_i = (real(f, k, v) for k, v in
+                                  zip(("B", "K_a", "K_t", "H_g", "K_v", "K_i"), (B, K_a, K_t, H_g, K_v, K_i)))
     num = [K_a * K_t * K_v / J, K_a * K_t * K_i / J]
     den = [1.0, (B + K_a * K_t * K_v * H_g) / J, K_a * K_t * K_i * H_g / J]
     return control.tf(num, den, inputs=["u_v"], outputs=["w"])
@@ -131,9 +134,8 @@ def second_order_z(zeta: float, omega: float, T_s: float) -> tuple[float, float]
     (Eq 4.20, 4.21, 4.36, 4.38); for ``zeta > 1`` the cosine becomes ``cosh(omega T_s sqrt(zeta^2 - 1))``
     (two real poles).
     """
-    _positive(omega=omega, T_s=T_s)
-    if not zeta >= 0:
-        raise ParameterError(f"damping ratio zeta = {zeta!r} must be >= 0")
+    omega, T_s = _positive("second_order_z", omega=omega, T_s=T_s)
+    zeta = real("second_order_z", "damping ratio zeta", zeta, nonnegative=True)
     x = omega * T_s
     if zeta <= 1:
         c = math.cos(x * math.sqrt(1 - zeta * zeta))
@@ -183,6 +185,17 @@ def notch(zeta_N: float, omega_N: float, zeta_D: float, Ts: float, omega_D: floa
     NotchCoefficients
         ``n1, n2, d1, d2`` and ``K_N = (1 + d1 + d2)/(1 + n1 + n2)`` (unit DC gain, Eq 4.19).
     """
+    f = "notch"
+    zeta_N, zeta_D = (real(f, k, v, nonnegative=True) for k, v in (("zeta_N", zeta_N), ("zeta_D", zeta_D)))
+    omega_N, Ts = _positive(f, omega_N=omega_N, Ts=Ts)
+    if omega_D is not None:
+        omega_D = real(f, "omega_D", omega_D, positive=True, unit="rad/s")
+    nyquist = math.pi / Ts
+    for k, v in (("omega_N", omega_N), ("omega_D", omega_D)):
+        if v is not None and v >= nyquist:
+            raise UsageError(f"notch: {k} = {v:g} rad/s is at or above the Nyquist frequency pi/Ts = "
+                             f"{nyquist:g} rad/s of Ts = {Ts:g} s: a sampled notch cannot act there "
+                             "(the mode aliases); give omega_N/omega_D in rad/s (not Hz?) or shorten Ts")
     return NotchCoefficients(*notch_coefficients(zeta_N, omega_N, zeta_D, Ts, omega_D=omega_D), float(Ts))
 
 
@@ -206,9 +219,12 @@ def zoh_polynomials(plant, Ts: float) -> tuple[np.ndarray, np.ndarray]:
     """
     import control
 
-    _positive(Ts=Ts)
+    (Ts,) = _positive("zoh_polynomials", Ts=Ts)
+    lti("zoh_polynomials", "plant", plant)
     if plant.ninputs != 1 or plant.noutputs != 1:
         raise ParameterError(f"zoh_polynomials needs a SISO plant, got {plant.noutputs}x{plant.ninputs}")
+    if plant.dt is not None and plant.dt != 0:
+        raise UsageError(f"zoh_polynomials: plant must be continuous (dt = 0), got dt = {plant.dt!r}")
     sysd = control.c2d(control.ss(plant), Ts, "zoh")
     A = np.poly(sysd.A)
     # B from the Markov form: B(z)/A(z) = C adj(zI - Ad) Bd + D  ->  B = C (A(z) (zI-Ad)^-1) Bd + D A
@@ -270,12 +286,16 @@ def ppc_polynomials(zeta_c: float, omega_c: float, alpha: float, zeta_o: float, 
     -------
     PPCPolynomials
     """
-    _positive(omega_c=omega_c, alpha=alpha, omega_o=omega_o, Ts=Ts)
+    f = "ppc_polynomials"
+    omega_c, alpha, omega_o, Ts = _positive(f, omega_c=omega_c, alpha=alpha, omega_o=omega_o, Ts=Ts)
+    zeta_c, zeta_o = (real(f, k, v, nonnegative=True) for k, v in (("zeta_c", zeta_c), ("zeta_o", zeta_o)))
+    B_plus = polynomial(f, "B_plus", B_plus)
+    n_origin = integer(f, "n_origin (observer poles at z = 0)", n_origin, minimum=0)
     a_c = -math.exp(-alpha * omega_c * Ts)
     a_c1, a_c2 = second_order_z(zeta_c, omega_c, Ts)
     a_o1, a_o2 = second_order_z(zeta_o, omega_o, Ts)
-    A_c = np.polymul(np.polymul(np.asarray(B_plus, float), [1.0, a_c]), [1.0, a_c1, a_c2])
-    A_o = np.concatenate([[1.0, a_o1, a_o2], np.zeros(int(n_origin))])
+    A_c = np.polymul(np.polymul(B_plus, [1.0, a_c]), [1.0, a_c1, a_c2])
+    A_o = np.concatenate([[1.0, a_o1, a_o2], np.zeros(n_origin)])
     return PPCPolynomials(A_c, A_o, dict(a_c=a_c, a_c1=a_c1, a_c2=a_c2, a_o1=a_o1, a_o2=a_o2))
 
 
@@ -293,7 +313,8 @@ def diophantine(a, b, c, deg_x: int, deg_y: int) -> tuple[np.ndarray, np.ndarray
     SingularSystemError
         If ``a`` and ``b`` have a common factor (plant not reachable/observable, Sec 4.5).
     """
-    a, b, c = (np.trim_zeros(np.atleast_1d(np.asarray(p, float)), "f") for p in (a, b, c))
+    a, b, c = (polynomial("diophantine", k, p) for k, p in (("a", a), ("b", b), ("c", c)))
+    deg_x, deg_y = (integer("diophantine", k, v, minimum=0) for k, v in (("deg_x", deg_x), ("deg_y", deg_y)))
     n = c.size  # equations: coefficients of z^(n-1) .. z^0
     if deg_x + deg_y + 2 != n:
         raise ParameterError(f"Diophantine a x + b y = c: deg x + deg y + 2 = {deg_x + deg_y + 2} unknowns "
@@ -380,6 +401,22 @@ def _divide_exact(num, den, what):
     return q
 
 
+def _targets(near, deg):
+    """``near`` of :func:`split_polynomial` as a 1-D complex array of at most ``deg`` finite numbers."""
+    what = "a number or a sequence of numbers (the roots to pick, e.g. [0.535])"
+    try:
+        t = np.atleast_1d(np.asarray(near))
+    except (TypeError, ValueError):
+        t = np.array([object()])
+    if isinstance(near, (str, bytes)) or near is None or t.ndim != 1 or t.dtype.kind not in "iufc":
+        raise ArgumentTypeError(f"split_polynomial: near must be {what}, got {type(near).__name__} {near!r}"[:300])
+    if not np.all(np.isfinite(t)):
+        raise ParameterError(f"split_polynomial: near = {t.tolist()} must be finite")
+    if not 1 <= t.size <= deg:
+        raise UsageError(f"split_polynomial: near has {t.size} targets, P has {deg} roots: give 1 to {deg}")
+    return t.astype(complex)
+
+
 def split_polynomial(P, near) -> tuple[np.ndarray, np.ndarray]:
     """Factor ``P = P^+ P^-`` with ``P^+`` monic, made of the roots of ``P`` nearest to ``near``.
 
@@ -390,14 +427,33 @@ def split_polynomial(P, near) -> tuple[np.ndarray, np.ndarray]:
     -------
     P_plus, P_minus : numpy.ndarray
     """
-    P = np.trim_zeros(np.atleast_1d(np.asarray(P, float)), "f")
+    P = polynomial("split_polynomial", "P", P, min_degree=1)
+    targets = _targets(near, P.size - 1)
     roots = list(np.roots(P))
     chosen = []
-    for target in np.atleast_1d(near):
+    for target in targets:
         k = int(np.argmin([abs(r - target) for r in roots]))
         chosen.append(roots.pop(k))
     P_plus = np.real_if_close(np.poly(chosen)).real
     return P_plus, _divide_exact(P, P_plus, "P by P+")
+
+
+def _rst_polynomials(A, B, A_c, A_o, B_plus, A_plus, R_d, S_d):
+    """The polynomial arguments of :func:`rst_design`, checked, as float arrays without leading zeros."""
+    f = "rst_design"
+    raw_A = polynomial(f, "A", A, trim=False)
+    if raw_A[0] == 0:
+        raise ParameterError(f"rst_design: A = {raw_A.tolist()} has a zero leading coefficient: A(z) is the "
+                             "plant denominator in descending powers of z, monic (Eq 4.31), e.g. "
+                             "[1.0, -0.9] for z - 0.9")
+    A = polynomial(f, "A", A, min_degree=1)
+    B = polynomial(f, "B", B)
+    if B.size > A.size:
+        raise ParameterError(f"rst_design: deg B = {B.size - 1} > deg A = {A.size - 1}: B(z)/A(z) is not "
+                             "causal; give both in descending powers of z")
+    rest = (polynomial(f, k, v) for k, v in (("A_c", A_c), ("A_o", A_o), ("B_plus", B_plus),
+                                              ("A_plus", A_plus), ("R_d", R_d), ("S_d", S_d)))
+    return (A, B, *rest)
 
 
 def rst_design(A, B, A_c, A_o, B_plus=(1.0,), A_plus=(1.0,), R_d=(1.0,), S_d=(1.0,), Ts: float = 2.0e-4,
@@ -435,17 +491,20 @@ def rst_design(A, B, A_c, A_o, B_plus=(1.0,), A_plus=(1.0,), R_d=(1.0,), S_d=(1.
     ``deg R^* = deg(A_c A_o) - deg(A^+ B^+) - deg A^- - deg R_d``. ``R^*`` comes out monic when
     ``deg(B^- S_d S^*)`` is below the right-hand side's degree. ``T = t_0 A_o``.
     """
-    _positive(Ts=Ts)
-    A, B = (np.trim_zeros(np.atleast_1d(np.asarray(p, float)), "f") for p in (A, B))
-    A_c, A_o = np.asarray(A_c, float), np.asarray(A_o, float)
-    B_plus, A_plus = np.asarray(B_plus, float), np.asarray(A_plus, float)
-    R_d, S_d = np.asarray(R_d, float), np.asarray(S_d, float)
+    A, B, A_c, A_o, B_plus, A_plus, R_d, S_d = _rst_polynomials(A, B, A_c, A_o, B_plus, A_plus, R_d, S_d)
+    (Ts,) = _positive("rst_design", Ts=Ts)
+    if t0 is not None:
+        t0 = real("rst_design", "t0", t0)
     A_minus = _divide_exact(A, A_plus, "A by A+")
     B_minus = _divide_exact(B, B_plus, "B by B+")
     rhs = _divide_exact(np.polymul(A_c, A_o), np.polymul(A_plus, B_plus), "A_c A_o by A+ B+")
     a = np.polymul(A_minus, R_d)
     b = np.polymul(B_minus, S_d)
     deg_s = a.size - 2
+    if deg_s < 0:
+        raise ParameterError(f"rst_design: A^- R_d = {a.tolist()} has degree 0 (A = {A.tolist()}, "
+                             f"A+ = {A_plus.tolist()}, R_d = {R_d.tolist()}): nothing is left to place and S "
+                             "would be empty; give the plant's A with degree >= 1 and cancel less in A_plus")
     deg_r = rhs.size - 1 - (a.size - 1)
     if deg_r < 0:
         raise ParameterError(f"deg(A_c A_o) = {np.polymul(A_c, A_o).size - 1} is too low for "

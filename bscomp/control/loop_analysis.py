@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from bscomp.errors import UnknownNameError
+from bscomp.control._checks import lti
+from bscomp.errors import ArgumentTypeError, ParameterError, SingularSystemError, UnknownNameError, UsageError
 from bscomp.files import atomic_write
 from bscomp.plotting.control import (
     bode_comparison_plot,
@@ -150,6 +151,8 @@ class LoopAnalysis:
     def _time(self, t):
         if t is not None:
             return t
+        if not (isinstance(self.t_final, (int, float, np.integer, np.floating)) and 0 < self.t_final < math.inf):
+            raise UsageError(f"LoopAnalysis '{self.name}': t_final = {self.t_final!r} must be a finite time > 0 [s]")
         dt = self.T.dt if self.T.dt else self.t_final / 4000
         return np.arange(0.0, self.t_final + dt / 2, dt)
 
@@ -225,16 +228,38 @@ def freqresp(sys, w) -> np.ndarray:
     """
     import control
 
-    sys = control.ss(sys)
-    w = np.asarray(w, float)
+    sys = control.ss(lti("freqresp", "sys", sys, siso=True))
+    w = _frequencies("freqresp", w, positive=False)
     s = np.exp(1j * w * sys.dt) if sys.dt else 1j * w
     n = sys.A.shape[0]
     D = complex(sys.D[0, 0])
     if n == 0:
         return np.full(w.shape, D)
     M = s[:, None, None] * np.eye(n) - sys.A[None, :, :]
-    X = np.linalg.solve(M, np.broadcast_to(sys.B[:, :1], (w.size, n, 1)))
+    try:
+        X = np.linalg.solve(M, np.broadcast_to(sys.B[:, :1], (w.size, n, 1)))
+    except np.linalg.LinAlgError:
+        raise SingularSystemError("freqresp: the system has a pole on the frequency grid (e.g. an integrator "
+                                  "at w = 0); evaluate at w > 0 off its poles") from None
     return (sys.C[:1, :] @ X)[:, 0, 0] + D
+
+
+def _frequencies(func, w, positive):
+    """``w`` [rad/s] as a 1-D finite float array (of >= 2 values > 0 for :func:`margins`)."""
+    if isinstance(w, (str, bytes)) or w is None:
+        raise ArgumentTypeError(f"{func}: w must be an array of frequencies [rad/s], got {type(w).__name__} {w!r}")
+    try:
+        arr = np.asarray(w, dtype=float)
+    except (TypeError, ValueError):
+        raise ArgumentTypeError(f"{func}: w must be an array of frequencies [rad/s], got "
+                                f"{type(w).__name__} {w!r}"[:300]) from None
+    if arr.ndim != 1 or not np.all(np.isfinite(arr)):
+        raise ParameterError(f"{func}: w must be a 1-D array of finite frequencies [rad/s], got shape "
+                             f"{arr.shape}" + ("" if arr.ndim != 1 else " with NaN/inf"))
+    if positive and (arr.size < 2 or not np.all(arr > 0)):
+        raise ParameterError(f"{func}: w needs at least 2 frequencies > 0 [rad/s] (a log grid, e.g. "
+                             f"numpy.logspace(0, 4, 2000)), got {arr.tolist()}"[:300])
+    return arr
 
 
 def _mag(sys, w):
@@ -247,6 +272,8 @@ def margins(L, w) -> tuple[float, float, float, float]:
     Crossings are located by linear interpolation in ``log w``; when there are several, the margin
     closest to instability (smallest magnitude) is returned, as python-control's ``stability_margins``.
     """
+    lti("margins", "L", L, siso=True)
+    w = _frequencies("margins", w, positive=True)
     H = freqresp(L, w)
     lw = np.log10(w)
     mag_db = 20 * np.log10(np.abs(H))

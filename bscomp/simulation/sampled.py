@@ -9,10 +9,12 @@ one implementation for every method.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Callable
 
-from bscomp.errors import ParameterError
+from bscomp.errors import ArgumentTypeError, ParameterError
+from bscomp.kernel.sampled import SampledBlock
 
 __all__ = ["SampledController", "sampled_controller"]
 
@@ -38,6 +40,29 @@ class SampledController:
     measure: list
     actuate: list
     Ts: float
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) or (
+        hasattr(v, "dtype") and getattr(v, "ndim", 1) == 0 and v.dtype.kind in "iuf")
+
+
+def _blocks(blocks) -> list:
+    """``blocks`` of :func:`sampled_controller` as a list of SampledBlock, else :class:`ArgumentTypeError`."""
+    what = ("a sequence of sampled blocks (bscomp.kernel.SampledBlock: DigitalPController, NotchFilter, "
+            "RSTController, e.g. [design.controller()])")
+    if isinstance(blocks, SampledBlock):
+        raise ArgumentTypeError(f"sampled_controller: blocks must be {what}, got one block {blocks!r}; "
+                                "pass it in a list: [block]")
+    if isinstance(blocks, (str, bytes)) or not hasattr(blocks, "__iter__"):
+        raise ArgumentTypeError(f"sampled_controller: blocks must be {what}, got {type(blocks).__name__} "
+                                f"{blocks!r}"[:300])
+    blocks = list(blocks)
+    for k, b in enumerate(blocks):
+        if not isinstance(b, SampledBlock):
+            raise ArgumentTypeError(f"sampled_controller: blocks[{k}] is {type(b).__name__} {b!r}, not a "
+                                    f"SampledBlock; blocks must be {what}"[:400])
+    return blocks
 
 
 def sampled_controller(blocks, measure: str, actuate: str, reference, measure_gain: float = 1.0):
@@ -74,7 +99,14 @@ def sampled_controller(blocks, measure: str, actuate: str, reference, measure_ga
     ParameterError
         Empty chain, different sampling periods, or a block with the wrong number of inputs.
     """
-    blocks = list(blocks)
+    blocks = _blocks(blocks)
+    for k, v in (("measure", measure), ("actuate", actuate)):
+        if not isinstance(v, str):
+            raise ArgumentTypeError(f"sampled_controller: {k} must be one signal name (str), e.g. 'table.s', "
+                                    f"got {type(v).__name__} {v!r}"[:300])
+    if not (callable(reference) or _is_number(reference)):
+        raise ArgumentTypeError(f"sampled_controller: reference must be a function reference(t) or a number "
+                                f"(a constant set point), got {type(reference).__name__} {reference!r}"[:300])
     if not blocks:
         raise ParameterError("sampled_controller: no blocks given")
     T_s = blocks[0].T_s
@@ -86,7 +118,13 @@ def sampled_controller(blocks, measure: str, actuate: str, reference, measure_ga
     for b in blocks[1:]:
         if len(b.inputs) != 1:
             raise ParameterError(f"sampled_controller: {b!r} in series must have one input")
+    if not _is_number(measure_gain):
+        raise ArgumentTypeError(f"sampled_controller: measure_gain must be a number (sensor gain and polarity, "
+                                f"e.g. 1.0 or -1.0), got {type(measure_gain).__name__} {measure_gain!r}"[:300])
     g = float(measure_gain)
+    if not (math.isfinite(g) and g != 0):
+        raise ParameterError(f"sampled_controller: measure_gain = {g!r} must be finite and non-zero "
+                             "(sensor gain and polarity, e.g. 1.0 or -1.0)")
     ref = reference if callable(reference) else (lambda t, c=float(reference): c)
     for b in blocks:
         b.reset()
