@@ -41,8 +41,9 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from bscomp._sweep_eval import ModesEvaluator
-from bscomp.errors import UnknownNameError, UsageError
+from bscomp.errors import ParameterError, UnknownNameError, UsageError, check_number
 from bscomp.files import atomic_path, atomic_write
+from bscomp.kernel.system import System
 from bscomp.model import ModelSpec, spec_of
 from bscomp.plotting.sweep_map import sweep_map
 
@@ -125,13 +126,18 @@ class SweepTable:
 
 
 def _variants(grid) -> tuple[list, list]:
-    """(names, list of value tuples) of a factorial dict or an explicit list of dicts."""
+    """(names, list of raw value tuples) of a factorial dict or an explicit list of dicts (values as given:
+    numbers or ``"250 kg"``-style strings, converted by :func:`_checked_variants`)."""
     if isinstance(grid, dict):
         names = list(grid)
-        axes = [np.atleast_1d(np.asarray(grid[n], float)) for n in names]
+        axes = [np.atleast_1d(np.asarray(grid[n], dtype=object)) for n in names]
         if not names or any(a.size == 0 for a in axes):
             raise UsageError("design_study: grid must map each parameter name to at least one value")
-        return names, [tuple(map(float, v)) for v in itertools.product(*axes)]
+        deep = [n for n, a in zip(names, axes) if a.ndim != 1]
+        if deep:
+            raise UsageError(f"design_study: grid['{deep[0]}'] must be a flat list of values, got an array of shape "
+                             f"{axes[names.index(deep[0])].shape}")
+        return names, list(itertools.product(*[a.tolist() for a in axes]))
     variants = list(grid)
     if not variants or not all(isinstance(v, dict) for v in variants):
         raise UsageError("design_study: grid must be {name: values} (full factorial) or a list of {name: value}")
@@ -140,7 +146,65 @@ def _variants(grid) -> tuple[list, list]:
     if bad:
         raise UsageError(f"design_study: variant {bad[0]} has the keys {list(variants[bad[0]])}, the first "
                          f"{names}: give every variant the same parameters")
-    return names, [tuple(float(v[n]) for n in names) for v in variants]
+    return names, [tuple(v[n] for n in names) for v in variants]
+
+
+def _checked_variants(spec: ModelSpec, names: list, raw: list) -> list:
+    """The variants as float tuples, each value checked as ``modes(params=...)`` would check it.
+
+    A dotted name's value goes through its parameter's :meth:`~bscomp.Parameter.validate` (bounds, NaN,
+    ``"250 kg"`` strings converted to the declared unit), then each component with a swept parameter gets its
+    cross-parameter conditions checked (:meth:`~bscomp.Component.check`: ``lead != 0``, ``y_min < y_max``,
+    the moving nut's ``z0`` on the screw) on the variant's values. A build keyword (no dot) must be a number;
+    the build function checks it when the variant is built. Raises :class:`~bscomp.errors.ParameterError`
+    naming the variant and the parameter before anything is computed.
+    """
+    system = spec.system() if any("." in n for n in names) else None
+    params = {}
+    for n in names:
+        if "." in n:
+            path, _, pname = n.rpartition(".")
+            comp = system.component(path)
+            param = None if isinstance(comp, System) else comp.parameters().get(pname.partition("[")[0])
+            if param is None:
+                raise UnknownNameError(f"design_study: '{spec.source}' has no parameter '{n}' (build keywords have "
+                                       "no dot, e.g. nut_position)")
+            if not param.scalar and "[" not in pname:
+                raise UsageError(f"design_study: '{n}' [{param.unit}] is a vector or matrix parameter; a grid sweeps "
+                                 "numbers: sweep a scalar parameter or a build keyword")
+            params[n] = (path, pname, comp, param)
+    out = []
+    for k, row in enumerate(raw):
+        vals, per_comp = [], {}
+        try:
+            for n, v in zip(names, row):
+                if n in params:
+                    path, pname, comp, param = params[n]
+                    x = param.validate(v, comp)
+                    if "[" not in pname:
+                        per_comp.setdefault(path, (comp, {}))[1][pname] = x
+                else:
+                    x = check_number(f"build keyword {n}", v)
+                vals.append(float(x))
+            for comp, over in per_comp.values():
+                comp.check({**comp._values, **over})
+        except (ParameterError, UsageError) as exc:
+            raise type(exc)(f"design_study: variant {k} {dict(zip(names, row))}: {exc}") from None
+        out.append(tuple(vals))
+    return out
+
+
+def _checked_freqs(freqs) -> np.ndarray:
+    """The ``"frf"`` frequency grid [Hz]: a non-empty 1-D array of finite positive numbers."""
+    try:
+        f = np.atleast_1d(np.asarray(np.logspace(0, np.log10(2000), 400) if freqs is None else freqs, float))
+    except (TypeError, ValueError):
+        raise UsageError(f"design_study: freqs must be an array of frequencies [Hz], got {freqs!r}") from None
+    if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
+        bad = f[~np.isfinite(f) | (f <= 0)] if f.ndim == 1 and f.size else []
+        raise UsageError("design_study: freqs must be a non-empty 1-D array of finite positive frequencies [Hz]"
+                         + (f", got {float(bad[0])!r}" if len(bad) else f", got shape {f.shape}"))
+    return f
 
 
 def design_study(model, grid, analysis="modes", *, n_modes: int = 6, inputs=None, outputs=None, freqs=None,
@@ -179,11 +243,11 @@ def design_study(model, grid, analysis="modes", *, n_modes: int = 6, inputs=None
     """
     t0 = time.perf_counter()
     spec = spec_of(model)
-    names, values = _variants(grid)
+    names, raw = _variants(grid)
     if not callable(analysis) and analysis not in ("modes", "frf"):
         raise UsageError(f"design_study: analysis must be 'modes', 'frf' or a callable, got {analysis!r}")
-    freqs = None if analysis != "frf" else np.asarray(np.logspace(0, np.log10(2000), 400) if freqs is None
-                                                      else freqs, float)
+    freqs = None if analysis != "frf" else _checked_freqs(freqs)
+    values = _checked_variants(spec, names, raw)
     job = (spec, tuple(names), analysis, int(n_modes), None if inputs is None else tuple(inputs),
            None if outputs is None else tuple(outputs), None if freqs is None else tuple(freqs))
     own_pool, label = None, ""

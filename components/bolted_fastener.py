@@ -42,6 +42,13 @@ class BoltedFastener(PartialJoint6):
         """Stiffness of bolt and clamped members in series [N/m]."""
         return 1.0 / (1.0 / k_bolt + 1.0 / k_members)
 
+    def check(self, values):
+        """``axis`` is a non-zero 3-vector (it is normalised)."""
+        n = np.asarray(values["axis"], dtype=float)
+        if n.shape != (3,) or not np.linalg.norm(n) > 0.0:
+            raise ParameterError(f"{self._where('axis')} must be a non-zero 3-vector (the bolt direction), got "
+                                 f"{n.tolist()!r}")
+
     def _nn(self):
         n = np.asarray(self.axis, dtype=float)
         if n.shape != (3,) or np.linalg.norm(n) == 0.0:

@@ -36,16 +36,18 @@ class Bushing(PartialJoint6):
                   "diagonal; symmetric positive semi-definite")
     C = Parameter(np.zeros(6), unit="N.s/m|N.s|N.m.s/rad", doc="6x6 viscous damping (or a 6-vector diagonal)")
 
-    def __init__(self, grounded: bool = False, **params):
-        super().__init__(grounded=grounded, **params)
+    def check(self, values):
+        """``K`` and ``C`` symmetric positive semi-definite (a passive joint stores and dissipates energy)."""
         for name in ("K", "C"):
-            if self.get(name) is None:
+            if values[name] is None:
                 continue  # reported by flatten (missing parameter)
-            A = as_6x6(self.get(name), f"Bushing.{name}")
+            A = as_6x6(values[name], f"Bushing.{name}")
             if not np.allclose(A, A.T, atol=1e-12 * max(1.0, np.abs(A).max())):
-                raise ParameterError(f"Bushing.{name} must be symmetric")
+                raise ParameterError(f"{self._where(name)} must be symmetric (a 6x6 matrix equal to its transpose, "
+                                     "or a 6-vector diagonal)")
             if np.linalg.eigvalsh(A).min() < -1e-9 * max(1.0, np.abs(A).max()):
-                raise ParameterError(f"Bushing.{name} must be positive semi-definite (a passive joint)")
+                raise ParameterError(f"{self._where(name)} must be positive semi-definite (a passive joint): "
+                                     f"its smallest eigenvalue is {np.linalg.eigvalsh(A).min():.6g}")
 
     def stiffness(self):
         return as_6x6(self.K, "Bushing.K")

@@ -11,6 +11,7 @@ block is exactly linear, so linear analyses see ``K_a`` (see :class:`Saturation`
 compliance of the amplifier (back-EMF headroom) is not modelled.
 """
 
+from bscomp.errors import ParameterError
 from bscomp.kernel.component import Component, Parameter
 from bscomp.kernel.ports import RealInput, RealOutput
 
@@ -33,6 +34,15 @@ class CurrentAmplifier(Component):
     K_a = Parameter(6.4898, unit="A/V", positive=True, doc="amplifier gain (Eq 4.1; 6.4898 A/V on the test bed)")
     i_max = Parameter(0.0, unit="A", min=0.0, doc="output current limit (0 = unlimited)")
     delta = Parameter(0.0, unit="A", min=0.0, doc="half-width of the rounded limiter corners (0 = hard clip)")
+
+    def check(self, values):
+        """With a limit (``i_max > 0``) the rounded corners must fit in ``[-i_max, i_max]``: ``delta <= i_max``
+        (beyond it the limiter has no linear region and its output can take the wrong sign)."""
+        i_max, delta = values["i_max"], values["delta"]
+        if i_max is not None and delta is not None and i_max > 0 and delta > i_max:
+            raise ParameterError(f"{self._where('delta', 'i_max')}: corner half-width delta = {delta!r} A exceeds "
+                                 f"the current limit i_max = {i_max!r} A, so no linear region of the limiter "
+                                 f"[-i_max, i_max] would remain; use delta <= i_max (or i_max = 0 for no limit)")
 
     def equations(self):
         import casadi as ca

@@ -11,6 +11,7 @@ problem. ``r_g = 1.59e-3 m/rad`` for the thesis test bed (p = 10 mm, Sec 4.2.1).
 
 import math
 
+from bscomp.errors import ParameterError
 from bscomp.kernel.component import Component, Constraint, Parameter
 from bscomp.kernel.ports import Flange, RotFlange
 
@@ -31,6 +32,12 @@ class IdealLeadScrew(Component):
     flange_a = RotFlange("screw side (rotation)")
     flange_b = Flange("nut side (translation)")
     lead = Parameter(0.010, unit="m/rev", doc="lead p: advance per revolution (negative for a left-hand thread)")
+
+    def check(self, values):
+        """``lead != 0``: a zero lead decouples the nut from the screw (the sign is the thread hand)."""
+        if values["lead"] == 0.0:
+            raise ParameterError(f"{self._where('lead')}: lead = 0 m/rev decouples the nut from the screw; give a "
+                                 "nonzero lead (> 0 right-hand thread, < 0 left-hand), e.g. 0.010 m/rev")
 
     @property
     def r_g(self):

@@ -22,8 +22,11 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from bscomp.errors import ParameterError
 from bscomp.kernel.component import Component, Parameter
 from bscomp.kernel.ports import Node6
+
+from .moving_screw_nut import check_on_screw
 
 _OTHER = (("u", "Fx"), ("v", "Fy"), ("tx", "Mx"), ("ty", "My"))
 
@@ -68,15 +71,17 @@ class MovingNutJoint(Component):
     z0 = Parameter(unit="m", doc="nut position along the screw at nut.w = 0")
 
     def __init__(self, z_nodes, **params):
-        super().__init__(**params)
-        self.z_nodes = np.asarray(z_nodes, float)
+        self.z_nodes = np.asarray(z_nodes, float)            # before the parameter check (range of z0)
         if self.z_nodes.ndim != 1 or len(self.z_nodes) < 2 or np.any(np.diff(self.z_nodes) <= 0):
-            raise ValueError("MovingNutJoint: z_nodes must be an increasing array of at least 2 positions")
+            raise ParameterError(f"MovingNutJoint: z_nodes must be an increasing array of at least 2 positions "
+                                 f"[m] (Ballscrew.z_nodes), got {np.asarray(z_nodes).tolist()!r}")
+        super().__init__(**params)
         for i, z in enumerate(self.z_nodes):
             self.add_port(f"n{i}", Node6(f"screw node {i} at z = {z:.6g} m"))
-        if not self.z_nodes[0] <= self._values["z0"] <= self.z_nodes[-1]:
-            raise ValueError(f"MovingNutJoint: z0 = {self._values['z0']} m is outside the screw "
-                             f"[{self.z_nodes[0]}, {self.z_nodes[-1]}] m")
+
+    def check(self, values):
+        """``z0`` lies on the screw, ``z_nodes[0] <= z0 <= z_nodes[-1]`` (the hat functions exist there only)."""
+        check_on_screw(self, values["z0"], self.z_nodes)
 
     @classmethod
     def from_screw_nut(cls, screw_nut, z_nodes, z0, c_w=0.0, c_t=0.0) -> "MovingNutJoint":

@@ -33,7 +33,7 @@ import casadi as ca
 import numpy as np
 import scipy.sparse as sp
 
-from bscomp.errors import ModelDefinitionError
+from bscomp.errors import ModelDefinitionError, ParameterError
 from bscomp.kernel.component import Component, LinearStructure, Parameter
 from bscomp.kernel.ports import Node6
 
@@ -56,6 +56,17 @@ def element_polynomials(beam) -> np.ndarray:
         N = _shape_and_derivs(xi, L, pxz, pyz)[0]               # (4, 6, 12)
         out[e] = np.einsum("ks,sij->kij", Vinv, N)
     return out
+
+
+def check_on_screw(comp, z0, z_nodes) -> None:
+    """Raise :class:`~bscomp.errors.ParameterError` naming ``z0`` and the screw range unless
+    ``z_nodes[0] <= z0 <= z_nodes[-1]`` to round-off (1e-9 of the length; ``z0`` None: not given yet, reported
+    by flatten)."""
+    tol = 1e-9 * (z_nodes[-1] - z_nodes[0])
+    if z0 is None or z_nodes[0] - tol <= z0 <= z_nodes[-1] + tol:
+        return
+    raise ParameterError(f"{comp._where('z0')}: z0 = {z0!r} m puts the nut off the screw; give a position in "
+                         f"[{z_nodes[0]:.6g}, {z_nodes[-1]:.6g}] m (the screw's first and last node)")
 
 
 class MovingScrewNut(Component):
@@ -82,9 +93,9 @@ class MovingScrewNut(Component):
     z0 = Parameter(unit="m", doc="position of P along the screw axis when nut.w = 0 (the nut position)")
 
     def __init__(self, screw, K, C=None, **params):
-        super().__init__(**params)
         beam = screw.beam_model()
-        self.z_nodes = np.asarray(beam.z_nodes, float)
+        self.z_nodes = np.asarray(beam.z_nodes, float)       # before the parameter check (range of z0)
+        super().__init__(**params)
         self.K = np.asarray(K, float)
         self.C = None if C is None else np.asarray(C, float)
         for name, A in (("K", self.K), ("C", self.C)):
@@ -93,12 +104,13 @@ class MovingScrewNut(Component):
             if A.shape != (12, 12) or not np.allclose(A, A.T, rtol=1e-10, atol=1e-12 * np.abs(A).max()):
                 raise ModelDefinitionError(f"MovingScrewNut: {name} must be a symmetric 12x12 matrix "
                                            f"(screw point P dofs, then nut dofs), got shape {A.shape}")
-        if not self.z_nodes[0] <= self._values["z0"] <= self.z_nodes[-1]:
-            raise ModelDefinitionError(f"MovingScrewNut: z0 = {self._values['z0']} m is outside the screw "
-                                       f"[{self.z_nodes[0]}, {self.z_nodes[-1]}] m")
         self.poly = element_polynomials(beam)
         for i, z in enumerate(self.z_nodes):
             self.add_port(f"n{i}", Node6(f"screw node {i} at z = {z:.6g} m"))
+
+    def check(self, values):
+        """``z0`` lies on the screw, ``z_nodes[0] <= z0 <= z_nodes[-1]`` (the shape functions exist there only)."""
+        check_on_screw(self, values["z0"], self.z_nodes)
 
     @classmethod
     def from_screw_nut(cls, screw, screw_nut, z0: float, C=None) -> "MovingScrewNut":

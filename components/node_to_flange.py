@@ -12,6 +12,7 @@ five flows of the node are zero.
 positive motor command moves it (the thesis's convention, G_x = r_g / s).
 """
 
+from bscomp.errors import ParameterError
 from bscomp.kernel.component import Component, Constraint, Parameter
 from bscomp.kernel.ports import Flange, Node6
 
@@ -31,6 +32,12 @@ class NodeToFlange(Component):
     flange = Flange("translational flange, s = direction * node.w")
     direction = Parameter(1.0, unit="1", min=-1.0, max=1.0,
                           doc="+1: flange axis along the node's +z (default); -1: along -z")
+
+    def check(self, values):
+        """``direction`` is +1 or -1 (an axis direction, not a ratio)."""
+        if values["direction"] not in (1.0, -1.0):
+            raise ParameterError(f"{self._where('direction')} must be +1 (flange axis along the node's +z) or -1 "
+                                 f"(along -z), got {values['direction']!r}")
 
     def constraints(self):
         return [Constraint(self.flange.s - self.direction * self.node.w, solve_for=self.flange.s)]

@@ -56,8 +56,6 @@ class RigidBody(Component):
             params["I"] = np.diag(np.asarray(params["I"], dtype=float))
         super().__init__(**params)
         self.dofs = check_dofs(dofs, "RigidBody")
-        if np.shape(self.I) != (3, 3):
-            raise ParameterError(f"RigidBody.I must be 3x3 or a 3-vector, got shape {np.shape(self.I)}")
         self.points = {}
         for name, r in (points or {}).items():
             r = np.asarray(r, dtype=float)
@@ -65,6 +63,18 @@ class RigidBody(Component):
                 raise ModelDefinitionError(f"RigidBody point '{name}': offset must be a 3-vector, got {r!r}")
             self.points[name] = r
             self.add_port(name, Node6(f"attachment point at r = {tuple(r)} m from the COM (Eq 3.3)"))
+
+    def check(self, values):
+        """``I`` is a symmetric 3x3 tensor (Eq 3.2): a non-symmetric one is an input error, not symmetrised."""
+        I = np.asarray(values["I"], dtype=float)
+        if I.shape != (3, 3):
+            raise ParameterError(f"{self._where('I')}: the inertia tensor must be 3x3 (the constructor also takes a "
+                                 f"3-vector of principal moments), got shape {I.shape}")
+        scale = np.abs(I).max()
+        if np.abs(I - I.T).max() > 1e-9 * scale:
+            raise ParameterError(f"{self._where('I')}: the inertia tensor must be symmetric (I_ij = I_ji, Eq 3.2), "
+                                 f"got {I.tolist()}; largest asymmetry |I - I^T| = {np.abs(I - I.T).max():.6g} "
+                                 "kg.m^2")
 
     def template_key(self):
         """Instance configuration baked into the constraints (kept dofs, attachment offsets)."""

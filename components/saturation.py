@@ -36,15 +36,23 @@ class Saturation(Component):
     y_min = Parameter(-1.0, unit="1", doc="lower limit, below y_max (constructor default: -y_max)")
     delta = Parameter(0.0, unit="1", min=0.0, doc="half-width of the rounded corners (0 = hard clip)")
 
-    def __init__(self, y_max: float = 1.0, y_min: float | None = None, **params):
-        if y_min is None:
-            y_min = -y_max
-        if not y_min < y_max:
-            raise ParameterError(f"Saturation needs y_min < y_max, got y_min = {y_min!r}, y_max = {y_max!r}")
+    def __init__(self, y_max: float | str = 1.0, y_min: float | str | None = None, **params):
+        if y_min is None:                       # validate first: a string or NaN y_max gets a ParameterError
+            y_min = -Saturation.y_max.validate(y_max)
         super().__init__(y_max=y_max, y_min=y_min, **params)
-        if 2 * self.delta > y_max - y_min:
-            raise ParameterError(f"Saturation corner half-width delta = {self.delta!r} is more than half the "
-                                 f"range [{y_min!r}, {y_max!r}]: no linear region would remain")
+
+    def check(self, values):
+        """``y_min < y_max`` and ``2 delta <= y_max - y_min`` (a linear region remains, see ``_limits``)."""
+        lo, hi, delta = values["y_min"], values["y_max"], values["delta"]
+        if lo is None or hi is None:
+            return
+        if not lo < hi:
+            raise ParameterError(f"{self._where('y_min', 'y_max')}: the limits need y_min < y_max, got y_min = "
+                                 f"{lo!r}, y_max = {hi!r}; set them in order (e.g. y_min = -y_max)")
+        if delta is not None and 2 * delta > hi - lo:
+            raise ParameterError(f"{self._where('delta')}: corner half-width delta = {delta!r} is more than half "
+                                 f"the range [y_min, y_max] = [{lo!r}, {hi!r}], so no linear region would remain; "
+                                 f"use delta <= {(hi - lo) / 2:.6g}")
 
     def equations(self):
         return [self.y.y - limit(self.u.u, self.y_min, self.y_max, self.delta)]

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from bscomp.errors import ModelDefinitionError
+from bscomp.errors import ModelDefinitionError, ParameterError
 from bscomp.kernel.component import Component, LinearStructure, Parameter
 from bscomp.kernel.ports import Node6
 
@@ -107,6 +107,13 @@ class ScrewNut(Component):
             k_ball = k_ball_hertz(n_ball, alpha, beta, preload=preload, **hertz)
         return cls(preload=preload, hand=hand, k_ball=k_ball, n_ball=n_ball, alpha=alpha, beta=beta, R=R,
                    phi_start=phi[0], phi_end=phi[1], r_g=gear_ratio(lead))
+
+    def check(self, values):
+        """The ball azimuth range of Eq B.2 is not empty: ``phi_end > phi_start``."""
+        a, b = values["phi_start"], values["phi_end"]
+        if a is not None and b is not None and not b > a:
+            raise ParameterError(f"{self._where('phi_start', 'phi_end')}: the ball azimuth range needs phi_end > "
+                                 f"phi_start (Eq B.2), got phi_start = {a!r} rad, phi_end = {b!r} rad")
 
     def stiffness_matrix(self) -> np.ndarray:
         """K_SN (12x12, screw point dofs first) at the current parameter values (Eq 3.35)."""

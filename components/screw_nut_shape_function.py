@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from bscomp.errors import ParameterError
 from bscomp.kernel.component import Component, LinearStructure
 from bscomp.kernel.ports import Node6
 
@@ -53,8 +54,9 @@ class ScrewNutShapeFunction(Component):
         self.screw_z = tuple(float(z) for z in screw.z_nodes)
         self.z_nut = float(z_nut)
         if not self.screw_z[0] <= self.z_nut <= self.screw_z[-1]:
-            raise ValueError(f"ScrewNutShapeFunction: z_nut = {z_nut} m is outside the screw "
-                             f"[{self.screw_z[0]}, {self.screw_z[-1]}] m")
+            raise ParameterError(f"ScrewNutShapeFunction: z_nut = {z_nut!r} m puts the nut off the screw; give a "
+                                 f"position in [{self.screw_z[0]:.6g}, {self.screw_z[-1]:.6g}] m (the screw's first "
+                                 "and last node)")
         v = interface._values
         phi = (v["phi_start"], v["phi_end"])
         beam = screw.beam_model()

@@ -99,11 +99,12 @@ from bscomp.components import (
     Torque,
     TorsionalDamper,
 )
-from bscomp.errors import ModelDefinitionError
+from bscomp.errors import ModelDefinitionError, UsageError
 from bscomp.kernel.damping import matrix_from_ratios
 from bscomp.kernel.interface import InsertionPoint, UncertainParameter, ValidationInterface
 
 from .parameters import get_value
+from .testbed_options import VARIANTS, check_choices, check_geometry
 from .thesis_parts import thesis_ballscrew, thesis_parameters, thesis_screw_nut, thesis_sections
 
 __all__ = [
@@ -113,7 +114,6 @@ __all__ = [
 ]
 
 #: Verification steps of thesis Sec 3.5.2 and the models of Ch 4/5 and App C.
-VARIANTS = ("free_screw", "screw_nut", "no_table", "full", "axial_torsional", "submodel1", "appendix_c")
 
 def nut_positions(params: str = "fadal_vmc2216_x") -> dict:
     """Named nut-centre positions x [m]: ``L``, ``C``, ``R`` (Tables 4.1/4.2) and ``1``, ``2``, ``3``
@@ -217,14 +217,14 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
         x [m] of the angular-contact pair, the deep-groove bearing and the screw-side jaw
         (toml CHOICEs 0.8755 / 0.0335 / 0.9205, for ``motor_end="F"``).
     root_diameter : float, optional
-        Stiffness diameter of the thread (default Table B.1's 35.5 mm; Table 3.1 prints 40 mm).
+        Stiffness diameter [m] of the thread, in (bore 0.012, 1) (Table B.1: 35.5 mm default; Table 3.1 prints 40 mm).
     jaw1 : {"motor", "screw"}
         Where J1 sits: on the motor shaft (toml CHOICE) or with J2 on the screw side (sensitivity only).
     ksn : {"full", "axial_torsional"}
         Interface matrix: the full K_SN of Eq 3.35/3.45, or only its direct terms plus the axial-torsional
         coupling (Eq 3.46, Case A of App C; built as a :class:`Bushing` with the same 6x6 block).
     pitch : float, optional
-        Lead [m] of the interface for the App C pitch study (default Sec B.1's 10 mm); alpha follows
+        Lead [m] > 0 of the interface for the App C pitch study (default Sec B.1's 10 mm); alpha follows
         Eq 3.6 with d_p = 40 mm when given.
     damping : bool
         Attach the modal damping of the toml ``[damping]`` group (drive variants only) as
@@ -259,12 +259,11 @@ def testbed(variant: str = "full", nut_position="C", *, dofs=None, coupling: str
         exists, ``sources`` citing the thesis, ``build_args`` (the resolved choices) and, for the drive
         variants, ``validation`` (:class:`~bscomp.kernel.interface.ValidationInterface`, see the module docstring).
     """
-    _check_choices(variant, coupling, ksn, nut_joint, jaw1, viscous, drive_input)
+    check_choices(variant, coupling=coupling, ksn=ksn, nut_joint=nut_joint, jaw1=jaw1, viscous=viscous,
+                   drive_input=drive_input)
     p = thesis_parameters(params)
     v = lambda key: get_value(p, key)  # noqa: E731
-    motor_end = v("screw.motor_end") if motor_end is None else motor_end
-    if motor_end not in ("F", "A"):
-        raise ModelDefinitionError(f"testbed: motor_end must be 'F' or 'A', got {motor_end!r}")
+    motor_end = check_geometry(v, root_diameter, pitch, motor_end)
     if dofs is None:
         dofs = ("w", "tz") if variant in ("axial_torsional", "submodel1") else ("u", "v", "w", "tx", "ty", "tz")
     dofs = tuple(dofs)
@@ -331,30 +330,6 @@ _DESCRIPTIONS = {
     "submodel1": "sub-model 1 of Table 5.1: screw, bearings, coupling, rotor (axial + torsional)",
     "appendix_c": "App C: table+nut rigid body on four roller slides (Table C.1)",
 }
-
-
-def _check_choices(variant, coupling, ksn, nut_joint, jaw1, viscous, drive_input) -> None:
-    """Reject an unknown variant or option of :func:`testbed`, naming the allowed values."""
-    if variant not in VARIANTS:
-        raise ModelDefinitionError(f"testbed: unknown variant {variant!r}; use one of {VARIANTS}")
-    if coupling not in ("jaw", "bellows"):
-        raise ModelDefinitionError(f"testbed: coupling must be 'jaw' or 'bellows', got {coupling!r}")
-    if ksn not in ("full", "axial_torsional"):
-        raise ModelDefinitionError(f"testbed: ksn must be 'full' or 'axial_torsional', got {ksn!r}")
-    if nut_joint not in ("point", "moving"):
-        raise ModelDefinitionError(f"testbed: nut_joint must be 'point' or 'moving', got {nut_joint!r}")
-    if nut_joint == "moving" and ksn != "full":
-        raise ModelDefinitionError("testbed: nut_joint='moving' needs ksn='full' (the moving joint carries the "
-                                   "whole 12x12 K_SN)")
-    if jaw1 not in ("motor", "screw"):
-        raise ModelDefinitionError(f"testbed: jaw1 must be 'motor' or 'screw', got {jaw1!r}")
-    if viscous not in ("motor", "guide", "none"):
-        raise ModelDefinitionError(f"testbed: viscous must be 'motor', 'guide' or 'none', got {viscous!r}")
-    if drive_input not in ("voltage", "torque"):
-        raise ModelDefinitionError(f"testbed: drive_input must be 'voltage' (amplifier command amp.u [V]) or "
-                                   f"'torque' (motor.tau [N m]), got {drive_input!r}")
-
-
 def _support_positions(v, motor_end, length, b1_position, b2_position, coupling_position) -> tuple:
     """x [m] of the thrust pair b1, the deep-groove bearing b2 and the screw-side jaw: the toml CHOICEs
     (for the motor at F) unless given; ``motor_end="A"`` mirrors the defaults about the screw's middle."""
@@ -533,14 +508,10 @@ def _appendix_c_table(s: System, v, nut_port: str) -> None:
     s2 = 12.0 / m
     a2, b2, c2 = ((Iyy + Izz - Ixx) * s2 / 2.0, (Ixx + Izz - Iyy) * s2 / 2.0, (Ixx + Iyy - Izz) * s2 / 2.0)
     h, w, ln = math.sqrt(a2), math.sqrt(b2), math.sqrt(c2)       # x (vertical), y (lateral), z (feed)
-    gap = 0.05
-    com_x = gap + h / 2.0                                        # COM above the screw axis
-    pts = {"P": [-com_x, 0.0, 0.0]}
-    corners = {}
-    for i, (sy, sz) in enumerate(((1, 1), (-1, 1), (1, -1), (-1, -1))):
-        corners[f"s{i}"] = [-h / 2.0, sy * w / 2.0, sz * ln / 2.0]
-    pts.update(corners)
-    s.add("table", RigidBody(m=m, I=[Ixx, Iyy, Izz], points=pts))
+    com_x = 0.05 + h / 2.0                                       # COM above the screw axis (50 mm gap)
+    corners = {f"s{i}": [-h / 2.0, sy * w / 2.0, sz * ln / 2.0]
+               for i, (sy, sz) in enumerate(((1, 1), (-1, 1), (1, -1), (-1, -1)))}
+    s.add("table", RigidBody(m=m, I=[Ixx, Iyy, Izz], points={"P": [-com_x, 0.0, 0.0], **corners}))
     s.add("guide", LinearGuide(slides=list(corners), vertical="x", k_vertical=v("guideways.appC_k_vertical"),
                                k_lateral=v("guideways.appC_k_lateral")))
     s.connect(nut_port, "table.P")
@@ -550,43 +521,51 @@ def _appendix_c_table(s: System, v, nut_port: str) -> None:
 
 
 # ---- registered builders (bscomp.systems.REGISTRY) --------------------------------------------------------
+def _fixed(variant: str, kw: dict) -> str:
+    """The variant a registered builder fixes; a ``variant`` keyword (popped from ``kw``) may only repeat it."""
+    if (given := kw.pop("variant", variant)) != variant:
+        raise UsageError(f"build option variant={given!r}: this system is the test bed's {variant!r} variant; build "
+                         f"another by name ({sorted(_NAMES.values())}) or call testbed(variant=...), one of {VARIANTS}")
+    return variant
+
+
 def testbed_full(**kw) -> System:
     """Full 6-DOF test bed with the jaw coupling (Sec 3.5.2.4, Table 4.1)."""
-    return testbed("full", **kw)
+    return testbed(_fixed("full", kw), **kw)
 
 
 def testbed_free_screw(**kw) -> System:
     """Free-free ballscrew (Sec 3.5.2.1)."""
-    return testbed("free_screw", **kw)
+    return testbed(_fixed("free_screw", kw), **kw)
 
 
 def testbed_screw_nut(**kw) -> System:
     """Free-free ballscrew + nut (Sec 3.5.2.2, Tables 3.2/3.3); default nut position 2."""
     kw.setdefault("nut_position", "2")
-    return testbed("screw_nut", **kw)
+    return testbed(_fixed("screw_nut", kw), **kw)
 
 
 def testbed_no_table(**kw) -> System:
     """Screw, bearings and nut on the frame (Sec 3.5.2.3)."""
-    return testbed("no_table", **kw)
+    return testbed(_fixed("no_table", kw), **kw)
 
 
 def testbed_axial_torsional(**kw) -> System:
     """Axial + torsional model of Ch 5 (sub-models 1 + 2 of Table 5.1)."""
-    return testbed("axial_torsional", **kw)
+    return testbed(_fixed("axial_torsional", kw), **kw)
 
 
 def testbed_submodel1(**kw) -> System:
     """Sub-model 1 of Table 5.1 (Table 5.3 frequencies)."""
-    return testbed("submodel1", **kw)
+    return testbed(_fixed("submodel1", kw), **kw)
 
 
 def testbed_bellows(**kw) -> System:
     """Full test bed with the bellows coupling of Sec 4.4.1 (Table 4.2)."""
     kw.setdefault("coupling", "bellows")
-    return testbed("full", **kw)
+    return testbed(_fixed("full", kw), **kw)
 
 
 def testbed_appendix_c(**kw) -> System:
     """App C set-up: table+nut rigid body on roller slides (Table C.1)."""
-    return testbed("appendix_c", **kw)
+    return testbed(_fixed("appendix_c", kw), **kw)

@@ -115,7 +115,7 @@ class Parameter:
         return obj._values[self.name]
 
     def __set__(self, obj, value):
-        obj._values[self.name] = self.validate(value, obj)
+        obj.set(self.name, value)
 
     def validate(self, value, owner=None):
         """Check a value against the bounds; return it as float or float array.
@@ -371,7 +371,7 @@ class Component:
         self._parent = None
         for pname, p in self.parameters().items():
             if pname in params:
-                setattr(self, pname, params.pop(pname))
+                self._values[pname] = p.validate(params.pop(pname), self)
             elif p.default is not None:
                 self._values[pname] = p.validate(p.default, self)
             else:
@@ -380,6 +380,7 @@ class Component:
             raise UnknownNameError(
                 f"{type(self).__name__} has no parameter(s) {sorted(params)}; "
                 f"its parameters are {sorted(self.parameters())}")
+        self.check(dict(self._values))
 
     # ---- declarations -------------------------------------------------------------------------
     @classmethod
@@ -475,13 +476,33 @@ class Component:
         return self._values[name]
 
     def set(self, name: str, value) -> "Component":
-        """Set a parameter (validated against its bounds)."""
+        """Set a parameter: validated against its bounds (:meth:`Parameter.validate`), then the whole set of
+        would-be values against the cross-parameter conditions (:meth:`check`) before it is stored, so a
+        rejected value leaves the component unchanged."""
         params = self.parameters()
         if name not in params:
             raise UnknownNameError(f"{self._display_name()} ({type(self).__name__}) has no parameter '{name}'; "
                                    f"it has {sorted(params)}")
-        setattr(self, name, value)
+        v = params[name].validate(value, self)
+        self.check({**self._values, name: v})
+        self._values[name] = v
         return self
+
+    def check(self, values: dict) -> None:
+        """Conditions between parameters (or on one that its bounds cannot say, such as ``lead != 0``).
+
+        ``values`` maps every declared parameter name to its value (already checked against its own bounds,
+        ``None`` for a required one not given yet, which this method skips). A violated condition raises
+        :class:`~bscomp.errors.ParameterError` naming the component and the parameters and how to fix
+        it. Called at the end of ``Component.__init__`` (instance state a check reads, such as a mesh,
+        must be set before ``super().__init__``), by :meth:`set` (and so ``System.set`` and ``params=``
+        overrides of a System) with the would-be values, and by :meth:`bscomp.Dae.parameter_vector` with
+        a run's values. Default: no condition.
+        """
+
+    def _where(self, *names: str) -> str:
+        """``'sat.y_min', 'sat.y_max' (Saturation)``: parameters by dotted name, for error messages."""
+        return ", ".join(f"'{self._display_name()}.{n}'" for n in names) + _class_of(self)
 
     def copy(self):
         """A deep copy, detached from any system."""

@@ -289,8 +289,16 @@ class Dae:
 
     # ---- parameters ---------------------------------------------------------------------------
     def parameter_vector(self, params: dict | None = None) -> np.ndarray:
-        """Parameter vector with overrides by name; structural parameters cannot be changed here."""
+        """Parameter vector ``p0`` with overrides by name; structural parameters cannot be changed here.
+
+        Each override is checked against its parameter's bounds (and a ``"<number> <unit>"`` string is
+        converted to the declared unit, :meth:`bscomp.Parameter.validate`); then every component with an
+        override gets its cross-parameter conditions checked (:meth:`bscomp.Component.check`) on the run's
+        values of all its parameters, so ``params={"sat.y_min": 5.0}`` with ``y_max = 1`` raises a
+        :class:`~bscomp.errors.ParameterError` as ``system.set`` would.
+        """
         p = self.p0.copy()
+        touched = {}
         for k, v in (params or {}).items():
             if k in self.structural_parameters:
                 raise UnknownNameError(
@@ -299,11 +307,35 @@ class Dae:
             if k not in self.p_names:
                 raise UnknownNameError(f"'{self.name}' has no parameter '{k}'")
             idx = self.p_names.index(k)
-            comp = k.rpartition(".")[0]
             if self.system is not None:
-                self.system.component(comp).parameters()[k.rpartition(".")[2]].validate(v, None)
+                path, _, pname = k.rpartition(".")
+                comp = self.system.component(path)
+                v = comp.parameters()[pname.partition("[")[0]].validate(v, comp)
+                touched[path] = comp
             p[idx] = float(v)
+        for path, comp in touched.items():
+            comp.check(self._component_values(path, comp, p))
         return p
+
+    def _component_values(self, path: str, comp, p: np.ndarray) -> dict:
+        """``{parameter: value}`` of one component in the parameter vector ``p`` (vector and matrix
+        parameters reassembled from their ``name[j]`` entries, column-major as flattening stacks them)."""
+        index = self._cache.get("p_index")
+        if index is None:
+            index = self._cache["p_index"] = {n: i for i, n in enumerate(self.p_names)}
+        out = dict(comp._values)
+        for n in comp.parameters():
+            full = f"{path}.{n}"
+            if full in index:
+                out[n] = float(p[index[full]])
+            elif f"{full}[0]" in index:
+                entries, j = [], 0
+                while f"{full}[{j}]" in index:
+                    entries.append(p[index[f"{full}[{j}]"]])
+                    j += 1
+                arr, shape = np.asarray(entries, float), np.shape(out[n])
+                out[n] = arr.reshape(shape, order="F") if int(np.prod(shape)) == arr.size else arr
+        return out
 
     # ---- initial values -----------------------------------------------------------------------
     def initialize(self, x0=None, u0=None, p=None, z_guess=None, tol=1e-10, max_iter=20, xd_guess=None,

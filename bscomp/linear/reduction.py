@@ -87,9 +87,10 @@ def _index_list(dofs: Any, n: int, names: Sequence[str] | None, what: str) -> np
                 raise UsageError(f"{what}: unknown DOF name {d!r} (pass dof_names to use names)")
             out.append(list(names).index(d))
         elif isinstance(d, (int, np.integer)) and not isinstance(d, bool):
-            k = int(d) + n if int(d) < 0 else int(d)
-            if not 0 <= k < n:
-                raise UsageError(f"{what}: DOF index {d} out of range for {n} DOF")
+            k = int(d)
+            if not 0 <= k < n:          # a negative index is an error, not counted from the end
+                raise UsageError(f"{what}: DOF index {d} out of range: give indices 0..{n - 1} for {n} DOF "
+                                 "(negative indices are not counted from the end)")
             out.append(k)
         else:
             raise UsageError(f"{what}: DOF must be an int index or a name, got {d!r}")
@@ -366,7 +367,7 @@ def cms_reduce(
     M, K : (n, n) array_like or scipy.sparse matrix
         Symmetric mass (positive definite) and stiffness (positive semi-definite) matrices.
     boundary_dofs : int, str or sequence
-        Exterior DOF ``e`` (indices, or names if ``dof_names`` is given): DOF where actuation or
+        Exterior DOF ``e`` (indices 0..n-1, or names if ``dof_names`` is given): DOF where actuation or
         joint forces act and anchor DOF (Sec 5.3.2: the motor rotation and a screw node).  They must
         restrain every rigid-body motion, so that ``K_ii`` is invertible (Eq 5.13).
     n_modes : int, optional
