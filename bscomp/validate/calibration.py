@@ -28,21 +28,20 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from bscomp.errors import UsageError, check_number
+from bscomp.errors import ArgumentTypeError, UsageError, check_number
 from bscomp.files import atomic_write, json_default
 from bscomp.kernel.interface import interface_of
 from bscomp.kernel.system import System
 from bscomp.plotting.validate import calibration_plot
+from bscomp.validate.arguments import check_fit, check_uncertain_names, load_datasets
 from bscomp.validate.comparison import user_errors
-from bscomp.validate.datasets import FrfData, TimeData, warn_amplitude_fit
+from bscomp.validate.datasets import FrfData, warn_amplitude_fit
 from bscomp.validate.evaluation import Problem, Structures, noise_levels, residual_blocks
-from bscomp.validate.readers import load_all
-from bscomp.validate.residuals import build_for
+from bscomp.validate.residuals import build_for, data_label
 
 __all__ = ["calibrate", "Calibration", "FitSetup", "fit_uncertain", "parameter_bounds", "user_summary"]
 
@@ -54,16 +53,19 @@ def _condition_key(data, overrides):
 
 
 def _systems(model, datasets, overrides):
-    """``({key: System}, keys)``: the nominal model built at each dataset's conditions."""
+    """``({key: System}, keys)``: the nominal model built at each dataset's conditions (a condition the model
+    refuses is an error naming its file and line)."""
     keys = [_condition_key(d, overrides) for d in datasets]
     systems = {}
     for key in dict.fromkeys(keys):
         cond = dict(key)
+        d = datasets[keys.index(key)]
+        locs = {k: v for (kind, k), v in d.locations.items() if kind == "condition" and k not in (overrides or {})}
         if isinstance(model, System):
             dotted = {k: v for k, v in cond.items() if "." in k}
-            systems[key] = model.with_parameters(dotted) if dotted else model
+            systems[key] = build_for(model, dotted, source=data_label(d), locations=locs) if dotted else model
         else:
-            systems[key] = build_for(model, cond)
+            systems[key] = build_for(model, cond, source=data_label(d), locations=locs)
     return systems, keys
 
 
@@ -76,6 +78,9 @@ def _uncertain(system, uncertain, default_spread):
         return {k: default_spread for k in (getattr(system, "uncertain", None) or [])}
     if isinstance(uncertain, str):
         uncertain = [uncertain]
+    if not isinstance(uncertain, (dict, list, tuple, set)):
+        raise ArgumentTypeError(f"uncertain must be a list of parameter names 'component.parameter' or a dict "
+                                f"{{name: spread}}, got {type(uncertain).__name__} {uncertain!r}"[:300])
     if isinstance(uncertain, dict):
         out = {k: check_number(f"spread of '{k}'", v, positive=True) for k, v in uncertain.items()}
     else:
@@ -83,6 +88,7 @@ def _uncertain(system, uncertain, default_spread):
     if not out:
         raise UsageError("uncertain is empty: name at least one parameter to calibrate (e.g. ['table.m']), or "
                          "leave it out to use the drive's declared uncertain parameters")
+    check_uncertain_names(system, out)
     return out
 
 
@@ -329,8 +335,9 @@ def calibrate(model, datasets, uncertain=None, *, overrides: dict | None = None,
     overrides : dict, optional
         Build arguments / parameter values for every dataset, over the files' conditions.
     default_spread : float
+        Relative spread (> 0) of the parameters given as a list.
     max_nfev : int, optional
-        Most residual evaluations of the least-squares fit.
+        Most residual evaluations of the least-squares fit (>= 1).
 
     Returns
     -------
@@ -348,12 +355,9 @@ def calibrate(model, datasets, uncertain=None, *, overrides: dict | None = None,
     BLAS runs on one thread inside (``threadpoolctl``), as in :func:`~bscomp.validate.diagnostics.diagnose`:
     the work is many small dense eigen-decompositions.
     """
-    if isinstance(datasets, (FrfData, TimeData, str, Path)):
-        datasets = [datasets]
-    datasets = load_all(list(datasets))
+    datasets = load_datasets(datasets, "calibrate")
+    default_spread, max_nfev = check_fit(default_spread, max_nfev)
     warn_amplitude_fit(datasets, "calibrate")
-    if not datasets:
-        raise ValueError("calibrate needs at least one dataset")
     with threadpool_limits(limits=1, user_api="blas"):
         setup = FitSetup.build(model, datasets, uncertain, overrides, default_spread)
         return fit_uncertain(setup, max_nfev=max_nfev)

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -35,10 +34,10 @@ from bscomp.files import atomic_write
 from bscomp.model import model_name
 from bscomp.plotting.validate import comparison_plots
 from bscomp.validate.amplitude import amplitude_dependence
+from bscomp.validate.arguments import check_compare, load_datasets
 from bscomp.validate.datasets import FrfData, TimeData
 from bscomp.validate.frf_comparison import compare_frf, frf_user_rows
-from bscomp.validate.readers import load_all
-from bscomp.validate.residuals import build_for, fit_percent, frf_errors
+from bscomp.validate.residuals import build_for_data, fit_percent, frf_errors
 from bscomp.validate.signatures import SIGNATURES
 from bscomp.validate.time_comparison import compare_time
 
@@ -255,25 +254,30 @@ def compare(system_or_build, datasets, params: dict | None = None, bands=None, p
     params : dict, optional
         Parameter overrides by dotted name.
     bands : list of (lo, hi), optional
-        Frequency bands [Hz] for the error breakdown; default octaves.
+        Frequency bands [Hz] for the error breakdown, ``0 < lo < hi``, each holding a measured frequency;
+        default octaves.
     pair_tolerance : float
-        Largest relative frequency difference for pairing a measured resonance with a model mode.
+        Largest relative frequency difference (> 0) for pairing a measured resonance with a model mode.
     n_windows : int
-        Number of equal time windows for locating the error in time series.
+        Number of equal time windows (>= 1) for locating the error in time series.
 
     Returns
     -------
     Comparison
+
+    Raises
+    ------
+    UsageError
+        An argument out of range or no dataset (:mod:`bscomp.validate.arguments`).
     """
-    if isinstance(datasets, (FrfData, TimeData, str, Path)):
-        datasets = [datasets]
-    datasets = load_all(datasets)
+    datasets = load_datasets(datasets, "compare")
+    bands, pair_tolerance, n_windows = check_compare(bands, pair_tolerance, n_windows, datasets)
     frf_c, time_c = [], []
     name = model_name(system_or_build)
     for k, d in enumerate(datasets):
         if not isinstance(d, (FrfData, TimeData)):
             raise TypeError(f"expected FrfData, TimeData or a file path, got {type(d).__name__}")
-        system = build_for(system_or_build, d.conditions, params, source=d.source)
+        system = build_for_data(system_or_build, d, params)
         name = system.name
         c = compare_frf(system, d, bands, pair_tolerance) if isinstance(d, FrfData) else compare_time(system, d,
                                                                                                       n_windows)

@@ -18,10 +18,16 @@ import numpy as np
 from bscomp.errors import BscompError, ModelLimitationWarning
 
 __all__ = ["FrfData", "TimeData", "MeasurementFileError", "MeasurementWarning", "check_condition",
-           "MIN_COHERENCE", "warn_amplitude_fit"]
+           "MIN_COHERENCE", "MIN_FRF_POINTS", "MIN_TIME_SAMPLES", "check_points", "warn_amplitude_fit"]
 
 #: a pair whose coherence stays below this everywhere carries no usable signal (error)
 MIN_COHERENCE = 0.1
+#: fewest frequencies of an FRF compared or fitted: its fit % measures the error against the response's spread
+#: over frequency (one point has none) and the phase error's slope (an apparent delay) needs three points
+MIN_FRF_POINTS = 3
+#: fewest samples of a time series compared or fitted: its noise floor is the robust scale of third differences,
+#: which needs six samples (:func:`bscomp.validate.noise.robust_sigma`), and a fit % the channel's spread
+MIN_TIME_SAMPLES = 6
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
 _FILE_SUFFIX = re.compile(r"\.(toml|json|py|pyc|csv|txt|ya?ml|ini|cfg|pkl|pickle|npz|npy|so|dll|sh)$", re.I)
 #: build arguments a data file may not set: they name files the library would open
@@ -86,6 +92,26 @@ def check_condition(name, value, where=(None, None, None)):
     return v
 
 
+def check_points(data, who: str = "the comparison"):
+    """An FRF needs :data:`MIN_FRF_POINTS` frequencies, a time series :data:`MIN_TIME_SAMPLES` samples for
+    ``who`` (compare, calibrate, diagnose: their noise floors and fit % need them); else
+    :class:`MeasurementFileError` naming the file. (A shorter file still reads.)"""
+    n, least, what = ((np.size(data.freqs), MIN_FRF_POINTS, "frequencies") if isinstance(data, FrfData) else
+                      (np.size(data.t), MIN_TIME_SAMPLES, "samples"))
+    if n < least:
+        why = ("a fit % and the phase error's slope need three frequencies" if isinstance(data, FrfData) else
+               "its noise floor, the robust scale of third differences, needs six samples")
+        raise MeasurementFileError(data.label, None, None, f"{data.kind} data with {n} {what}: {who} needs at least "
+                                   f"{least} ({why}); measure more points")
+    if who in ("calibrate", "diagnose") and isinstance(data, TimeData):
+        for name, y in data.outputs.items():          # residuals are divided by the noise floor: 0 for these
+            if np.ptp(np.asarray(y, float)) == 0:
+                ln, col = data.locations.get(("column", name), (None, None))
+                raise MeasurementFileError(data.label, ln, col, f"output {name} is {float(y[0]):g} in every sample: "
+                                           f"{who} whitens each channel by its noise, which a constant channel does "
+                                           "not show; drop the column or record a longer run", name)
+
+
 def check_coherence(pair, g, source, where=(None, None)):
     """Coherence all below :data:`MIN_COHERENCE` is an error (it would weight every error to zero and give a
     perfect score); below 0.5 on more than half the band a :class:`MeasurementWarning`."""
@@ -147,6 +173,10 @@ class FrfData:
         Amplitude of the sine the response was measured with, per input (SI; ``# excitation amp.u: 2 V``).
         :func:`~bscomp.validate.compare` then also compares the model at that amplitude (describing
         function of its friction and backlash).
+    path : str
+        The file it was read from ("" when built in memory); errors and warnings name it (:attr:`label`).
+    excitation_units : dict input -> str
+        SI unit of each stated excitation amplitude, as the file gave it (checked against the model's input).
     """
 
     freqs: np.ndarray
@@ -157,8 +187,15 @@ class FrfData:
     source: str = ""
     locations: dict = field(default_factory=dict, repr=False)
     excitation: dict = field(default_factory=dict)
+    path: str = ""
+    excitation_units: dict = field(default_factory=dict)
 
     kind = "frf"
+
+    @property
+    def label(self) -> str:
+        """What errors and warnings name: the file's path, else its source text."""
+        return self.path or self.source or "<measurement>"
 
     @property
     def pairs(self) -> list:
@@ -180,14 +217,14 @@ class FrfData:
                           for k, v in (self.coherence or {}).items()}
         self.units = {tuple(k): v for k, v in (self.units or {}).items()}
         for pair, g in self.coherence.items():
-            check_coherence(pair, g, self.source, self.locations.get(("column", pair), (None, None)))
+            check_coherence(pair, g, self.label, self.locations.get(("column", pair), (None, None)))
         for name, a in (self.excitation or {}).items():
             ln, col = self.locations.get(("excitation", name), (None, None))
             if name not in self.inputs:
-                raise MeasurementFileError(self.source, ln, col, f"excitation given for {name!r}, which is not an "
+                raise MeasurementFileError(self.label, ln, col, f"excitation given for {name!r}, which is not an "
                                            f"input of the file's pairs (inputs: {self.inputs})", name)
             if not (np.isfinite(a) and a > 0):
-                raise MeasurementFileError(self.source, ln, col, f"excitation of {name!r} must be a positive "
+                raise MeasurementFileError(self.label, ln, col, f"excitation of {name!r} must be a positive "
                                            f"amplitude, got {a!r}", name)
             self.excitation[name] = float(a)
 
@@ -210,6 +247,8 @@ class TimeData:
     source : str
     locations : dict
         ``("column", name)`` / ``("unit", name)`` -> (line, column) in the file.
+    path : str
+        The file it was read from ("" when built in memory); errors and warnings name it (:attr:`label`).
     """
 
     t: np.ndarray
@@ -219,8 +258,14 @@ class TimeData:
     conditions: dict = field(default_factory=dict)
     source: str = ""
     locations: dict = field(default_factory=dict, repr=False)
+    path: str = ""
 
     kind = "time"
+
+    @property
+    def label(self) -> str:
+        """What errors and warnings name: the file's path, else its source text."""
+        return self.path or self.source or "<measurement>"
 
     def __post_init__(self):
         self.t = np.asarray(self.t, float)

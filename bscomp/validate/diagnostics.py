@@ -46,6 +46,7 @@ Information criterion: with whitened residuals, ``-2 ln L = sum r^2`` and ``BIC 
 
 from __future__ import annotations
 
+import inspect
 import math
 import sys
 import time
@@ -56,6 +57,7 @@ from threadpoolctl import threadpool_limits
 
 from bscomp.kernel.interface import NotApplicable
 from bscomp.validate.amplitude import amplitude_dependence, amplitude_note, frf_confirmation
+from bscomp.validate.arguments import check_diagnose, load_datasets, resolve_candidates
 from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
 from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
@@ -63,7 +65,6 @@ from bscomp.validate.datasets import FrfData, warn_amplitude_fit
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
 from bscomp.validate.equivalence import mark_equivalent
 from bscomp.validate.evaluation import Problem
-from bscomp.validate.readers import load_all
 from bscomp.validate.refinement import job_base, refine_candidate, refine_task
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
@@ -170,10 +171,10 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
     uncertain : list of str or dict, optional
         Parameters to re-calibrate first; a dict gives each one's relative spread. Default: the drive's
         declared ``validation.uncertain``.
-    candidates : list of Candidate, optional
-        Default :func:`~bscomp.validate.candidates.default_candidates`.
+    candidates : list of Candidate or of their names, optional
+        Default :func:`~bscomp.validate.candidates.default_candidates` (a name picks one of those).
     max_effects : int
-        Most effects accepted (greedy rounds).
+        Most effects accepted (greedy rounds, >= 0; 0 re-calibrates the uncertain parameters only).
     n_refine : int
         Candidates fitted by least squares per round (the rest are only screened).
     bic_threshold, min_drop, min_heldout_drop, noise_tolerance : float
@@ -188,6 +189,10 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
         ``Client.get_executor()``; the model travels as its name / path / ModelSpec and each worker builds
         its evaluators once (:mod:`bscomp.validate.refinement`). Same result as the serial run.
 
+    **_legacy
+        Keywords of earlier versions (:data:`~bscomp.validate.arguments.LEGACY_DIAGNOSE`), ignored with a
+        DeprecationWarning; any other keyword is a :class:`~bscomp.errors.UsageError`.
+
     Returns
     -------
     Diagnosis
@@ -198,6 +203,12 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
     eigen-decompositions, which a multi-threaded BLAS slows down by up to 100x on a loaded 2-core machine
     (98x98 ``eigh``: 1.7 ms on one thread, 0.24 s on two under load).
     """
+    n = check_diagnose(_legacy, [k for k in inspect.signature(diagnose).parameters if k != "_legacy"],
+                       max_effects=max_effects, n_refine=n_refine, bic_threshold=bic_threshold, min_drop=min_drop,
+                       min_heldout_drop=min_heldout_drop, noise_tolerance=noise_tolerance,
+                       default_spread=default_spread, n_screen=n_screen, n_scan=n_scan)
+    datasets, candidates = load_datasets(datasets, "diagnose"), resolve_candidates(candidates)
+    max_effects, n_refine, n_screen, n_scan = n["max_effects"], n["n_refine"], n["n_screen"], n["n_scan"]
     with threadpool_limits(limits=1, user_api="blas"):
         return _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_refine, bic_threshold,
                          min_drop, min_heldout_drop, noise_tolerance, overrides, verbose, progress, default_spread,
@@ -209,9 +220,6 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
               min_heldout_drop, noise_tolerance, overrides, verbose, progress, default_spread, n_screen, n_scan,
               remote):
     t_start = time.perf_counter()
-    datasets = load_all(datasets)
-    if not datasets:
-        raise ValueError("diagnose needs at least one dataset")
     warn_amplitude_fit(datasets, "diagnose", stacklevel=4)
     amplitude = amplitude_dependence(datasets)
     unconfirmed_why, unconfirmed = frf_confirmation(amplitude, datasets), []
@@ -312,6 +320,8 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         message = (f"no missing effect confirmed: {u.candidate.title} would explain the FRFs (error "
                    f"{u.error_before:.4g} -> {u.error_after:.4g}), but "
                    f"{unconfirmed_why[1 if u.candidate.nonlinear else 0]}")
+    elif max_effects == 0:
+        message = "no effect searched (max_effects=0): the uncertain parameters were only re-calibrated"
     elif not message:
         message = ("no missing effect found: no candidate explains the remaining error well enough (see why "
                    "each was not accepted)")

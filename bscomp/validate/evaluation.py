@@ -29,9 +29,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from bscomp.simulation.compiled import CompiledModel
-from bscomp.validate.datasets import FrfData, TimeData
+from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData
 from bscomp.validate.noise import noise_levels
 from bscomp.validate.residuals import frf_errors
+from bscomp.validate.units_check import check_units
 
 __all__ = ["Evaluator", "Structures", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]
 
@@ -96,6 +97,8 @@ class Evaluator:
             ins = list(dict.fromkeys([i for d in ds for i in d.inputs]))
             outs = list(dict.fromkeys([o for d in ds for o in d.outputs]))
             cm = CompiledModel(system, ins, outs, f_keep=f_keep)
+            for d in ds:                # the files' units against the model's declared ones
+                check_units(cm.dae, d)
             for f in free:
                 if cm.has_parameter(f):
                     cm.prepare(f)
@@ -105,7 +108,8 @@ class Evaluator:
             if isinstance(d, TimeData):
                 dt = np.diff(d.t)
                 if np.max(np.abs(dt - dt[0])) > 1e-6 * dt[0]:
-                    raise ValueError(f"{d.source}: diagnose needs uniformly sampled time series")
+                    raise MeasurementFileError(d.label, None, 1, "calibrate and diagnose need uniformly sampled "
+                                               "time series: resample it to one time step")
                 self.split.append(_split_point(d))
             else:
                 self.split.append(None)

@@ -53,6 +53,7 @@ class Meta:
     units: dict = field(default_factory=dict)      # name -> (text, where: (file, line, col))
     roles: dict = field(default_factory=dict)      # name -> "input" | "output"
     excitation: dict = field(default_factory=dict)  # input -> sine amplitude of an FRF measurement [SI]
+    excitation_units: dict = field(default_factory=dict)  # input -> SI unit of that amplitude (if one was given)
     where: dict = field(default_factory=dict)      # key -> (file, line, col)
 
 
@@ -108,8 +109,10 @@ def meta_set(meta, key, value, where):
         return
     if head == "excitation" and len(words) == 2:
         name = words[1].strip()
-        _set_once(meta, meta.excitation, head, name, _amplitude(name, value, where), where,
-                  lambda a, b: math.isclose(a, b, rel_tol=1e-12))
+        a, unit = _amplitude(name, value, where)
+        _set_once(meta, meta.excitation, head, name, a, where, lambda a, b: math.isclose(a, b, rel_tol=1e-12))
+        if unit:
+            meta.excitation_units.setdefault(name, unit)
         meta.where.setdefault((head, name), where)
         return
     if head in ("condition", "unit", "input", "output") and len(words) == 2:
@@ -139,21 +142,23 @@ def meta_set(meta, key, value, where):
                                "'unit NAME', 'input NAME', 'output NAME' or 'excitation NAME'")
 
 
-def _amplitude(name, value, where) -> float:
-    """``excitation NAME: 2 V`` (or a bare number, SI): the sine amplitude an FRF was measured at, in SI."""
+def _amplitude(name, value, where) -> tuple:
+    """``excitation NAME: 2 V`` (or a bare number, SI): the sine amplitude an FRF was measured at, in SI, and
+    the SI spelling of its unit ("" for a bare number)."""
     text = str(value).strip()
     m = _NUMBER_UNIT.match(text)
     try:
         if m is None:
             raise ValueError("no number first")
-        a = float(m.group(1)) * (parse_unit(m.group(2)).scale if m.group(2).strip() else 1.0)
+        unit = parse_unit(m.group(2)) if m.group(2).strip() else None
+        a = float(m.group(1)) * (unit.scale if unit else 1.0)
     except (ValueError, UnitSyntaxError) as exc:
         raise MeasurementFileError(where[0], where[1], where[2], f"excitation {name!r} must be the sine's amplitude, "
                                    f"a number with an optional unit (e.g. '2 V'), got {text!r} ({exc})", name) from None
     if not (math.isfinite(a) and a > 0):
         raise MeasurementFileError(where[0], where[1], where[2], f"excitation {name!r} must be a positive, finite "
                                    f"amplitude, got {text!r}", name)
-    return a
+    return a, (unit.si if unit else "")
 
 
 def _line_of(text, needle):

@@ -8,6 +8,7 @@ naming the file, the line and the column.
 
 from __future__ import annotations
 
+import difflib
 import re
 from pathlib import Path
 
@@ -107,8 +108,32 @@ def _check_frf_unit(pair_name, out, inp, unit, meta, w):
                                f"units give {want}", pair_name)
 
 
-def _conditions_and_source(meta, path):
+def _conditions_and_source(meta, path, loc):
+    """The conditions and the source text; where each condition was declared goes into ``loc``."""
+    for name in meta.conditions:
+        loc[("condition", name)] = meta.where.get(("condition", name), (path, None, None))
     return dict(meta.conditions), meta.source or str(path)
+
+
+def _axis_unit_key(path, meta, header, names):
+    """The ``# unit`` name that gives the unit of the first column (time or frequency), whatever that column is
+    called: its own name or one of ``names`` (``t``/``time``, ``f``/``freq``...), in any case; None if none."""
+    keys = [k for k in meta.units if k == header[0] or k.lower() in names or k.lower() == header[0].lower()]
+    if len(keys) > 1:
+        w = meta.units[keys[1]][1]
+        raise MeasurementFileError(w[0], w[1], w[2], f"units given for {keys!r}, which all name the first column "
+                                   f"{header[0]!r}: declare its unit once", keys[1])
+    return keys[0] if keys else None
+
+
+def _unused_units(meta, known, what):
+    """A ``# unit`` line naming nothing of the file is an error (a typo would leave a channel in a wrong unit)."""
+    for name, (_text, w) in meta.units.items():
+        if name not in known:
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise MeasurementFileError(w[0], w[1], w[2], f"unit given for {name!r}, which is not {what}{hint}: a unit "
+                                       f"line must name one of {sorted(known)}", name)
 
 
 # ---- FRF --------------------------------------------------------------------------------------------------
@@ -127,10 +152,13 @@ def _frf_from(path, meta, header, hl, rows):
         raise MeasurementFileError(path, hl, 1, f"the first column of an FRF file must be the frequency "
                                    f"(one of {list(_FREQ_NAMES)}), got {header[0]!r}", header[0])
     A = rows.A
-    f = _finite(path, A[:, 0] * _frequency_scale(path, meta, header, hl), rows, 1, header[0], "frequency")
-    if np.any(f < 0):
-        k = int(np.flatnonzero(f < 0)[0])
-        raise MeasurementFileError(path, rows.line(k), 1, "negative frequency", header[0])
+    fkey = _axis_unit_key(path, meta, header, _FREQ_NAMES)
+    f = _finite(path, A[:, 0] * _frequency_scale(path, meta, fkey, hl), rows, 1, header[0], "frequency")
+    if np.any(f <= 0):
+        k = int(np.flatnonzero(f <= 0)[0])
+        raise MeasurementFileError(path, rows.line(k), 1, f"frequency {f[k]:.6g} Hz: an FRF is measured at "
+                                   "frequencies > 0 (at 0 Hz a drive's rigid-body response is infinite): drop the "
+                                   "row", header[0])
     _increasing(path, f, rows, 1, header[0], "frequency")
     cols: dict = {}
     written = set()                      # pairs in the columns of Frf.to_csv (SI, units implied by the names)
@@ -171,7 +199,10 @@ def _frf_from(path, meta, header, hl, rows):
         w = meta.units[extra[0]][1]
         raise MeasurementFileError(w[0], w[1], w[2], f"unit given for {extra[0]!r}, which has no columns in the "
                                    f"file (pairs: {[f'{o}/{i}' for i, o in H]})", extra[0])
-    cond, src = _conditions_and_source(meta, path)
+    channels = {c for pair in H for c in pair}
+    _unused_units(meta, {f"{o}/{i}" for i, o in H} | channels | {fkey or header[0]},
+                  "the frequency column, a pair or one of its channels")
+    cond, src = _conditions_and_source(meta, path, loc)
     for name in meta.excitation:
         w = meta.where[("excitation", name)]
         if name not in {i for i, _ in H}:
@@ -179,14 +210,14 @@ def _frf_from(path, meta, header, hl, rows):
                                        f"the file's pairs (inputs: {list(dict.fromkeys(i for i, _ in H))})", name)
         loc[("excitation", name)] = (w[1], w[2])
     return FrfData(freqs=f, H=H, units=units, conditions=cond, coherence=coh, source=src, locations=loc,
-                   excitation={k: v for k, v in meta.excitation.items()})
+                   excitation={k: v for k, v in meta.excitation.items()}, path=str(path),
+                   excitation_units=dict(meta.excitation_units))
 
 
-def _frequency_scale(path, meta, header, hl) -> float:
-    """Factor from the frequency column's declared unit to Hz (1 when none is declared)."""
-    if header[0] not in meta.units and "f" not in meta.units:
+def _frequency_scale(path, meta, key, hl) -> float:
+    """Factor from the frequency column's declared unit (the ``# unit`` line ``key``) to Hz (1 without one)."""
+    if key is None:
         return 1.0
-    key = header[0] if header[0] in meta.units else "f"
     u = _unit(path, meta, key, (path, hl, 1))
     if not np.allclose(u.dims[:4], (0, 0, -1, 0)):
         w = meta.units[key][1]
@@ -280,12 +311,12 @@ def _time_from(path, meta, header, hl, rows):
                                    f"('t'), got {header[0]!r}", header[0])
     A = rows.A
     t = A[:, 0]
-    if header[0] in meta.units:
-        u = _unit(path, meta, header[0], (path, hl, 1))
+    tkey = _axis_unit_key(path, meta, header, _TIME_NAMES)
+    if tkey is not None:
+        u = _unit(path, meta, tkey, (path, hl, 1))
         if not np.allclose(u.dims, (0, 0, 1, 0, 0)):
-            w = meta.units[header[0]][1]
-            raise MeasurementFileError(w[0], w[1], w[2], f"wrong unit {u.text!r} for the time: use s or ms",
-                                       header[0])
+            w = meta.units[tkey][1]
+            raise MeasurementFileError(w[0], w[1], w[2], f"wrong unit {u.text!r} for the time: use s or ms", tkey)
         t = _finite(path, t * u.scale, rows, 1, header[0], "time")
     _increasing(path, t, rows, 1, header[0], "time")
     if len(t) < 2:
@@ -311,12 +342,14 @@ def _time_from(path, meta, header, hl, rows):
         w = meta.where.get((meta.roles[missing[0]], missing[0]), (path, None, None))
         raise MeasurementFileError(w[0], w[1], w[2], f"channel {missing[0]!r} is declared but has no column in the "
                                    f"header (columns: {header})", missing[0])
+    _unused_units(meta, set(header[1:]) | {tkey or header[0]}, "the time column or a channel column")
     if not inputs:
         raise MeasurementFileError(path, hl, None, "no input channel: mark the excitation with '# input NAME: UNIT'")
     if not outputs:
         raise MeasurementFileError(path, hl, None, "no output channel: mark responses with '# output NAME: UNIT'")
-    cond, src = _conditions_and_source(meta, path)
-    return TimeData(t=t, inputs=inputs, outputs=outputs, units=units, conditions=cond, source=src, locations=loc)
+    cond, src = _conditions_and_source(meta, path, loc)
+    return TimeData(t=t, inputs=inputs, outputs=outputs, units=units, conditions=cond, source=src, locations=loc,
+                    path=str(path))
 
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bscomp.errors import UnknownNameError
+from bscomp.errors import BscompError, UnknownNameError
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
@@ -29,10 +29,11 @@ from bscomp.model import ModelSpec, as_system, build_keywords, model_name
 from bscomp.simulation.compiled import nonlinear_elements
 from bscomp.simulation.dispatch import simulate
 from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData, check_condition
+from bscomp.validate.units_check import check_units
 
 __all__ = ["model_frf", "model_time", "frf_residuals", "time_residuals", "cost", "fit_percent",
-           "build_for", "frf_errors", "frf_at", "simulate_for", "simulate_at", "check_channels",
-           "ConditionIgnoredWarning"]
+           "build_for", "build_for_data", "data_label", "frf_errors", "frf_at", "simulate_for", "simulate_at",
+           "check_channels", "ConditionIgnoredWarning"]
 
 
 # ---- the model at the measurement's conditions ---------------------------------------------------------
@@ -40,7 +41,8 @@ class ConditionIgnoredWarning(UserWarning):
     """A dataset's condition that the model cannot take (not a build argument, not a parameter)."""
 
 
-def build_for(system_or_build, conditions: dict | None = None, params: dict | None = None, source: str = ""):
+def build_for(system_or_build, conditions: dict | None = None, params: dict | None = None, source: str = "",
+              locations: dict | None = None):
     """The System a dataset is compared with.
 
     Conditions are split by name: a **dotted** name (``table.m``) is a parameter override
@@ -64,9 +66,15 @@ def build_for(system_or_build, conditions: dict | None = None, params: dict | No
     params : dict, optional
         Parameter overrides by dotted name, applied last.
     source : str, optional
-        The dataset's name, for the warning.
+        The dataset's name (its file's path), for the warning and the errors.
+    locations : dict, optional
+        ``{condition: (file, line, column)}`` where each condition was declared: a condition the model
+        refuses (an unknown parameter, a value out of bounds) is a
+        :class:`~bscomp.validate.datasets.MeasurementFileError` pointing there.
     """
-    conditions = {k: check_condition(k, v, (source or "<measurement>", None, None))
+    where = {k: tuple((locations or {}).get(k) or (source or "<measurement>", None, None))
+             for k in (conditions or {})}
+    conditions = {k: check_condition(k, v, where[k])
                   for k, v in (conditions or {}).items()}      # never a file path, never a parameter set
     plain = {k: v for k, v in conditions.items() if "." not in k}
     dotted = {k: v for k, v in conditions.items() if "." in k}
@@ -80,12 +88,53 @@ def build_for(system_or_build, conditions: dict | None = None, params: dict | No
         label = model_name(system_or_build)
         _ignore([k for k in plain if k not in kept], f"not a build argument of system '{label}' (build arguments: "
                 f"{', '.join(sorted(accepted or ())) or 'none'}) nor a parameter ('component.parameter')", source)
-        system = as_system(system_or_build, kept)
+        try:
+            system = as_system(system_or_build, kept)
+        except BscompError as exc:
+            if not kept or not _builds(system_or_build):
+                raise
+            raise _condition_error(exc, kept, where) from None
     else:
         raise UnknownNameError(f"cannot use {type(system_or_build).__name__} as a model: give a system name, a .py "
                                "path, a build function, a bscomp.System or a bscomp.model.ModelSpec")
-    overrides = {**dotted, **(params or {})}
-    return system.with_parameters(overrides) if overrides else system
+    mine = {k: v for k, v in dotted.items() if k not in (params or {})}
+    for k, v in mine.items():
+        try:
+            system = system.with_parameters({k: v})
+        except BscompError as exc:
+            raise _condition_error(exc, {k: v}, where) from None
+    return system.with_parameters(params) if params else system
+
+
+def _builds(system_or_build) -> bool:
+    """Whether the model builds without the file's conditions (else the error is not theirs)."""
+    try:
+        as_system(system_or_build, {})
+    except BscompError:
+        return False
+    return True
+
+
+def _condition_error(exc, conds: dict, where: dict) -> MeasurementFileError:
+    """The model's refusal of a file's ``# condition`` line(s), at the first of them."""
+    first = next(iter(conds))
+    w = where.get(first, ("<measurement>", None, None))
+    names = ", ".join(f"{k} = {v!r}" for k, v in conds.items())
+    return MeasurementFileError(w[0], w[1], w[2], f"condition {names}: {exc} (fix or remove the '# condition' "
+                                "line)", first)
+
+
+def data_label(data) -> str:
+    """A dataset as warnings name it: its file's path, with its ``# source`` text after it when it has one."""
+    path, src = getattr(data, "path", ""), getattr(data, "source", "")
+    return data.label if not path or src in ("", path) else f"{path} ({src})"
+
+
+def build_for_data(system_or_build, data, params: dict | None = None):
+    """:func:`build_for` at a dataset's conditions, its errors and warnings naming the dataset's file and the
+    condition's line."""
+    return build_for(system_or_build, data.conditions, params, source=data_label(data),
+                     locations={k: v for (kind, k), v in data.locations.items() if kind == "condition"})
 
 
 def _ignore(dropped, why: str, source: str) -> None:
@@ -104,7 +153,7 @@ def check_channels(dae, data, inputs, outputs):
             if isinstance(data, FrfData):
                 pair = next(p for p in data.H if p[0] == name)
                 ln, col = data.locations.get(("column", pair), (None, None))
-            raise MeasurementFileError(data.source, ln, col, f"unknown channel: {name!r} is not an input of the "
+            raise MeasurementFileError(data.label, ln, col, f"unknown channel: {name!r} is not an input of the "
                                        f"model '{dae.name}' (inputs: {dae.u_names})", name)
     obs = set(dae.output_names())
     for name in outputs:
@@ -116,9 +165,10 @@ def check_channels(dae, data, inputs, outputs):
                 pair = next(p for p in data.H if p[1] == name)
                 ln, col = data.locations.get(("column", pair), (None, None))
             close = [k for k in obs if k.split(".")[0] == name.split(".")[0]][:10]
-            raise MeasurementFileError(data.source, ln, col, f"unknown channel: {name!r} is not an output of the "
+            raise MeasurementFileError(data.label, ln, col, f"unknown channel: {name!r} is not an output of the "
                                        f"model '{dae.name}'" + (f" (outputs of that component: {close})" if close
                                                                 else ""), name)
+    check_units(dae, data)
 
 
 def model_frf(system_or_build, data: FrfData, params: dict | None = None) -> dict:
@@ -128,7 +178,7 @@ def model_frf(system_or_build, data: FrfData, params: dict | None = None) -> dic
     states (:func:`bscomp.linear.response.frf`), of the system's small-signal equivalent
     (:meth:`bscomp.System.linear_equivalent`: friction reduced to its viscous part, backlash engaged).
     """
-    return frf_at(build_for(system_or_build, data.conditions, params, source=data.source), data)
+    return frf_at(build_for_data(system_or_build, data, params), data)
 
 
 def frf_at(system, data: FrfData) -> dict:
@@ -147,7 +197,7 @@ def simulate_for(system_or_build, data: TimeData, params: dict | None = None, ex
     Returns ``(SimulationResult, system)``. Inputs are held constant from each sample to the next
     (zero-order hold, as a D/A converter does).
     """
-    system = build_for(system_or_build, data.conditions, params, source=data.source)
+    system = build_for_data(system_or_build, data, params)
     return simulate_at(system, data, extra, rtol, atol), system
 
 

@@ -106,7 +106,7 @@ def _different_kinds():
 
 def _frf_file(tmp):
     p = tmp / "h.csv"
-    bscomp.frf(sd(), "motor.tau", "table.s", [10.0, 100.0]).to_csv(p)
+    bscomp.frf(sd(), "motor.tau", "table.s", [10.0, 50.0, 100.0]).to_csv(p)
     return p
 
 

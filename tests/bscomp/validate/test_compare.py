@@ -377,7 +377,7 @@ def test_fit_percent():
 
 
 def test_unknown_model_channel_names_the_column(tmp_path):
-    d = TimeData(T[:5], {"motor.tau": U[:5]}, {"table.q": np.zeros(5)}, units={"motor.tau": "N m", "table.q": "m"})
+    d = TimeData(T[:12], {"motor.tau": U[:12]}, {"table.q": np.zeros(12)}, units={"motor.tau": "N m", "table.q": "m"})
     p = write_time_csv(d, tmp_path / "q.csv")
     with pytest.raises(MeasurementFileError) as ei:
         compare(small_drive, [p])
