@@ -16,9 +16,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp import plotting
-from bscomp.errors import BscompError, UnknownNameError, UsageError
+from bscomp.errors import ArgumentTypeError, BscompError, UnknownNameError, UsageError
 from bscomp.files import atomic_write
 from bscomp.kernel.flattening import flatten
+from bscomp.kernel.system import System
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import modal_frf
 from bscomp.linear.linearization import second_order
@@ -37,15 +38,15 @@ def build_system(build, overrides: dict | None = None):
     flattening). Names and paths go through :func:`bscomp.model.as_system` (keys without a dot are build
     keywords).
     """
-    if isinstance(build, (str, ModelSpec)):
+    if isinstance(build, (str, ModelSpec, System)):
         return as_system(build, overrides)
     if callable(build):
         system = build()
         for k, v in (overrides or {}).items():
             system.set(k, v)
         return system
-    raise TypeError(f"build must be a system name, a .py path or a callable returning a System, "
-                    f"got {build!r}")
+    raise ArgumentTypeError(f"build must be a system name, a .py path, a System or a callable returning a System, "
+                            f"got {type(build).__name__} {build!r}"[:300])
 
 
 def position_parameter(system) -> str:
@@ -385,8 +386,12 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
     name = build if isinstance(build, str) else getattr(build, "__name__", "")
     if method != "rebuild" and at is None and executor is None:
         owner = _tangent_component(base, parameter)
+        if owner is not None:                 # the tangent update writes the values itself: check them first
+            _, pname, comp = owner
+            for x in positions:
+                comp.check({**comp._values, pname: comp.parameters()[pname].validate(float(x), comp)})
         if owner is None and method == "tangent":
-            raise ValueError(f"position_sweep(method='tangent'): '{parameter}' is not a non-structural "
+            raise UsageError(f"position_sweep(method='tangent'): '{parameter}' is not a non-structural "
                              "parameter of a component with a tangent() (e.g. MovingScrewNut's z0); use "
                              "method='rebuild'")
         if owner is not None:
@@ -409,7 +414,7 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
         try:
             pickle.dumps(build)
         except Exception as exc:
-            raise TypeError("with workers > 1, build must be picklable: a system name, a .py path or a "
+            raise ArgumentTypeError("with workers > 1, build must be picklable: a system name, a .py path or a "
                             "module-level function (not a lambda or closure)") from exc
         with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
             results = [fut.result() for fut in [pool.submit(_analyse, *t) for t in tasks]]

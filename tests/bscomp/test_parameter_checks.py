@@ -237,3 +237,16 @@ def test_testbed_variant_keyword():
         bscomp.systems.get("testbed", {"variant": "ful"})
     assert bscomp.systems.get("testbed_axial_torsional", {"variant": "axial_torsional", "pitch": 0.01,
                                                           "root_diameter": 0.04}).name == "testbed_axial_torsional"
+
+
+def test_position_sweep_checks_the_positions_its_tangent_update_writes():
+    """The tangent update of position_sweep writes z0 itself: a position off the screw is refused before any
+    analysis (it was clamped to the end node silently), and a built System is accepted as the model."""
+    from bscomp.linear.sweeps import position_sweep
+    from bscomp.systems.testbed import testbed
+
+    s = testbed("axial_torsional", nut_joint="moving")
+    with pytest.raises(ParameterError, match=r"'sn.z0' \(MovingScrewNut\): z0 = 5.0 m puts the nut off the screw"):
+        position_sweep(s, [0.3, 5.0])
+    r = position_sweep(s, [0.3])
+    assert 100.0 < r.frequencies[0, 0] < 130.0
