@@ -16,13 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
+from bscomp import cli_checks as ck
+
+_parse_set = ck.parse_set           # the name other modules and tests import
+
 
 def _demo(args) -> int:
     """Modes and FRFs of the thesis test bed (FE, axial + torsional), then the validation story."""
     from bscomp.linear.modal import modes
     from bscomp.systems import get
 
-    out = Path(args.out)
+    out = ck.output_folder(args.out, "--out")         # before computing: not a file, writable
     out.mkdir(parents=True, exist_ok=True)
     system = get("testbed_axial_torsional")
     print(f"bscomp demo: {system.description}")
@@ -85,30 +89,16 @@ def _demo_validation(out: Path) -> int:
     return 0
 
 
-def _parse_set(items) -> dict:
-    from bscomp.errors import ParameterError
-
-    out = {}
-    for item in items or []:
-        name, eq, value = item.partition("=")
-        if not eq or not name.strip():
-            raise ParameterError(f"--set expects NAME=VALUE (e.g. coupling.c=45940), got {item!r}")
-        try:
-            out[name.strip()] = float(value)
-        except ValueError:
-            out[name.strip()] = value.strip()
-    return out
-
-
 def _build(args):
     """(system, overrides) from SYSTEM, --set and --position (the system's ``position_parameter``)."""
     from bscomp.linear.sweeps import build_system, position_parameter
 
     overrides = _parse_set(args.set)
-    if args.position is not None:
-        base = build_system(args.system, overrides)
-        overrides[position_parameter(base)] = float(args.position)
-    return build_system(args.system, overrides)
+    with ck.build_guard(args.system):
+        if args.position is not None:
+            base = ck.check_system(build_system(args.system, overrides), args.system)
+            overrides[position_parameter(base)] = float(args.position)
+        return ck.check_system(build_system(args.system, overrides), args.system)
 
 
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
@@ -131,6 +121,7 @@ def _modes(args) -> int:
     _outputs(args)
     system = _build(args)
     md = modes(system, inputs=args.input or None, outputs=args.output or None, n=args.n, fmax=args.fmax)
+    table = ck.reference_table(md, args.reference)   # an unknown --reference fails before anything is written
     with staged() as st:       # both files or neither
         if args.csv:
             md.to_csv(st.path(args.csv))
@@ -141,14 +132,14 @@ def _modes(args) -> int:
     else:
         print(f"{system.name}: {len(md)} modes over {len(md.coordinates)} coordinates ({md.method}; damping: "
               f"{md.damping_method})")
-        print(md.table(args.reference) if args.reference else md.table())
+        print(table)
         for note in md.notes:
             print(f"note: {note}")
     return 0
 
 
 def _frf(args) -> int:
-    from bscomp.errors import UsageError
+    from bscomp.errors import BscompError, UsageError
     from bscomp.files import staged
     from bscomp.linear.response import frf
 
@@ -162,9 +153,16 @@ def _frf(args) -> int:
     if args.amplitude:                  # at a real amplitude: friction and backlash as they act there
         from bscomp.simulation import describing_frf, stepped_sine
         freqs = np.geomspace(args.fmin, args.fmax, n)
-        res = (describing_frf(system, args.input, args.output, freqs, args.amplitude) if args.method == "describing"
-               else stepped_sine(system, args.input, args.output, freqs, args.amplitude, method=args.method,
-                                 jit=args.jit))
+        try:
+            res = (describing_frf(system, args.input, args.output, freqs, args.amplitude)
+                   if args.method == "describing" else
+                   stepped_sine(system, args.input, args.output, freqs, args.amplitude, method=args.method,
+                                jit=args.jit))
+        except BscompError as exc:
+            if "(use bscomp.frf)" not in str(exc):
+                raise
+            raise UsageError(f"--amplitude: '{system.name}' has no friction or backlash element, so its FRF is the "
+                             "same at every amplitude", hint="drop --amplitude and --method for its FRF") from None
     else:
         res = frf(system, args.input, args.output, fmin=args.fmin, fmax=args.fmax, n=n)
     with staged() as st:
@@ -187,12 +185,19 @@ def _frf(args) -> int:
 
 
 def _compare(args) -> int:
+    from bscomp.model import ModelSpec
     from bscomp.validate import compare, load_all, write_report
 
-    build = args.system
+    if args.report:
+        ck.output_folder(args.report, "--report")
     overrides = _parse_set(args.set)
+    plain = {k: v for k, v in overrides.items() if "." not in k}       # build arguments, as modes/diagnose take
+    dotted = {k: v for k, v in overrides.items() if "." in k}
+    build = ModelSpec(args.system, plain) if plain else args.system
+    ck.check_file_system(args.system, plain)
     datasets = load_all(args.data)
-    comp = compare(build, datasets, params=overrides or None)
+    with ck.build_guard(args.system):
+        comp = compare(build, datasets, params=dotted or None)
     if args.json:
         print(comp.to_json())
     else:
@@ -206,38 +211,27 @@ def _compare(args) -> int:
     return 0
 
 
-def _parse_uncertain(items):
-    """``--uncertain NAME[=SPREAD][,NAME...]`` -> ``{name: spread}`` (None when not given)."""
-    from bscomp.errors import ParameterError
-
-    if not items:
-        return None
-    out = {}
-    for item in items:
-        for tok in (t for t in item.split(",") if t.strip()):
-            name, eq, spread = tok.partition("=")
-            try:
-                out[name.strip()] = float(spread) if eq else 0.2
-            except ValueError as exc:
-                raise ParameterError(f"--uncertain expects NAME or NAME=SPREAD (relative, e.g. table.m=0.2), got "
-                                     f"{tok!r}") from exc
-    return out
-
-
 def _diagnose(args) -> int:
     """``bscomp diagnose SYSTEM DATA...``: re-calibrate, fit candidate effects, accept the confirmed ones."""
     from bscomp.validate.diagnostics import diagnose
     from bscomp.validate.measurements import load_all
 
+    uncertain = ck.parse_uncertain(args.uncertain)     # the formats and the folder first, then the model
+    if args.report:
+        ck.output_folder(args.report, "--report")
     overrides = _parse_set(args.set)
     if args.position is not None:
         from bscomp.linear.sweeps import build_system, position_parameter
 
-        overrides[position_parameter(build_system(args.system, overrides))] = float(args.position)
+        with ck.build_guard(args.system):
+            system = ck.check_system(build_system(args.system, overrides), args.system)
+        overrides[position_parameter(system)] = float(args.position)
+    else:
+        ck.check_file_system(args.system, overrides)
     datasets = load_all(args.data)
-    diag = diagnose(args.system, datasets, uncertain=_parse_uncertain(args.uncertain), max_effects=args.max_effects,
-                    verbose=args.verbose, overrides=overrides or None,
-                    progress=None if not args.json else False)
+    with ck.build_guard(args.system):
+        diag = diagnose(args.system, datasets, uncertain=uncertain, max_effects=args.max_effects,
+                        verbose=args.verbose, overrides=overrides or None, progress=None if not args.json else False)
     if args.json:
         print(diag.to_json())
     else:
@@ -281,10 +275,12 @@ def _fmu(args) -> int:
     from bscomp.fmu import export_fmu
 
     writable_path(args.output_file, "-o file", (".fmu",))
+    ck.check_file_system(args.system, _parse_set(args.set))
     params = args.parameter or ()
     params = "all" if list(params) == ["all"] else params
-    path = export_fmu(args.system, args.output_file, inputs=args.input or None, outputs=args.output or None,
-                      parameters=params, overrides=_parse_set(args.set) or None, nominal=args.nominal)
+    with ck.build_guard(args.system):
+        path = export_fmu(args.system, args.output_file, inputs=args.input or None, outputs=args.output or None,
+                          parameters=params, overrides=_parse_set(args.set) or None, nominal=args.nominal)
     print(f"written {path}")
     return 0
 
@@ -308,10 +304,7 @@ def _simulate(args) -> int:
             raise UsageError(f"--input expects NAME=SIGNAL (e.g. amp.u=square:2.125:5), got {item!r}",
                              hint=f"SIGNAL is {SPELLINGS}")
         inputs[name.strip()] = parse_signal(spec, f"--input {name.strip()}")
-    n = int(round(args.t_end / args.dt))
-    if n < 1 or n > 10 ** 7:
-        raise UsageError(f"--t-end {args.t_end:g} s over --dt {args.dt:g} s gives {n} steps (1 to 1e7)",
-                         hint="give --dt below --t-end, e.g. --t-end 0.6 --dt 1e-4")
+    n = ck.steps(args.t_end, args.dt)       # a whole number of steps: the run ends at --t-end
     _outputs(args)
     dae = flatten(_build(args))
     outputs = args.output or measured_outputs(dae)
@@ -347,30 +340,8 @@ def _add_system_args(p):
     p.add_argument("system", help="a system registered in bscomp.systems (see `bscomp systems`) or a .py file "
                                   "defining build()")
     p.add_argument("--set", action="append", metavar="NAME=VALUE", help="parameter override (repeatable)")
-    p.add_argument("--position", type=_number("--position"), metavar="X",
+    p.add_argument("--position", type=ck.number("--position"), metavar="X",
                    help="nut position: sets the system's position_parameter (declared by its build function)")
-
-
-# ---- argument types: checked at the door, named in the error -------------------------------------------
-def _number(flag, low=None, high=None, integer=False, open_low=True):
-    """An argparse type: a finite number (an int if ``integer``) in (low, high]; the error names the flag."""
-    import math
-
-    def parse(text):
-        kind = "an integer" if integer else "a number"
-        try:
-            v = int(text) if integer else float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{flag} must be {kind}, got {text!r}") from None
-        if not math.isfinite(v):
-            raise argparse.ArgumentTypeError(f"{flag} must be finite, got {text!r}")
-        if low is not None and (v <= low if open_low else v < low):
-            raise argparse.ArgumentTypeError(f"{flag} must be {'>' if open_low else '>='} {low:g}, got {text!r}")
-        if high is not None and v > high:
-            raise argparse.ArgumentTypeError(f"{flag} must be <= {high:g}, got {text!r}")
-        return v
-
-    return parse
 
 
 class _Parser(argparse.ArgumentParser):
@@ -406,8 +377,8 @@ def _parser() -> argparse.ArgumentParser:
     _add_system_args(p)
     p.add_argument("--input", action="append", help="input for the participation factors (repeatable)")
     p.add_argument("--output", action="append", help="output for the participation factors (repeatable)")
-    p.add_argument("--n", type=_number("--n", 0, 100000, integer=True), help="keep the n lowest modes (>= 1)")
-    p.add_argument("--fmax", type=_number("--fmax", 0), help="keep the modes up to FMAX [Hz]")
+    p.add_argument("--n", type=ck.number("--n", 0, 100000, integer=True), help="keep the n lowest modes (>= 1)")
+    p.add_argument("--fmax", type=ck.number("--fmax", 0), help="keep the modes up to FMAX [Hz]")
     p.add_argument("--reference", help="coordinate at which modal masses are reported (e.g. rotor.phi)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--csv", help="write the mode table and shapes to a CSV file")
@@ -418,11 +389,11 @@ def _parser() -> argparse.ArgumentParser:
     _add_system_args(p)
     p.add_argument("--input", required=True, help="input name, e.g. motor.tau")
     p.add_argument("--output", required=True, help="output name, e.g. rotor.w")
-    p.add_argument("--fmin", type=_number("--fmin", 0), default=1.0, help="lowest frequency [Hz] (default 1)")
-    p.add_argument("--fmax", type=_number("--fmax", 0), default=1000.0, help="highest frequency [Hz] (default 1000)")
-    p.add_argument("--n", type=_number("--n", 1, 10 ** 6, integer=True, open_low=False), default=None,
+    p.add_argument("--fmin", type=ck.number("--fmin", 0), default=1.0, help="lowest frequency [Hz] (default 1)")
+    p.add_argument("--fmax", type=ck.number("--fmax", 0), default=1000.0, help="highest frequency [Hz] (default 1000)")
+    p.add_argument("--n", type=ck.number("--n", 1, 10 ** 6, integer=True, open_low=False), default=None,
                    help="number of log-spaced frequencies (default 500; 24 with --amplitude)")
-    p.add_argument("--amplitude", type=_number("--amplitude", 0),
+    p.add_argument("--amplitude", type=ck.number("--amplitude", 0),
                    help="the FRF at a sine of this amplitude (the input's unit), friction and backlash acting as they "
                         "do there: a stepped-sine test by simulation (default: the FRF linearized at rest)")
     p.add_argument("--method", choices=["modal", "idas", "describing"], default="modal",
@@ -438,7 +409,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("system", help="a system registered in bscomp.systems (see `bscomp systems`) or a .py file "
                                   "defining build(); each file's conditions are passed to the build")
     p.add_argument("data", nargs="+", help="measurement CSV files (FRF or time series, see docs/measurements.md)")
-    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="parameter override (repeatable)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="parameter override or build argument (repeatable; a file's '# condition' of the same "
+                        "build argument wins)")
     p.add_argument("--report", metavar="DIR", help="write an HTML report with figures to DIR")
     p.add_argument("--json", action="store_true", help="print the comparison as JSON")
     p.set_defaults(func=_compare)
@@ -450,7 +423,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--uncertain", action="append", metavar="NAME[=SPREAD][,...]",
                    help="parameters to re-calibrate first, each with its relative spread (default 0.2); default: "
                         "the drive's declared uncertain parameters")
-    p.add_argument("--max-effects", type=_number("--max-effects", 0, 20, integer=True, open_low=False), default=3,
+    p.add_argument("--max-effects", type=ck.number("--max-effects", 0, 20, integer=True, open_low=False), default=3,
                    help="most effects accepted one after another")
     p.add_argument("--apply", action="store_true", help="print the lines to add to the system file")
     p.add_argument("--report", metavar="DIR", help="write the staircase figure, JSON and text to DIR")
@@ -466,14 +439,14 @@ def _parser() -> argparse.ArgumentParser:
                         "e.g. amp.u=square:2.125:5 (the thesis's Ch 5 run); inputs not given are 0")
     p.add_argument("--output", action="append", help="observable to record (repeatable; default: the drive's "
                                                      "measured outputs)")
-    p.add_argument("--t-end", type=_number("--t-end", 0), default=0.6, help="simulated time [s] (default 0.6)")
-    p.add_argument("--dt", type=_number("--dt", 0), default=1e-4, help="output step [s] (default 1e-4)")
+    p.add_argument("--t-end", type=ck.number("--t-end", 0), default=0.6, help="simulated time [s] (default 0.6)")
+    p.add_argument("--dt", type=ck.number("--dt", 0), default=1e-4, help="output step [s] (default 1e-4)")
     p.add_argument("--method", choices=("idas", "fixed", "lti", "split", "modal"), default="idas",
                    help="integrator (default idas; modal: the fast exact-linear path for friction, backlash and a "
                         "moving nut, docs/nonlinear.md)")
     p.add_argument("--jit", action="store_true", help="compile the step to C (fixed, modal; cached on disk)")
-    p.add_argument("--rtol", type=_number("--rtol", 0), default=1e-6, help="IDAS relative tolerance (default 1e-6)")
-    p.add_argument("--atol", type=_number("--atol", 0), default=1e-9, help="IDAS absolute tolerance (default 1e-9)")
+    p.add_argument("--rtol", type=ck.number("--rtol", 0), default=1e-6, help="IDAS relative tolerance (default 1e-6)")
+    p.add_argument("--atol", type=ck.number("--atol", 0), default=1e-9, help="IDAS absolute tolerance (default 1e-9)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.add_argument("--csv", help="write t and the outputs to a CSV file")
     p.add_argument("--png", help="write a time plot (.png, .pdf or .svg)")
@@ -489,7 +462,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="parameter exposed as a tunable FMU parameter (repeatable; 'all': every non-structural one)")
     p.add_argument("--input", action="append", help="input exposed (repeatable; default all)")
     p.add_argument("--output", action="append", help="output exposed (repeatable; default the measured outputs)")
-    p.add_argument("--nominal", type=float, metavar="VALUE",
+    p.add_argument("--nominal", type=ck.number("--nominal", 0), metavar="VALUE",
                    help="nominal of every state, which importers scale their absolute tolerance by (default 1e-3 = "
                         "atol/rtol of bscomp.simulate's defaults)")
     p.set_defaults(func=_fmu)
@@ -561,38 +534,58 @@ def _run_json(args, verb: str) -> int:
 
 def main(argv=None) -> int:
     """Run one command; every failure is one line (or a JSON object with ``--json``), see the module doc."""
-    import json
     import warnings
 
     argv = sys.argv[1:] if argv is None else list(argv)
     as_json, debug = "--json" in argv, "--debug" in argv
     verb = next((a for a in argv if not a.startswith("-")), "")
 
+    args = None
     try:
-        args = _parser().parse_args(argv)
-        verb = args.cmd
-        if as_json and not debug:
-            return _run_json(args, verb)
-        with warnings.catch_warnings():
-            if not debug:
-                warnings.formatwarning = one_line_warning(verb)   # still a Python warning: filters see it
-            return args.func(args)
-    except KeyboardInterrupt:
-        print(f"bscomp {verb}: interrupted".replace("  ", " "), file=sys.stderr)
-        return 130
-    except SystemExit:       # --help
-        raise
+        with ck.sigterm_as_interrupt():         # SIGTERM like Ctrl-C: the with-blocks remove their temporary files
+            args = _parser().parse_args(argv)
+            verb = args.cmd
+            if as_json and not debug:
+                return _run_json(args, verb)
+            with warnings.catch_warnings():
+                if not debug:
+                    warnings.formatwarning = one_line_warning(verb)   # still a Python warning: filters see it
+                return args.func(args)
+    except KeyboardInterrupt as exc:
+        term = isinstance(exc, ck.Terminated)
+        print(f"bscomp {verb}: {'terminated' if term else 'interrupted'}".replace("  ", " "), file=sys.stderr)
+        return 143 if term else 130
+    except SystemExit as exc:
+        if args is None or debug:            # --help, or a traceback asked for
+            raise
+        return _report(_exit_error(exc, args), verb, as_json)
     except BaseException as exc:
         if debug:
             raise
-        name, msg, hint, code = _describe(exc)
-        msg = " ".join(msg.split())
-        if as_json:
-            print(json.dumps({"error": msg, "type": name, "hint": hint}))
-        else:
-            print(f"bscomp{' ' + verb if verb else ''}: {name}: {msg}" + (f" -- {hint}" if hint else ""),
-                  file=sys.stderr)
-        return code
+        return _report(exc, verb, as_json)
+
+
+def _exit_error(exc: SystemExit, args):
+    """A ``sys.exit()`` in user code (a system file's build()) as a named error."""
+    from bscomp.errors import ModelDefinitionError
+
+    src = getattr(args, "system", None)
+    where = f"system file {src}" if src and str(src).endswith(".py") else "user code"
+    return ModelDefinitionError(f"{where} called sys.exit({exc.code!r}) while bscomp {args.cmd} ran",
+                                hint="build() must return a bscomp.System; raise an exception to report a problem")
+
+
+def _report(exc: BaseException, verb: str, as_json: bool) -> int:
+    """Print the one line (or JSON object) of an error; its exit code."""
+    import json
+
+    name, msg, hint, code = _describe(exc)
+    msg = " ".join(msg.split())
+    if as_json:
+        print(json.dumps({"error": msg, "type": name, "hint": hint}))
+    else:
+        print(f"bscomp{' ' + verb if verb else ''}: {name}: {msg}" + (f" -- {hint}" if hint else ""), file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

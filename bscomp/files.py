@@ -16,7 +16,7 @@ from pathlib import Path
 
 from bscomp.errors import OutputFileError
 
-__all__ = ["atomic_write", "atomic_path", "atomic_dir", "staged", "writable_path", "json_default"]
+__all__ = ["atomic_write", "atomic_path", "atomic_dir", "staged", "writable_path", "writable_dir", "json_default"]
 
 
 def writable_path(path, what: str = "output file", suffixes=None) -> Path:
@@ -37,6 +37,27 @@ def writable_path(path, what: str = "output file", suffixes=None) -> Path:
     if suffixes is not None and p.suffix.lower() not in suffixes:
         raise OutputFileError(f"{what} {str(p)!r} has the extension {p.suffix or '(none)'!r}; use one of "
                               f"{', '.join(suffixes)}")
+    return p
+
+
+def writable_dir(path, what: str = "output folder") -> Path:
+    """Check up front that the folder ``path`` can be created or replaced: it is not a file, the nearest
+    existing folder above it is a folder (not a file) and writable.
+
+    Raises :class:`bscomp.errors.OutputFileError` naming ``what`` (e.g. ``"--report folder"``) and the path.
+    """
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise OutputFileError(f"{what} {str(p)!r} is a file, not a folder", hint="give a folder name (it is created)")
+    above = p.parent if str(p.parent) else Path(".")
+    while not above.exists() and above != above.parent:
+        above = above.parent
+    if not above.is_dir():
+        raise OutputFileError(f"{what} {str(p)!r}: {str(above)!r} is a file, not a folder",
+                              hint="give a path whose folders are folders")
+    if not os.access(above, os.W_OK | os.X_OK):
+        raise OutputFileError(f"{what} {str(p)!r}: folder {str(above)!r} is not writable",
+                              hint="choose a writable location")
     return p
 
 
@@ -149,11 +170,15 @@ def atomic_dir(path):
     """
     import shutil
 
-    p = Path(path)
+    p = writable_dir(path)
     _check_replaceable(p)
     parent = p.parent if str(p.parent) else Path(".")
-    parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{p.name}.", dir=parent))
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{p.name}.", dir=parent))
+    except OSError as exc:                  # never name the temporary folder: the user did not choose it
+        raise OutputFileError(f"output folder {str(p)!r} cannot be created in {str(parent)!r}: "
+                              f"{exc.strerror or exc}", hint="choose a writable location") from exc
     (tmp / OUTPUT_MARKER).write_text("written by bscomp; the folder is replaced as a whole when rewritten\n")
     try:
         yield tmp

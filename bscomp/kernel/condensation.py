@@ -38,13 +38,24 @@ def is_asymmetric(A, rtol: float = SYM_RTOL) -> bool:
 
 
 def massless_split(M) -> tuple[np.ndarray, np.ndarray]:
-    """``(massless, massive)`` coordinate indices: zero columns of ``M`` (relative to its largest column sum;
-    all coordinates are massless when ``M`` is zero)."""
+    """``(massless, massive)`` coordinate indices: the zero columns of ``M``.
+
+    A column counts as zero when it is exactly zero or round-off of the masses it is coupled with: its
+    absolute sum is at most ``1e-14`` of the largest column sum among the coordinates it shares an entry of
+    ``M`` with (``M_ij`` or ``M_ji`` nonzero, ``i != j``). A coordinate coupled to no other one through ``M``
+    (a lumped mass) is massless only when its mass is exactly zero, so a light rotor next to a very heavy
+    table (1e-3 kg m^2 and 1e12 kg) keeps its inertia. All coordinates are massless when ``M`` is zero.
+    """
     M = sp.csr_matrix(M)
     n = M.shape[0]
-    col = np.asarray(abs(M).sum(axis=0)).ravel()
-    scale = col.max() if n else 0.0
-    massless = np.flatnonzero(col <= 1e-14 * scale) if scale > 0 else np.arange(n)
+    A = abs(M)
+    col = np.asarray(A.sum(axis=0)).ravel()
+    coupled = sp.csc_matrix(A + A.T)
+    coupled.setdiag(0)
+    coupled.eliminate_zeros()
+    coupled.data = col[coupled.indices]                 # column j holds the column sums of its neighbours
+    scale = coupled.max(axis=0).toarray().ravel() if n else np.zeros(0)
+    massless = np.flatnonzero((col == 0) | (col <= 1e-14 * scale))
     return massless, np.setdiff1d(np.arange(n), massless)
 
 

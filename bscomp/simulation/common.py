@@ -98,7 +98,7 @@ def prepare(model, t, inputs=None, x0=None, params=None, outputs=None, controlle
     if np.any(np.diff(t) <= 0):
         k = int(np.flatnonzero(np.diff(t) <= 0)[0]) + 1
         raise UsageError(f"t must be strictly increasing: t[{k}] = {t[k]} after t[{k - 1}] = {t[k - 1]}")
-    controllers = list(controllers or [])
+    controllers = _controllers(controllers)
     p = dae.parameter_vector(run_overrides(model, dae, params))
     xs = dae.x_start.copy()
     for k, v in check_mapping("x0", x0, "initial state values").items():
@@ -115,6 +115,24 @@ def prepare(model, t, inputs=None, x0=None, params=None, outputs=None, controlle
     if progress is None:
         progress = len(t) > 200 and sys.stderr.isatty()
     return SimulationProblem(dae, t, U, xs, p, outputs, controllers, bool(progress))
+
+
+def _controllers(controllers) -> list:
+    """``controllers`` as a list of sampled controllers (objects with ``law``, ``Ts``, ``measure``, ``actuate``,
+    e.g. from :func:`bscomp.simulation.sampled_controller`), else :class:`ArgumentTypeError` saying so."""
+    if controllers is None:
+        return []
+    what = ("controllers must be a list of SampledController (made by bscomp.simulation.sampled_controller: a "
+            "law called every Ts with the measured outputs, returning the actuated inputs)")
+    if isinstance(controllers, (str, bytes)) or not hasattr(controllers, "__iter__"):
+        controllers = [controllers] if hasattr(controllers, "law") else None
+        if controllers is None:
+            raise ArgumentTypeError(f"{what}, got {type(controllers).__name__}")
+    out = list(controllers)
+    for k, c in enumerate(out):
+        if not all(hasattr(c, a) for a in ("law", "Ts", "measure", "actuate")) or not callable(c.law):
+            raise ArgumentTypeError(f"{what}; controllers[{k}] is {type(c).__name__} {c!r}"[:300])
+    return out
 
 
 def input_matrix(dae, t, inputs, fixed=()):

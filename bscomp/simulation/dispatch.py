@@ -21,11 +21,13 @@ A new method is one more entry in :data:`METHODS`.
 
 from __future__ import annotations
 
-from bscomp.errors import UsageError, check_number
+import numpy as np
+
+from bscomp.errors import ArgumentTypeError, SolverError, UsageError, check_number
 from bscomp.simulation.common import SimulationOptions, prepare
 from bscomp.simulation.fixed_step import simulate_fixed
 from bscomp.simulation.idas import simulate_idas
-from bscomp.simulation.modal import simulate_modal
+from bscomp.simulation.modal import ModalResult, check_modal_options, simulate_modal
 from bscomp.simulation.result import SimulationError, SimulationResult
 from bscomp.simulation.sampled import SampledController
 from bscomp.simulation.split import simulate_split
@@ -145,11 +147,53 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         raise UsageError(f"method must be one of {', '.join(map(repr, METHODS))}, got {method!r}")
     check_number("rtol", rtol, positive=True)
     check_number("atol", atol, positive=True)
-    check_number("max_order", max_order, integer=True, minimum=1)
+    if check_number("max_order", max_order, integer=True, minimum=1) > 5:
+        raise UsageError(f"max_order must be 1 to 5 (the BDF orders IDAS has), got {max_order!r}",
+                         hint="2 keeps A-stability for lightly damped structures")
+    _check_flag("jit", jit)
+    _check_flag("progress", progress)
     check_number("max_num_steps", max_num_steps, integer=True, minimum=1)
     check_number("substeps", substeps, integer=True, minimum=1)
     check_number("newton_iter", newton_iter, integer=True, minimum=1)
+    if method == "modal":
+        check_modal_options(modal_options)
     problem = prepare(model, t, inputs, x0, params, outputs, controllers, progress)
+    if problem.dae.nx == 0:
+        raise UsageError(f"'{problem.dae.name}' has no states: there is nothing to integrate",
+                         hint="evaluate its outputs directly (they are algebraic functions of the inputs), or add "
+                              "a component with dynamics (a mass, an inertia, a filter)")
     options = SimulationOptions(rtol=rtol, atol=atol, max_order=max_order, max_num_steps=max_num_steps,
                                 substeps=substeps, newton_iter=newton_iter, jit=jit, modal=modal_options)
-    return run(problem, options)
+    return _finite_run(run, problem, options, method)
+
+
+def _finite_run(run, problem, options, method) -> SimulationResult:
+    """``run(problem, options)`` (the method's simulator); a :class:`SolverError` naming the inputs when its
+    states or outputs overflow."""
+    try:
+        res = run(problem, options)
+    except ValueError as exc:              # scipy's check_finite: the run overflowed
+        if "infs or NaNs" not in str(exc):
+            raise
+        raise _overflow(problem, method) from exc
+    bad = [k for k, v in res.outputs.items() if not np.all(np.isfinite(v))]
+    if bad or (not isinstance(res, ModalResult) and not np.all(np.isfinite(res.x))):  # modal: x rebuilt on demand
+        raise _overflow(problem, method, bad)
+    return res
+
+
+def _check_flag(name, value) -> None:
+    """A switch must be a bool or None (``jit="no"`` would be truthy and switch it on)."""
+    if value is not None and not isinstance(value, (bool, np.bool_)):
+        raise ArgumentTypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
+
+
+def _overflow(problem, method, outputs=()) -> SolverError:
+    """The error of a run whose states or outputs are not finite, naming the largest inputs."""
+    dae, U = problem.dae, problem.U
+    peak = {n: float(np.max(np.abs(U[i]))) for i, n in enumerate(dae.u_names)} if U.size else {}
+    big = ", ".join(f"|{n}| up to {v:.3g}" for n, v in sorted(peak.items(), key=lambda kv: -kv[1])[:3] if v)
+    what = f"outputs {outputs[:5]}" if outputs else "the states"
+    return SolverError(f"simulate(method={method!r}) on '{dae.name}': {what} overflowed (not finite) with inputs "
+                       f"{big or 'all zero'}", hint="give inputs of a physical size (in SI units) or check the "
+                       "model's parameters")

@@ -11,15 +11,17 @@ the model's own output function on the few state columns they depend on. The ful
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 
 import casadi as ca
 import numpy as np
 
+from bscomp.errors import ArgumentTypeError, UsageError, check_number
 from bscomp.simulation.common import Progress, SampledLoop, evaluate_mapped
 from bscomp.simulation.modal_driver import ModalSimulator, block
 from bscomp.simulation.result import SimulationResult
 
-__all__ = ["simulate_modal", "ModalResult", "DEFAULTS"]
+__all__ = ["simulate_modal", "check_modal_options", "ModalResult", "DEFAULTS"]
 
 #: ``options`` of ``simulate(method="modal")`` and their defaults
 DEFAULTS = {"tol": 1e-3, "f_keep": 3e4, "window": 2}
@@ -166,6 +168,32 @@ def simulator(dae, p, options, jit=False):
     return cache[key]
 
 
+def check_modal_options(modal_options) -> dict:
+    """``modal_options`` with the defaults filled in (:data:`DEFAULTS`), each checked: ``tol`` > 0, ``f_keep`` > 0
+    [Hz] or None, ``window`` an integer >= 0; an unknown key is a :class:`UsageError` with the nearest name."""
+    import difflib
+
+    if modal_options is not None and not isinstance(modal_options, Mapping):
+        raise ArgumentTypeError(f"modal_options must be a dict such as {{'tol': 1e-3}}, got "
+                                f"{type(modal_options).__name__} {modal_options!r}"[:200])
+    given = dict(modal_options or {})
+    for k in given:
+        if k not in DEFAULTS:
+            near = difflib.get_close_matches(str(k), list(DEFAULTS), n=1)
+            raise UsageError(f"modal_options: unknown option {k!r}" + (f" (did you mean {near[0]!r}?)" if near else "")
+                             + f"; options: {sorted(DEFAULTS)}")
+    opts = dict(DEFAULTS, **given)
+    opts["tol"] = check_number("modal_options['tol']", opts["tol"], positive=True)
+    if opts["f_keep"] is not None:                   # inf keeps every mode, like None
+        f_keep = opts["f_keep"]
+        if not isinstance(f_keep, (int, float, np.number)) or isinstance(f_keep, bool) or not f_keep > 0:
+            raise UsageError(f"modal_options['f_keep'] must be a frequency > 0 [Hz] (or None: keep every mode), got "
+                             f"{f_keep!r}", hint="the default 3e4 Hz keeps the modes of a feed drive's band")
+        opts["f_keep"] = float(f_keep)
+    opts["window"] = check_number("modal_options['window']", opts["window"], integer=True, nonnegative=True)
+    return opts
+
+
 def simulate_modal(problem, options):
     """``simulate(method="modal")``: the driver (:class:`~bscomp.simulation.modal_driver.ModalSimulator`).
 
@@ -182,13 +210,10 @@ def simulate_modal(problem, options):
         ``stats``: the counters of :class:`ModalSimulator` (modal parts built, chunks, batches, sub-steps,
         regime switches) and ``wall_s``, ``real_time_factor``.
     """
-    opts = dict(DEFAULTS, **(options.modal or {}))
-    bad = set(opts) - set(DEFAULTS)
-    if bad:
-        raise ValueError(f"method='modal' options are {sorted(DEFAULTS)}, got {sorted(bad)}")
+    opts = check_modal_options(options.modal)
     substeps = int(options.substeps)
     if substeps < 1:
-        raise ValueError(f"substeps must be >= 1, got {substeps}")
+        raise UsageError(f"substeps must be >= 1, got {substeps}")
     dae, t, U, xs, p = problem.dae, problem.t, problem.U, problem.x0, problem.p
     t_wall = time.perf_counter()
     sim = simulator(dae, p, opts, options.jit)

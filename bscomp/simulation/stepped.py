@@ -172,6 +172,7 @@ def stepped_sine(model, input: str, output, freqs, amplitude: float, *, offset: 
         ``input`` is not an input of the model.
     """
     outs, f = _check(input, output, freqs, amplitude, samples, settle, periods, max_settle, tol)
+    _check_simulate_options(simulate_options)
     dae = as_dae(model, params)
     if input not in dae.u_names:
         raise UnknownNameError(f"stepped_sine: '{input}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
@@ -223,3 +224,25 @@ def stepped_sine(model, input: str, output, freqs, amplitude: float, *, offset: 
         notes.append(f"not periodic to {tol:g} at {unsettled} Hz")
     return SteppedSine(freqs=f, H=H, inputs=[input], outputs=outs, name=dae.name, notes=notes,
                        amplitude=float(amplitude), distortion=dist, settle_periods=used)
+
+
+#: ``simulate`` arguments stepped_sine sets itself (per frequency), so they are not simulate_options
+_OWN = {"model": "model", "t": "freqs", "inputs": "input and amplitude", "x0": "(the settled state)",
+        "outputs": "output", "params": "params", "method": "method", "progress": "progress"}
+
+
+def _check_simulate_options(options) -> None:
+    """Every keyword passed on to :func:`bscomp.simulate` is one of its options and not one stepped_sine sets;
+    else :class:`UsageError` naming it (with the nearest option name)."""
+    import difflib
+    import inspect
+
+    allowed = [k for k in inspect.signature(simulate).parameters if k not in _OWN]
+    for k in options:
+        if k in _OWN:
+            raise UsageError(f"stepped_sine sets simulate's {k!r} itself (from {_OWN[k]}); do not pass {k}=",
+                             hint=f"options passed on to simulate: {allowed}")
+        if k not in allowed:
+            near = difflib.get_close_matches(k, allowed, n=1)
+            raise UsageError(f"stepped_sine: unknown option {k!r}" + (f" (did you mean {near[0]!r}?)" if near else ""),
+                             hint=f"options passed on to simulate: {allowed}")
