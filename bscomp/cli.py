@@ -541,6 +541,7 @@ def main(argv=None) -> int:
     verb = next((a for a in argv if not a.startswith("-")), "")
 
     args = None
+    fmt = warnings.formatwarning              # put back after the run: a caller's later warnings keep their format
     try:
         with ck.sigterm_as_interrupt():         # SIGTERM like Ctrl-C: the with-blocks remove their temporary files
             args = _parser().parse_args(argv)
@@ -563,6 +564,8 @@ def main(argv=None) -> int:
         if debug:
             raise
         return _report(exc, verb, as_json)
+    finally:
+        warnings.formatwarning = fmt
 
 
 def _exit_error(exc: SystemExit, args):

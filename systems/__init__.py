@@ -13,6 +13,7 @@ import traceback
 from pathlib import Path
 
 from bscomp.errors import BscompError, ModelDefinitionError, ParameterError, UnknownNameError
+from bscomp.kernel.system import System
 
 from .chain import free_chain, friction_oscillator, mass_spring_chain  # noqa: E402
 from .small_drive import small_drive  # noqa: E402
@@ -105,6 +106,10 @@ def get(name_or_path: str, overrides: dict | None = None):
             raise UnknownNameError(f"system file {name_or_path} must define build() returning a bscomp.System")
         with _user_file(name_or_path, "in its build()"):
             system = _call_build(build, name_or_path, build_kwargs)
+        if not isinstance(system, System):
+            raise ModelDefinitionError(f"system file {name_or_path}: build() returned {type(system).__name__} "
+                                       f"{system!r}"[:200] + ", not a bscomp.System",
+                                       hint="end build() with 'return system' (the System it assembled)")
     elif str(name_or_path).endswith(".py"):
         raise UnknownNameError(f"system file {name_or_path!r} does not exist (or is not a file)")
     else:

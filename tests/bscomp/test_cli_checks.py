@@ -239,3 +239,22 @@ def test_massless_split_cases():
     assert list(massless_split(np.zeros((2, 2)))[0]) == [0, 1]
     noise = np.array([[1.0, 1e-17], [1e-17, 1e-17]])            # round-off of a coupled projection
     assert list(massless_split(noise)[0]) == [1]
+
+
+def test_a_system_file_returning_no_system_is_named_by_the_library(tmp_path):
+    """bscomp.systems.get (the Python API) names the file when build() returns something else."""
+    import bscomp.systems
+
+    path = tmp_path / "b42.py"
+    path.write_text("def build():\n    return 42\n")
+    with pytest.raises(errors.ModelDefinitionError, match=r"b42.py: build\(\) returned int 42, not a bscomp.System"):
+        bscomp.systems.get(str(path))
+
+
+def test_main_puts_the_warning_format_back(tmp_path, capsys):
+    """The CLI prints warnings on one line while it runs; a caller's later warnings keep Python's format."""
+    import warnings
+
+    before = warnings.formatwarning
+    assert main(["modes", "validation_drive"]) == 0
+    assert warnings.formatwarning is before
