@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from bscomp.errors import ModelDefinitionError, ParameterError, UnknownNameError
+from bscomp.errors import ArgumentTypeError, ModelDefinitionError, ParameterError, UnknownNameError
 from bscomp.kernel.ports import PortSpec
 from bscomp.kernel.units import Unit, UnitSyntaxError, parse_quantity, parse_unit, same_dimension
 
@@ -364,7 +364,12 @@ class Component:
                                                f"reads ({exc})") from None
         cls.__doc__ = parameters_docstring(cls.__doc__, cls.parameters())
 
-    def __init__(self, **params):
+    def __init__(self, *args, **params):
+        if args:
+            names = list(self.parameters())
+            example = f"{names[0]}={args[0]!r}" if names else "..."
+            raise ArgumentTypeError(f"{type(self).__name__} takes its parameters by name, e.g. "
+                                    f"{type(self).__name__}({example}); its parameters are {names}")
         self._values = {}
         self._ctx = None
         self._name = None

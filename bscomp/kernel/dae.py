@@ -254,13 +254,25 @@ class Dae:
         """All names usable as outputs."""
         return list(self.observables)
 
+    def _near_outputs(self, name: str) -> str:
+        """What to say about an unknown output: the outputs of its component, else the closest names."""
+        import difflib
+
+        comp = name.rpartition(".")[0]
+        own = [k for k in self.observables if k.rpartition(".")[0] == comp][:15]
+        if comp and own:
+            return f"outputs of '{comp}': {own}"
+        close = difflib.get_close_matches(name, list(self.observables), n=5, cutoff=0.5)
+        comps = sorted({k.split(".")[0] for k in self.observables if not k.startswith("der(")})
+        return (f"no component '{comp}' has outputs" if comp else "an output is 'component.name'") + \
+            (f"; closest: {close}" if close else f"; components: {comps[:20]}")
+
     def output_expr(self, names):
         """SX expressions of named outputs in terms of (xd, x, z, u, p)."""
         exprs = []
         for n in names:
             if n not in self.observables:
-                close = [k for k in self.observables if k.split(".")[0] == n.split(".")[0]][:15]
-                raise UnknownNameError(f"no output named '{n}' in '{self.name}'; outputs of that component: {close}")
+                raise UnknownNameError(f"no output named '{n}' in '{self.name}'; {self._near_outputs(n)}")
             exprs.append(self.observables[n])
         e = ca.vertcat(*exprs) if exprs else ca.SX(0, 1)
         subs = self._cache.get("output_substitutions")

@@ -111,12 +111,16 @@ def check_sine_request(who, input, output, freqs, amplitude):
     return list(outs), f
 
 
-def _check(input, output, freqs, amplitude, samples, settle, periods, max_settle, tol):
+def _check(input, output, freqs, amplitude, offset, samples, settle, periods, max_settle, tol):
     outs, f = check_sine_request("stepped_sine", input, output, freqs, amplitude)
     for name, v, lo in (("samples", samples, 16), ("settle", settle, 1), ("periods", periods, 1),
                         ("max_settle", max_settle, 1)):
         check_number(name, v, integer=True, minimum=lo)
     check_number("tol", tol, positive=True)
+    check_number("offset", offset)
+    if max_settle < settle:
+        raise UsageError(f"stepped_sine: max_settle = {max_settle} periods is less than settle = {settle}: the "
+                         "settling check could never run; give max_settle >= settle")
     return outs, f
 
 
@@ -171,7 +175,7 @@ def stepped_sine(model, input: str, output, freqs, amplitude: float, *, offset: 
     UnknownNameError
         ``input`` is not an input of the model.
     """
-    outs, f = _check(input, output, freqs, amplitude, samples, settle, periods, max_settle, tol)
+    outs, f = _check(input, output, freqs, amplitude, offset, samples, settle, periods, max_settle, tol)
     _check_simulate_options(simulate_options)
     dae = as_dae(model, params)
     if input not in dae.u_names:
