@@ -14,7 +14,8 @@ import math
 import signal
 import threading
 
-from bscomp.errors import ModelDefinitionError, ParameterError, UsageError
+from bscomp.errors import ModelDefinitionError, ParameterError, UnknownNameError, UsageError
+from bscomp.files import _check_replaceable, writable_dir
 
 __all__ = ["number", "parse_set", "parse_uncertain", "steps", "output_folder", "check_system", "build_guard",
            "check_file_system", "reference_table", "Terminated",
@@ -102,7 +103,6 @@ def steps(t_end: float, dt: float, most: int = 10 ** 7) -> int:
 
 def output_folder(path, flag: str):
     """Check the folder of ``flag`` (``--report``, ``--out``) can be written, before computing; names ``flag``."""
-    from bscomp.files import _check_replaceable, writable_dir
 
     p = writable_dir(path, f"{flag} folder")
     if flag == "--report":
@@ -137,7 +137,6 @@ def check_system(system, source):
 
 def reference_table(md, reference) -> str:
     """The mode table, modal masses at ``--reference`` (a coordinate of the modes, named in the error)."""
-    from bscomp.errors import UnknownNameError
 
     if not reference:
         return md.table()
