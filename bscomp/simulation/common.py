@@ -162,7 +162,7 @@ def input_matrix(dae, t, inputs, fixed=()):
             elif arr.shape == (nint,):
                 U[i] = arr
             else:
-                raise UsageError(f"input '{k}' has shape {arr.shape}; give one value per time point ({len(t)}) or "
+                raise UsageError(f"input '{k}' has shape {arr.shape}; give one per time point ({len(t)}) or "
                                  f"per interval ({nint}), a scalar, or a function of t")
         if not np.all(np.isfinite(U[i])):
             j = int(np.flatnonzero(~np.isfinite(U[i]))[0])
