@@ -136,7 +136,7 @@ def check_number(name: str, value, *, positive: bool = False, nonnegative: bool 
     """``value`` as a float (int if ``integer``), finite and in range, else ``error`` (:class:`UsageError`)
     naming the argument ``name``."""
     error = error or UsageError
-    if isinstance(value, (bool, str, bytes)) or type(value).__name__ == "bool_":   # True is not 1, "2" not 2
+    if isinstance(value, (bool, str, bytes)) or type(value).__name__ in ("bool", "bool_"):   # True is not 1
         raise error(f"{name} must be a number, got {value!r} ({type(value).__name__})")
     try:
         v = float(value)

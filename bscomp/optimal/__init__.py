@@ -1,6 +1,8 @@
 """Optimal-control trajectory studies (Ipopt).
 
 * :mod:`~bscomp.optimal.problem`: the statement, :class:`Ocp` (variables, bounds, objectives, final conditions);
+* :mod:`~bscomp.optimal.checks`: bad statements refused up front (parameters as signals, empty bounds, Ipopt
+  options, tracking references, boundary values outside bounds, warm starts of another model);
 * :mod:`~bscomp.optimal.guess`: where a solve starts (reference motion, nominals, warm starts, from a simulation);
 * :mod:`~bscomp.optimal.collocation`: direct collocation (Radau IIA from ``casadi.collocation_coeff``);
 * :mod:`~bscomp.optimal.coordinates` and :mod:`~bscomp.optimal.modal`: real modal coordinates of a linear

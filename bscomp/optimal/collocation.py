@@ -25,8 +25,9 @@ import casadi as ca
 import numpy as np
 
 from bscomp.kernel.signal_meta import unit_of
+from bscomp.optimal.checks import reference_values
 from bscomp.optimal.infeasibility import Ledger, describe
-from bscomp.optimal.result import OcpResult, active_fraction, convergence_error
+from bscomp.optimal.result import OcpError, OcpResult, active_fraction, convergence_error
 
 __all__ = ["RadauScheme", "radau", "objective", "output_at", "solve_physical"]
 
@@ -99,7 +100,7 @@ def objective(ocp, scheme: RadauScheme, T, T0, h, Us, y=None, y_scale=1.0):
     wq = np.tile(scheme.B, N)
     tc = scheme.stage_times(N, ocp.T_fixed)
     if kind == "tracking":
-        ref_t = np.array([args["reference"](t) for t in tc])
+        ref_t = reference_values(args["reference"], args["output"], tc)
         e = (y - ca.DM(ref_t[None, :])) / y_scale
         return h * ca.sum2(e**2 * ca.DM(wq[None, :])) + args["effort_weight"] * h * ca.sumsqr(Us)
     mask = (tc >= ocp.T_fixed - args["T_settle"]).astype(float)
@@ -165,7 +166,7 @@ class _Transcription:
         try:
             sol = opti.solve()
         except RuntimeError as exc:
-            raise self._failure() from exc
+            raise self._failure(exc) from exc
         return self._result(sol, opti.stats(), rate_expr)
 
     def _unknowns(self):
@@ -356,7 +357,7 @@ class _Transcription:
         if self.free_u:
             opti.set_initial(self.Uv, (ref["U"][:, self.free_u] / self.us[self.free_u]).T)
 
-    def _failure(self):
+    def _failure(self, exc):
         """The :class:`OcpError` of a failed solve, with the violation and vibration bound at the last iterate."""
         opti = self.opti
         where, info = "", {}
@@ -373,7 +374,11 @@ class _Transcription:
                 vib[n] = float(opti.debug.value(e))
             except Exception:  # noqa: BLE001 - diagnostic only
                 vib[n] = None
-        return convergence_error(self.dae.name, opti.stats(), viol, vib, self.ocp.residual_limits, where, info,
+        try:
+            stats = opti.stats()
+        except RuntimeError:     # Ipopt did not even start (it refused an option or the problem)
+            return OcpError(f"Ipopt did not run on '{self.dae.name}': {str(exc).strip().splitlines()[-1]}")
+        return convergence_error(self.dae.name, stats, viol, vib, self.ocp.residual_limits, where, info,
                                  units=partial(unit_of, self.dae))
 
     def _result(self, sol, stats, rate_expr) -> OcpResult:

@@ -220,8 +220,11 @@ class _ModalNlp:
         ubx.append(np.full(nE + nX, np.inf))
         G = ca.vertcat(*self.g) if self.g else self.Sym(0, 1)
         ipopt = dict(ocp.ipopt_options, **(solver_options or {}))
-        solver = ca.nlpsol("ocp_sparse" if self.sparse else "ocp_condensed", "ipopt", {"x": w, "f": J, "g": G},
-                           {"ipopt": ipopt, "print_time": False})
+        try:
+            solver = ca.nlpsol("ocp_sparse" if self.sparse else "ocp_condensed", "ipopt", {"x": w, "f": J, "g": G},
+                               {"ipopt": ipopt, "print_time": False})
+        except RuntimeError as exc:     # Ipopt refused an option (Ocp.solve checks them first)
+            raise OcpError(f"Ipopt did not run on '{ocp.dae.name}': {str(exc).strip().splitlines()[-1]}") from exc
         w0 = np.concatenate([[ref["T"] / self.T0] if self.free_T else [],
                              (ref["U"][:, self.free_u] / self.us[self.free_u]).T.ravel(order="F")] + self.E0 + self.X0)
         lbg = np.concatenate(self.lbg) if self.lbg else np.zeros(0)

@@ -24,7 +24,17 @@ import numpy as np
 
 from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_number
 from bscomp.model import as_dae, run_overrides
-from bscomp.optimal.collocation import solve_physical
+from bscomp.optimal.checks import (
+    check_bound_pair,
+    check_boundary_in_bounds,
+    check_count,
+    check_degree,
+    check_signal,
+    check_solver_options,
+    check_warm_result,
+    reference_values,
+)
+from bscomp.optimal.collocation import radau, solve_physical
 from bscomp.optimal.coordinates import ModalDae, ModalError, modal_basis, output_rows, residual_rows
 from bscomp.optimal.guess import from_simulation, initial_guess, reference_motion
 from bscomp.optimal.modal import solve_modal
@@ -81,8 +91,8 @@ class Ocp:
         self.coordinates = coordinates
         self.dae = as_dae(model, params)
         self.p = self.dae.parameter_vector(run_overrides(model, self.dae, params))
-        self.N = check_number("N", N, integer=True, minimum=1)
-        self.d = check_number("degree", degree, integer=True, minimum=1)
+        self.N = check_count("N", N)
+        self.d = check_degree(degree)
         self.bounds: dict[str, tuple] = {}
         self.rate_limits: dict[str, float] = {}
         self.x_init: dict[str, float] = {}
@@ -110,12 +120,13 @@ class Ocp:
     # ---- problem statement --------------------------------------------------------------------
     def bound(self, name, lo=-np.inf, hi=np.inf, scale=None):
         """Path bound ``lo <= name <= hi`` on a state, input or observable (enforced at every point)."""
-        self.kind(name)
+        self._signal(name, "bound")
         lo, hi = (_bound_value(name, v, side) for v, side in ((lo, "lower"), (hi, "upper")))
         if lo != lo or hi != hi:
             raise UsageError(f"bound on '{name}': a bound is NaN (lo={lo}, hi={hi}); use -inf/inf for none")
         if lo > hi:
             raise UsageError(f"bound on '{name}': lower {lo} > upper {hi}")
+        check_bound_pair(name, lo, hi)
         if scale is not None:
             scale = check_number(f"scale of '{name}'", scale, positive=True)
         self.bounds[name] = (float(lo), float(hi))
@@ -138,7 +149,7 @@ class Ocp:
         converges to the continuous one (tested against the analytic jerk-limited move). Physical
         coordinates only.
         """
-        self.kind(name)
+        self._signal(name, "bound_rate")
         if isinstance(limit, (int, float, np.number)) and not limit > 0:
             raise UsageError(f"rate limit on '{name}' must be > 0, not {limit}")
         limit = check_number(f"rate limit on '{name}'", limit, positive=True)
@@ -199,20 +210,22 @@ class Ocp:
 
     def minimize_tracking(self, T: float, output: str, reference: Callable, effort_weight: float = 0.0):
         """Minimise ∫ (y - r(t))² dt (+ effort) over a fixed horizon."""
-        self.kind(output)
+        self._signal(output, "minimize_tracking(output)")
         if not callable(reference):
             raise ArgumentTypeError(f"reference must be a function of t giving the wanted '{output}', got "
                                     f"{type(reference).__name__} {reference!r}")
         effort_weight = check_number("effort_weight", effort_weight, nonnegative=True)
+        T = check_number("T", T, positive=True)
+        reference_values(reference, output, radau(self.d).stage_times(self.N, T))   # refuse a bad one now
         self.objective_kind = "tracking"
-        self.T_fixed = check_number("T", T, positive=True)
+        self.T_fixed = T
         self.objective_args = {"output": output, "reference": reference, "effort_weight": effort_weight}
         return self
 
     def minimize_residual_vibration(self, T: float, output: str, T_settle: float):
         """Fixed-time move, then minimise ∫ y² over the last ``T_settle`` seconds (e.g. table acceleration
         or screw stretch after arrival)."""
-        self.kind(output)
+        self._signal(output, "minimize_residual_vibration(output)")
         T = check_number("T", T, positive=True)
         T_settle = check_number("T_settle", T_settle, positive=True)
         if T_settle > T:
@@ -246,15 +259,13 @@ class Ocp:
         """
         limits, hold = check_mapping("limits", limits, "limits"), check_mapping("hold", hold, "input values")
         for k, v in limits.items():
-            if self.kind(k) == "u":
+            if self._signal(k, "limit_residual_vibration") == "u":
                 raise UnknownNameError(f"residual-vibration limit on '{k}': give an output or a state, not an input")
-            if not v > 0:
-                raise UsageError(f"residual-vibration limit on '{k}' must be > 0, not {v}")
+            limits[k] = check_number(f"residual-vibration limit on '{k}'", v, positive=True)
         for k in hold:
             if self.kind(k) != "u":
                 raise UnknownNameError(f"hold value for '{k}': only inputs can be held")
             hold[k] = check_number(f"hold value of '{k}'", hold[k])
-        limits = {k: check_number(f"residual-vibration limit on '{k}'", v, positive=True) for k, v in limits.items()}
         self.residual_limits.update({k: float(v) for k, v in limits.items()})
         self.hold.update({k: float(v) for k, v in (hold or {}).items()})
         return self
@@ -265,7 +276,8 @@ class Ocp:
         input profile; see :func:`bscomp.optimal.guess.from_simulation`) instead of the reference motion."""
         if not isinstance(result, (SimulationResult, OcpResult)):
             raise ArgumentTypeError(f"warm_start takes an OcpResult or a SimulationResult, got {type(result).__name__}")
-        self.warm = from_simulation(result, self.dae) if isinstance(result, SimulationResult) else result
+        self.warm = from_simulation(result, self.dae) if isinstance(result, SimulationResult) \
+            else check_warm_result(result, self.dae)
         return self
 
     # ---- what the statement means (read by the guess and the transcriptions) --------------------------
@@ -280,6 +292,14 @@ class Ocp:
             return "y"
         raise UnknownNameError(f"'{name}' is not a state, input or output of '{d.name}'; inputs: {d.u_names}, "
                                f"states: {d.x_names[:8]}...")
+
+    def _signal(self, name, what) -> str:
+        """:meth:`kind` of a name given as a signal (bounded, tracked, limited): a parameter or a constant
+        output is refused (:class:`UnknownNameError`, :func:`bscomp.optimal.checks.check_signal`)."""
+        kind = self.kind(name)
+        if kind == "y":
+            check_signal(self.dae, name, what)
+        return kind
 
     def nominal(self, name, default=1.0) -> float:
         """Nominal magnitude given by the user: ``scale=``, else the largest finite bound or boundary value."""
@@ -409,6 +429,10 @@ class Ocp:
     def solve(self, solver_options: dict | None = None) -> OcpResult:
         """Transcribe and solve with Ipopt; raises :class:`OcpError` if it does not converge.
 
+        ``solver_options`` (a dict of Ipopt options over :attr:`ipopt_options`) is checked first: an option
+        Ipopt does not know or a value out of its range raises :class:`UsageError` naming it. A start state or
+        a final target outside a path bound on that state raises :class:`OcpError` before transcribing.
+
         Notes
         -----
         Scaling and the cold-start guess come from a *reference motion* (see :meth:`reference`): the
@@ -424,6 +448,8 @@ class Ocp:
         if self.objective_kind is None:
             raise OcpError("no objective: call minimize_time(), minimize_effort(), minimize_tracking() or "
                            "minimize_residual_vibration() first")
+        solver_options = check_solver_options(self.ipopt_options, solver_options)
+        check_boundary_in_bounds(self)
         if self.coordinates.startswith("modal"):
             return solve_modal(self, solver_options)
         return solve_physical(self, initial_guess(self), solver_options)
