@@ -14,17 +14,28 @@ import os
 import tempfile
 from pathlib import Path
 
-from bscomp.errors import OutputFileError
+from bscomp.errors import ArgumentTypeError, OutputFileError
 
-__all__ = ["atomic_write", "atomic_path", "atomic_dir", "staged", "writable_path", "writable_dir", "json_default"]
+__all__ = ["atomic_write", "atomic_path", "atomic_dir", "staged", "writable_path", "writable_dir", "json_default",
+           "check_path_type"]
+
+
+def check_path_type(path, what: str = "output file", kind: str = "file") -> None:
+    """Refuse a ``path`` that is not a ``str`` or ``os.PathLike`` (``None``, a number, a list...) with
+    :class:`bscomp.errors.ArgumentTypeError` naming ``what`` (e.g. ``"Comparison.to_json: path"``)."""
+    if isinstance(path, bool) or not isinstance(path, (str, os.PathLike)):
+        raise ArgumentTypeError(f"{what} must be a {kind} name (str or pathlib.Path), got "
+                                f"{type(path).__name__} {path!r}"[:300])
 
 
 def writable_path(path, what: str = "output file", suffixes=None) -> Path:
-    """Check up front that ``path`` can be written: not a directory, its folder exists, known suffix.
+    """Check up front that ``path`` can be written: a str or path, not a directory, its folder exists, and
+    (given ``suffixes``, e.g. ``(".csv",)``) its extension is one of them.
 
-    Raises :class:`bscomp.errors.OutputFileError` naming the path and how to fix it.
+    Raises :class:`bscomp.errors.OutputFileError` naming the path and how to fix it
+    (:class:`~bscomp.errors.ArgumentTypeError` for a ``path`` that is no file name at all).
     """
-
+    check_path_type(path, what)
     p = Path(path)
     if p.is_dir():
         example = str(p / ("out" + (suffixes[0] if suffixes else "")))
@@ -46,6 +57,7 @@ def writable_dir(path, what: str = "output folder") -> Path:
 
     Raises :class:`bscomp.errors.OutputFileError` naming ``what`` (e.g. ``"--report folder"``) and the path.
     """
+    check_path_type(path, what, "folder")
     p = Path(path)
     if p.exists() and not p.is_dir():
         raise OutputFileError(f"{what} {str(p)!r} is a file, not a folder", hint="give a folder name (it is created)")
@@ -74,13 +86,14 @@ def _publish(tmp, target) -> None:
 
 
 @contextlib.contextmanager
-def atomic_path(path):
+def atomic_path(path, what: str = "output file", suffixes=None):
     """Yield a temporary path next to ``path``; on success rename it onto ``path``, else delete it.
 
     For writers that take a file name (``matplotlib.Figure.savefig``, ``numpy.savetxt``). The temporary
-    name keeps the suffix, so format detection by extension still works.
+    name keeps the suffix, so format detection by extension still works. ``what`` and ``suffixes`` are
+    checked by :func:`writable_path` before anything is written.
     """
-    p = writable_path(path)
+    p = writable_path(path, what, suffixes)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent if str(p.parent) else ".")
     os.close(fd)
     try:
@@ -93,15 +106,17 @@ def atomic_path(path):
 
 
 @contextlib.contextmanager
-def atomic_write(path, mode: str = "w", encoding: str | None = "utf-8", newline: str | None = None):
+def atomic_write(path, mode: str = "w", encoding: str | None = "utf-8", newline: str | None = None, *,
+                 what: str = "output file", suffixes=None):
     """``open(path, mode)`` that replaces ``path`` only when the block completes without error.
 
-    ``path`` may also be an open text stream (e.g. ``sys.stdout``), which is written directly.
+    ``path`` may also be an open text stream (e.g. ``sys.stdout``), which is written directly. A file name is
+    checked first (:func:`writable_path`: ``what`` names it in errors, ``suffixes`` are the extensions allowed).
     """
     if isinstance(path, io.IOBase) or hasattr(path, "write"):
         yield path
         return
-    with atomic_path(path) as tmp:
+    with atomic_path(path, what, suffixes) as tmp:
         kw = {} if "b" in mode else {"encoding": encoding, "newline": newline}
         with open(tmp, mode, **kw) as fh:
             yield fh

@@ -22,8 +22,10 @@ temporary file renamed onto the target (never a half-written ``.fmu``). See ``do
 
 from __future__ import annotations
 
+import ctypes
 import os
 import re
+import shlex
 import shutil
 import sys
 import tempfile
@@ -36,7 +38,7 @@ from bscomp import __version__
 from bscomp._fmu_damping import check_damping_parameters, rayleigh_term
 from bscomp._fmu_wrap import TIME_VR, patch_wrapper, state_nominals
 from bscomp._fmu_xml import FmuVariable, derivative_name, derivative_unit, structured_name, write_model_description
-from bscomp.errors import CompilerNotFoundError, FmuExportError, UnknownNameError
+from bscomp.errors import ArgumentTypeError, CompilerNotFoundError, FmuExportError, UnknownNameError, UsageError
 from bscomp.files import atomic_path, writable_path
 from bscomp.kernel.signal_meta import input_meta, measured_outputs, output_meta, parameter_meta, state_meta
 from bscomp.model import as_dae, run_overrides
@@ -58,20 +60,22 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
         (``"testbed_axial_torsional"``), a ``.py`` file defining ``build()``, a System or a flattened Dae.
     path : path-like
         Target file, ending in ``.fmu``. Written to a temporary file first and renamed.
-    inputs : list of str, optional
-        System inputs exposed as FMU inputs (default: all); the others are held at zero.
-    outputs : list of str, optional
+    inputs : str or list of str, optional
+        System inputs exposed as FMU inputs (default: all); the others are held at zero. One string is one
+        name; a name listed twice is refused (an FMU needs unique variable names).
+    outputs : str or list of str, optional
         Observables exposed as FMU outputs (``"table.a"``...). Default: the system's declared measured
         outputs (``system.validation.outputs``), else every state.
-    parameters : list of str or "all"
+    parameters : str, list of str or "all"
         Parameters exposed as tunable FMU parameters (dotted names); the rest are constants of the FMU at
         their current values. ``"all"``: every non-structural parameter.
     overrides : dict, optional
         Parameter / build overrides applied before flattening (``{"coupling.k_T": 45940}``).
     compiler : str, optional
         C compiler executable (default ``gcc``; ``cl.exe`` on Windows).
-    flags : sequence of str
-        Compiler flags (default ``-O2``: ~5x faster derivatives than CasADi's default ``-O0``).
+    flags : str or sequence of str
+        Compiler flags (default ``-O2``: ~5x faster derivatives than CasADi's default ``-O0``); a string is
+        split like a shell command line (``"-O2 -march=native"``).
     nominal : float or dict, optional
         Nominal of the continuous states (``modelDescription.xml`` and ``fmi3GetNominalsOfContinuousStates``),
         which importers scale their absolute tolerance by (FMPy: ``atol = rtol * nominal``). Default: 1e-3 for
@@ -90,18 +94,25 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
         ``path`` does not end in ``.fmu``, is a folder, or its folder does not exist.
     FmuExportError
         A structural (or damping-dependent) tunable parameter, an output name clash, a DAE the explicit
-        form does not cover, or a failed compilation.
+        form does not cover, or a failed compilation (also: a compiler that reports success but leaves no
+        shared library exporting the FMI 3.0 functions).
     CompilerNotFoundError
         No C compiler on PATH.
+    UsageError, ArgumentTypeError
+        A name listed twice in ``inputs``, ``outputs`` or ``parameters``; arguments of the wrong type.
     UnknownNameError
         An input or output that the model does not have.
     """
     path = writable_path(path, "export_fmu: path", (".fmu",)).absolute()
+    flags = _check_flags(flags)
+    inputs, outputs = _name_list(inputs, "inputs"), _name_list(outputs, "outputs")
+    if not (isinstance(parameters, str) and parameters == "all"):
+        parameters = _name_list(parameters, "parameters")
     cc = _find_compiler(compiler)
     dae = as_dae(system, overrides)
     p_start = dae.parameter_vector(run_overrides(system, dae, overrides))   # a Dae keeps its p0: the overrides
     inputs = _check_inputs(dae, inputs)
-    outputs = measured_outputs(dae) if outputs is None else list(outputs)
+    outputs = measured_outputs(dae) if outputs is None else outputs
     dae.output_expr(outputs)  # unknown names raise UnknownNameError here
     tunable = _check_parameters(dae, parameters)
     nominals = state_nominals(dae.x_names, nominal)
@@ -117,12 +128,13 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
             x_vr = _describe(dae, builder, plan, nominals, Path(tmp) / "modelDescription.xml")
             patch_wrapper(Path(tmp) / f"{ident}_wrap.c", x_vr, nominals)   # files: local name -> FMU path
             opts = {"include_dirs": [str(FMI3_HEADERS)],
-                    "compiler_options": {"compiler": cc, "compiler_flags": list(flags)}}
+                    "compiler_options": {"compiler": cc, "compiler_flags": flags}}
             try:
                 files = builder.compile_fmu(files, opts)
             except RuntimeError as exc:
                 raise FmuExportError(f"export_fmu: compiling the FMU of '{dae.name}' with {cc} failed: "
                                      f"{str(exc).strip().splitlines()[-1]}") from exc
+            _check_binary(files, cc, dae.name)
             target.unlink()
             packed = Path(builder.pack_fmu(files, {"path": str(target)}))
             if packed.resolve() != target.resolve():
@@ -142,10 +154,74 @@ def _find_compiler(compiler):
     return cc
 
 
+def _name_list(names, what):
+    """``names`` (``None``, one name or a sequence of names) as a list of distinct str, or ``None``."""
+    if names is None:
+        return None
+    if isinstance(names, str):
+        return [names]
+    if not hasattr(names, "__iter__") or isinstance(names, (bytes, dict)):
+        raise ArgumentTypeError(f"export_fmu: {what} must be a name or a list of names, got "
+                                f"{type(names).__name__} {names!r}"[:300])
+    names = list(names)
+    bad = [n for n in names if not isinstance(n, str)]
+    if bad:
+        raise ArgumentTypeError(f"export_fmu: {what} must be dotted names (str), got {type(bad[0]).__name__} "
+                                f"{bad[0]!r}"[:300])
+    dup = [n for k, n in enumerate(names) if n in names[:k]]
+    if dup:
+        raise UsageError(f"export_fmu: {what} lists '{dup[0]}' twice; an FMU needs unique variable names: give "
+                         "each name once")
+    return names
+
+
+def _check_flags(flags):
+    """Compiler flags as a list of str: a string is split like a shell command line (``"-O2 -g"``)."""
+    if isinstance(flags, str):
+        return shlex.split(flags)
+    if flags is None:
+        return []
+    if not hasattr(flags, "__iter__") or isinstance(flags, (bytes, dict)) \
+            or not all(isinstance(f, str) for f in flags):
+        raise ArgumentTypeError(f"export_fmu: flags must be a string ('-O2 -g') or a list of strings "
+                                f"(['-O2', '-g']), got {flags!r}"[:300])
+    return list(flags)
+
+
+#: a function every FMI 3.0 model-exchange binary exports (checked after compiling)
+_FMI3_SYMBOL = "fmi3InstantiateModelExchange"
+
+
+def _check_binary(files, cc, name):
+    """The compiled shared library exists, is not empty and exports the FMI 3.0 functions, else
+    :class:`FmuExportError` naming the compiler (a program that exits 0 without compiling passes otherwise)."""
+    libs = [Path(local) for local, inside in files.items() if str(inside).startswith("binaries/")]
+    why = None
+    if not libs:
+        why = "no shared library was listed for the FMU"
+    for lib in libs:
+        if not lib.is_file() or lib.stat().st_size == 0:
+            why = f"it left no shared library {lib.name!r} (or an empty one)"
+        elif sys.platform == "win32":               # a DLL loaded into this process could not be deleted
+            if _FMI3_SYMBOL.encode() not in lib.read_bytes():
+                why = f"{lib.name!r} does not export {_FMI3_SYMBOL}"
+        else:
+            try:
+                ok = hasattr(ctypes.CDLL(str(lib.absolute())), _FMI3_SYMBOL)
+            except OSError as exc:
+                ok, why = False, f"{lib.name!r} is not a loadable shared library ({exc})"
+            if not ok and why is None:
+                why = f"{lib.name!r} does not export {_FMI3_SYMBOL}"
+        if why:
+            break
+    if why:
+        raise FmuExportError(f"export_fmu: compiling the FMU of '{name}' with {cc!r} reported success but {why}; "
+                             "nothing was written: pass compiler= a C compiler (gcc, clang, cl.exe)")
+
+
 def _check_inputs(dae, inputs):
     if inputs is None:
         return list(dae.u_names)
-    inputs = list(inputs)
     bad = [n for n in inputs if n not in dae.u_names]
     if bad:
         raise UnknownNameError(f"export_fmu: '{bad[0]}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
@@ -153,9 +229,7 @@ def _check_inputs(dae, inputs):
 
 
 def _check_parameters(dae, parameters):
-    if isinstance(parameters, str):
-        if parameters != "all":
-            raise FmuExportError(f"export_fmu: parameters must be a list of names or 'all', got {parameters!r}")
+    if isinstance(parameters, str):            # "all" (one name arrives as a list)
         return [n for n in dae.p_names if n not in dae.structural_parameters]
     names = list(parameters or ())
     for n in names:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from bscomp.errors import OutputFileError
-from bscomp.files import atomic_path
+from bscomp.files import atomic_path, check_path_type
 
 
 def pyplot():
@@ -33,12 +33,13 @@ def save_figure(fig, path, dpi=120):
     """
     from pathlib import Path
 
+    check_path_type(path, "figure file (path)")
     suffix = Path(path).suffix.lower().lstrip(".")
     known = fig.canvas.get_supported_filetypes()
     if suffix not in known:
         raise OutputFileError(f"figure file {str(path)!r} has the extension {('.' + suffix) if suffix else '(none)'!r}"
                               f"; use one of {', '.join('.' + k for k in sorted(known))}")
-    with atomic_path(path) as tmp:
+    with atomic_path(path, "figure file") as tmp:
         fig.savefig(tmp, dpi=dpi)
     return path
 

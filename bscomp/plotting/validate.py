@@ -15,10 +15,32 @@ from pathlib import Path
 
 import numpy as np
 
+from bscomp.errors import OutputFileError
+from bscomp.files import writable_dir
 from bscomp.plotting.base import _finish, _plt, save_figure
 
-__all__ = ["comparison_plots", "frf_comparison_plot", "band_error_plot", "time_comparison_plot", "resid_plot",
-           "signature_plot", "plot_diagnosis", "calibration_plot", "amplitude_plot"]
+__all__ = ["figure_folder", "comparison_plots", "frf_comparison_plot", "band_error_plot", "time_comparison_plot",
+           "resid_plot", "signature_plot", "plot_diagnosis", "calibration_plot", "amplitude_plot"]
+
+
+#: extensions that name a figure file, not the folder the validation plots write several figures into
+_FIGURE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
+
+
+def figure_folder(path, what: str) -> Path:
+    """The folder several figures go to, created if needed: ``path`` must be a str or path, not an existing file
+    and not a name like ``fig.png`` (these functions write several figures into a folder). ``what`` names the
+    argument in errors (``"Comparison.plot: out_dir"``); nothing is created when it is refused."""
+    p = writable_dir(path, what)
+    if not p.is_dir() and p.suffix.lower() in _FIGURE_SUFFIXES:
+        raise OutputFileError(f"{what} {str(p)!r} looks like a figure file, but several figures are written into "
+                              f"this folder: give a folder name, e.g. {str(p.with_suffix(''))!r}")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputFileError(f"{what} {str(p)!r} cannot be created: {exc.strerror or exc}",
+                              hint="choose a writable location") from exc
+    return p
 
 
 def _slug(text):
@@ -190,8 +212,7 @@ def comparison_plots(comparison, out_dir, signature_names=None) -> list:
     ``signature_names``: the residual signatures to draw (:data:`bscomp.validate.signatures.SIGNATURES`,
     passed by :meth:`~bscomp.validate.comparison.Comparison.plot`; default all).
     """
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    out = figure_folder(out_dir, "Comparison.plot: out_dir")
     paths = []
     for k, fc in enumerate(comparison.frf):
         stem = f"frf{k + 1}_{_slug(fc.source)}"
@@ -219,8 +240,7 @@ def comparison_plots(comparison, out_dir, signature_names=None) -> list:
 def plot_diagnosis(diag, directory):
     """The error staircase and the round-1 candidate ranking of a Diagnosis, as two PNGs in ``directory``."""
     plt = _plt()
-    d = Path(directory)
-    d.mkdir(parents=True, exist_ok=True)
+    d = figure_folder(directory, "Diagnosis.plot: directory")
     fig, ax = plt.subplots(figsize=(7, 4))
     labels = [lbl for lbl, _ in diag.staircase]
     errs = [e for _, e in diag.staircase]

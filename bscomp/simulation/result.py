@@ -6,8 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bscomp.errors import SolverError, UnknownNameError
-from bscomp.files import atomic_path
+from bscomp.errors import ArgumentTypeError, SolverError, UnknownNameError, UsageError
+from bscomp.files import atomic_path, check_path_type
 from bscomp.plotting.base import time_plot  # matplotlib only when plotting
 
 __all__ = ["SimulationResult", "SimulationError"]
@@ -46,6 +46,11 @@ class SimulationResult:
     stats: dict = field(default_factory=dict)
 
     def __getitem__(self, name):
+        if not isinstance(name, str):
+            raise ArgumentTypeError(
+                f"a SimulationResult is indexed by one signal name (r['table.s']), got {type(name).__name__} "
+                f"{name!r}"[:200] + "; for a time window index the arrays instead: "
+                "w = (r.t >= t0) & (r.t <= t1); r['table.s'][w], r.t[w]")
         if name in self.outputs:
             return self.outputs[name]
         if name in self.x_names:
@@ -57,20 +62,46 @@ class SimulationResult:
         raise UnknownNameError(f"no signal '{name}' in this result; outputs: {list(self.outputs)}, states: "
                                f"{self.x_names[:10]}..., inputs: {self.u_names}")
 
+    def _names(self, names, what, default, unique=True):
+        """``names`` as a list of signal names: one str is one name; ``None`` or empty gives ``default``;
+        ``unique``: refuse a name listed twice (a CSV column must be unambiguous)."""
+        if isinstance(names, str):
+            names = [names]
+        elif names is None:
+            names = []
+        elif not hasattr(names, "__iter__"):
+            raise ArgumentTypeError(f"{what} must be a signal name or a list of them, got {type(names).__name__} "
+                                    f"{names!r}"[:300])
+        names = list(names) or list(default)
+        for n in names:
+            self[n]                     # a non-str or unknown name raises here, before anything is written
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup and unique:
+            raise UsageError(f"{what} lists {dup[0]!r} twice: give each signal once")
+        return names
+
     def to_csv(self, path, names=None):
-        """Write t and the named signals (default: outputs, else states) as CSV with a header row."""
-        names = list(names or (list(self.outputs) or self.x_names))
+        """Write t and the named signals (default: outputs, else states) as CSV with a header row.
+
+        ``path``: a file name ending in ``.csv`` (written through a temporary file renamed into place) or an
+        open text file; ``names``: one signal name or a list of them.
+        """
+        if not hasattr(path, "write"):
+            check_path_type(path, "SimulationResult.to_csv: path")
+        names = self._names(names, "SimulationResult.to_csv: names", list(self.outputs) or self.x_names)
         data = np.column_stack([self.t] + [self[n] for n in names])
         header = ",".join(["t"] + names)
         if hasattr(path, "write"):
             np.savetxt(path, data, delimiter=",", header=header, comments="")
             return path
-        with atomic_path(path) as tmp:
+        with atomic_path(path, "SimulationResult.to_csv: path", (".csv",)) as tmp:
             np.savetxt(tmp, data, delimiter=",", header=header, comments="")
         return path
 
     def plot(self, names=None, path=None, title=""):
-        """Plot the named signals against time (one axis each)."""
-
-        names = list(names or (list(self.outputs) or self.x_names[:4]))
+        """Plot the named signals (one name or a list; default: outputs, else 4 states) against time, one axis
+        each; saved to ``path`` (``.png``, ``.pdf``, ``.svg``...) if given. Returns the figure."""
+        if path is not None:
+            check_path_type(path, "SimulationResult.plot: path")
+        names = self._names(names, "SimulationResult.plot: names", list(self.outputs) or self.x_names[:4], False)
         return time_plot(self.t, [self[n] for n in names], names, title=title, path=path)

@@ -165,7 +165,7 @@ class Comparison:
         """JSON text of the whole comparison; written to ``path`` if given."""
         text = json.dumps(_clean(self.to_dict()))
         if path is not None:
-            with atomic_write(path) as fh:
+            with atomic_write(path, what="Comparison.to_json: path", suffixes=(".json",)) as fh:
                 fh.write(text)
         return text
 

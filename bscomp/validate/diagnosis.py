@@ -277,7 +277,7 @@ class Diagnosis:
     def to_json(self, path=None) -> str:
         text = json.dumps(self.to_dict(), indent=2, default=json_default)
         if path is not None:
-            with atomic_write(path) as fh:
+            with atomic_write(path, what="Diagnosis.to_json: path", suffixes=(".json",)) as fh:
                 fh.write(text)
         return text
 

@@ -1,22 +1,27 @@
 """An HTML report of comparisons (and diagnoses): one self-contained folder with ``index.html`` and the
 PNG figures it embeds by relative path; plain HTML, no extra dependency.
 
-Objects other than :class:`~bscomp.validate.comparison.Comparison` (e.g. a ``Diagnosis``) are rendered
-through an optional protocol: ``summary() -> str`` (else ``table()`` or ``str()``), ``code() -> str``,
+Objects other than :class:`~bscomp.validate.comparison.Comparison` (a ``Diagnosis``, a ``Calibration``) are
+rendered through an optional protocol: ``summary() -> str`` (else ``table()`` or ``str()``), ``code() -> str``,
 ``plot(out_dir) -> list of paths``, ``html_tables() -> list of (caption, header, rows)`` and
-``comparisons`` (a list of Comparison); whatever they provide is shown.
+``comparisons`` (a list of Comparison); whatever they provide is shown. An object offering none of
+``summary``, ``table``, ``html_tables``, ``comparisons`` (a string, a number, a path...) is refused.
 """
 
 from __future__ import annotations
 
 import html
 import os
+import types
 from pathlib import Path
 
 import numpy as np
 
-from bscomp.files import atomic_dir
+from bscomp.errors import ArgumentTypeError, UsageError
+from bscomp.files import atomic_dir, check_path_type
+from bscomp.validate.calibration import Calibration
 from bscomp.validate.comparison import Comparison
+from bscomp.validate.diagnosis import Diagnosis
 
 __all__ = ["write_report"]
 
@@ -137,7 +142,11 @@ def _other_html(obj, out: Path, k: int) -> str:
         for caption, header, rows in obj.html_tables():
             parts.append(_table(caption, header, [[_e(c) if not isinstance(c, float) else _f(c) for c in r]
                                                   for r in rows]))
-    if hasattr(obj, "plot"):
+    if isinstance(obj, Calibration):                      # one figure, to a file
+        fig = out / f"calibration{k}.png"
+        obj.plot(fig)
+        parts.append(_imgs([fig], out))
+    elif hasattr(obj, "plot"):
         figs = obj.plot(out / f"{name.lower()}{k}") or []
         parts.append(_imgs([p for p in figs if str(p).endswith(".png")], out))
     comps = getattr(obj, "comparisons", None)
@@ -153,21 +162,54 @@ def write_report(comparisons_or_diagnosis, out_dir, title: str = "bscomp: model 
 
     Parameters
     ----------
-    comparisons_or_diagnosis : Comparison, Diagnosis-like object, or a list of them
+    comparisons_or_diagnosis : Comparison, Diagnosis, Calibration, an object with the protocol above, or a list
+        Anything else (a string, a number, an empty list) raises :class:`~bscomp.errors.ArgumentTypeError` /
+        :class:`~bscomp.errors.UsageError` before anything is written.
     out_dir : path
         Created if needed, and replaced as a whole when complete (an error leaves the previous report as it
         was); it must be new, empty or a folder bscomp wrote. Figures go to sub-folders and are linked
         relatively, so the folder can be moved or zipped.
     """
-    items = comparisons_or_diagnosis
-    if not isinstance(items, (list, tuple)):
-        items = [items]
+    items = _check_arguments(comparisons_or_diagnosis, out_dir)
     with atomic_dir(out_dir) as out:   # complete or absent: built in a temporary folder, renamed into place
         body = []
         for k, obj in enumerate(items, 1):
             body.append(_comparison_html(obj, out, k) if isinstance(obj, Comparison) else _other_html(obj, out, k))
         (out / "index.html").write_text(_document(title, body), encoding="utf-8")
     return Path(out_dir) / "index.html"
+
+
+_WHAT = ("a Comparison (bscomp.compare), a Diagnosis (bscomp.diagnose), a Calibration (bscomp.calibrate) or a "
+         "list of them")
+
+
+def _reportable(obj) -> bool:
+    """A result :func:`write_report` can render: a Comparison, Diagnosis, Calibration or an object with the protocol."""
+    if isinstance(obj, (Comparison, Diagnosis, Calibration)):
+        return True
+    if isinstance(obj, (str, bytes, os.PathLike, int, float, complex, dict, list, tuple, type, types.ModuleType)) \
+            or obj is None:
+        return False
+    return any(hasattr(obj, a) for a in ("summary", "table", "html_tables", "comparisons"))
+
+
+def _check_arguments(items, out_dir) -> list:
+    """The results to report as a list, after checking them and ``out_dir`` (nothing is written on an error)."""
+    if isinstance(items, (str, os.PathLike)) and (
+            _reportable(out_dir) or (isinstance(out_dir, (list, tuple)) and bool(out_dir)
+                                     and all(_reportable(o) for o in out_dir))):
+        raise ArgumentTypeError(f"write_report: the arguments are swapped (the folder {str(items)!r} came first): "
+                                "call write_report(result, out_dir)")
+    seq = list(items) if isinstance(items, (list, tuple)) else [items]
+    if not seq:
+        raise UsageError(f"write_report: nothing to report (an empty {type(items).__name__}): give {_WHAT}")
+    for k, obj in enumerate(seq):
+        if not _reportable(obj):
+            where = f"item {k} of the list is" if isinstance(items, (list, tuple)) else "got"
+            raise ArgumentTypeError(f"write_report: {where} {type(obj).__name__} {obj!r:.80}, not a result to "
+                                    f"report: give {_WHAT}, then the folder (write_report(result, out_dir))")
+    check_path_type(out_dir, "write_report: out_dir", "folder")
+    return seq
 
 
 def _document(title, body) -> str:
