@@ -40,6 +40,8 @@ class ModesEvaluator:
         val = getattr(self.system, "validation", None)
         self.inputs = list(inputs) if inputs else list(getattr(val, "inputs", None) or dae.u_names)
         self.outputs = list(outputs) if outputs else list(getattr(val, "outputs", None) or dae.mech.coordinate_names)
+        if outputs:
+            dae.require_signals(self.outputs, "design_study")
         self.damping = getattr(dae, "system_damping", None)
         self.coords = list(dae.mech.coordinate_names)
         self.X0 = self._matrices(dae, {})

@@ -41,9 +41,11 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from bscomp._sweep_eval import ModesEvaluator
-from bscomp.errors import ParameterError, UnknownNameError, UsageError, check_number
+from bscomp.errors import ArgumentTypeError, BscompError, ParameterError, UnknownNameError, UsageError, check_number
 from bscomp.files import atomic_path, atomic_write
 from bscomp.kernel.system import System
+from bscomp.linear.linearization import name_list
+from bscomp.linear.sweeps import check_count
 from bscomp.model import ModelSpec, spec_of
 from bscomp.plotting.sweep_map import sweep_map
 
@@ -222,9 +224,10 @@ def design_study(model, grid, analysis="modes", *, n_modes: int = 6, inputs=None
     analysis : {"modes", "frf"} or callable
         ``"modes"``: columns ``f1..fn`` [Hz] (elastic modes) and ``zeta1..n``. ``"frf"``: ``peak[o/i]`` and
         ``f_peak[o/i]`` [Hz] per output/input pair over ``freqs``. A callable ``analysis(spec) -> dict`` of
-        scalars (picklable for workers).
+        numbers with the same keys for every variant (picklable for workers); an error it raises is reported
+        with the variant.
     n_modes : int
-        Elastic modes reported by ``"modes"``.
+        Elastic modes reported by ``"modes"`` (>= 1).
     inputs, outputs : list of str, optional
         For ``"frf"`` (default: the system's declared measured inputs/outputs, else all inputs and
         coordinates).
@@ -233,13 +236,21 @@ def design_study(model, grid, analysis="modes", *, n_modes: int = 6, inputs=None
     executor : None, "serial" or concurrent.futures.Executor
         None: a local process pool with ``workers`` processes (serial when ``workers == 1``).
     workers : int, optional
-        Local pool size (default the CPU count).
+        Local pool size, >= 1 (default the CPU count).
     chunksize : int, optional
-        Variants per task (default: about 4 tasks per worker, at most 500).
+        Variants per task, >= 1 (default: about 4 tasks per worker, at most 500).
 
     Returns
     -------
     SweepTable
+
+    Raises
+    ------
+    UsageError, ArgumentTypeError
+        A bad grid, analysis, count (``n_modes``, ``workers``, ``chunksize``) or frequency, or a callable that
+        fails or returns something else than a dict of numbers (named, with the variant).
+    UnknownNameError
+        An unknown parameter, input or output, or an output that is a parameter or a constant.
     """
     t0 = time.perf_counter()
     spec = spec_of(model)
@@ -247,12 +258,16 @@ def design_study(model, grid, analysis="modes", *, n_modes: int = 6, inputs=None
     if not callable(analysis) and analysis not in ("modes", "frf"):
         raise UsageError(f"design_study: analysis must be 'modes', 'frf' or a callable, got {analysis!r}")
     freqs = None if analysis != "frf" else _checked_freqs(freqs)
+    n_modes = check_count("n_modes", n_modes, "design_study", allow_none=False)
+    workers = check_count("workers", workers, "design_study")
+    chunksize = check_count("chunksize", chunksize, "design_study")
+    inputs, outputs = name_list(inputs, "inputs"), name_list(outputs, "outputs")
     values = _checked_variants(spec, names, raw)
-    job = (spec, tuple(names), analysis, int(n_modes), None if inputs is None else tuple(inputs),
+    job = (spec, tuple(names), analysis, n_modes, None if inputs is None else tuple(inputs),
            None if outputs is None else tuple(outputs), None if freqs is None else tuple(freqs))
     own_pool, label = None, ""
     if executor is None:
-        workers = (os.cpu_count() or 1) if workers is None else int(workers)
+        workers = (os.cpu_count() or 1) if workers is None else workers
         if workers > 1 and len(values) > 1:
             from concurrent.futures import ProcessPoolExecutor
 
@@ -269,11 +284,18 @@ def design_study(model, grid, analysis="modes", *, n_modes: int = 6, inputs=None
             label = label or type(executor).__name__
             n_workers = workers or _executor_workers(executor)
             size = chunksize or max(1, min(500, -(-len(values) // (4 * n_workers))))
-            futures = [executor.submit(_run_chunk, job, values[i:i + size]) for i in range(0, len(values), size)]
+            futures = [executor.submit(_run_chunk, job, values[i:i + size], i)
+                       for i in range(0, len(values), size)]
             chunks = [f.result() for f in futures]
     finally:
         if own_pool is not None:
             own_pool.shutdown()
+    for k, (cols, _, _) in enumerate(chunks):
+        if cols != chunks[0][0]:
+            start = sum(len(c[1]) for c in chunks[:k])
+            raise UsageError(f"design_study: the analysis returned the keys {cols} for variant {start} "
+                             f"{dict(zip(names, values[start]))}, but {chunks[0][0]} for variant 0: it must return "
+                             "the same keys for every variant")
     columns = names + chunks[0][0]
     rows = [r for (_, rs, _) in chunks for r in rs]
     data = np.array([list(v) + r for v, r in zip(values, rows)], float)
@@ -297,14 +319,13 @@ def _executor_workers(executor) -> int:
     return os.cpu_count() or 1
 
 
-def _run_chunk(job, values):
-    """One task, in this process or a worker: ``(result columns, rows, parameter kinds)``."""
+def _run_chunk(job, values, start=0):
+    """One task, in this process or a worker: ``(result columns, rows, parameter kinds)``; ``start`` is the
+    index of the first of ``values`` in the grid (for the messages)."""
     spec, names, analysis, n_modes, inputs, outputs, freqs = job
     with threadpool_limits(limits=1, user_api="blas"):
         if callable(analysis):
-            rows = [analysis(spec.with_overrides(dict(zip(names, v)))) for v in values]
-            cols = list(rows[0])
-            return cols, [[float(r[c]) for c in cols] for r in rows], {}
+            return _run_callable(analysis, spec, names, values, start)
         key = (spec, names, inputs, outputs)
         ev = _CACHE.get(key)
         if ev is None:
@@ -318,6 +339,49 @@ def _run_chunk(job, values):
         cols = [f"peak[{p}]" for p in pairs] + [f"f_peak[{p}]" for p in pairs]
         f = np.asarray(freqs, float)
         return cols, [ev.frf_row(dict(zip(names, v)), f) for v in values], ev.kinds
+
+
+def _run_callable(analysis, spec, names, values, start):
+    """``(columns, rows, {})`` of a user's ``analysis(spec) -> dict`` over ``values``, every result checked: a dict
+    of numbers with the keys of the first variant; a failure names the variant."""
+    cols, rows = None, []
+    what = getattr(analysis, "__name__", "analysis")
+    for k, v in enumerate(values, start):
+        variant = f"variant {k} {dict(zip(names, v))}"
+        try:
+            r = analysis(spec.with_overrides(dict(zip(names, v))))
+        except BscompError as exc:
+            raise _with_context(exc, f"design_study: the analysis {what!r} failed on {variant}: {exc}") from exc
+        except Exception as exc:
+            raise UsageError(f"design_study: the analysis {what!r} raised {type(exc).__name__} on {variant}: "
+                             f"{exc}") from exc
+        if not isinstance(r, dict) or not r:
+            raise ArgumentTypeError(f"design_study: the analysis {what!r} must return a non-empty dict of numbers "
+                                    f"({{'name': value}}), got {type(r).__name__} {r!r} on {variant}"[:400])
+        if cols is None:
+            cols = [str(c) for c in r]
+        if [str(c) for c in r] != cols:
+            raise UsageError(f"design_study: the analysis {what!r} returned the keys {list(r)} on {variant}, but "
+                             f"{cols} before: it must return the same keys for every variant")
+        bad = {c: x for c, x in r.items() if isinstance(x, (bool, str, bytes)) or not np.isscalar(x)
+               or not isinstance(x, (int, float, np.number))}
+        if bad:
+            raise ArgumentTypeError(f"design_study: the analysis {what!r} must return numbers, got {bad!r} on "
+                                    f"{variant}"[:400])
+        rows.append([float(x) for x in r.values()])
+    return cols, rows, {}
+
+
+def _with_context(exc: BscompError, message: str) -> BscompError:
+    """``exc``'s class with ``message`` (and its hint), or a :class:`UsageError` when that class cannot be
+    made from a message alone."""
+    try:
+        new = type(exc)(message)
+    except Exception:  # noqa: BLE001 - an error class with other constructor arguments
+        new = UsageError(message)
+    if getattr(exc, "hint", None):
+        new.hint = exc.hint
+    return new
 
 
 def model_spec(model, overrides: dict | None = None) -> ModelSpec:

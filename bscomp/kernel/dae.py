@@ -259,7 +259,7 @@ class Dae:
         import difflib
 
         comp = name.rpartition(".")[0]
-        own = [k for k in self.observables if k.rpartition(".")[0] == comp][:15]
+        own = [k for k in self.observables if k.rpartition(".")[0] == comp and k not in self.p_names][:15]
         if comp and own:
             return f"outputs of '{comp}': {own}"
         close = difflib.get_close_matches(name, list(self.observables), n=5, cutoff=0.5)
@@ -290,6 +290,59 @@ class Dae:
             raise UnknownNameError(f"outputs {list(names)} use {bad}, which are not available (the derivative of "
                                    "a quasi-static coordinate or a removed variable)")
         return e
+
+    def is_signal(self, name: str) -> bool:
+        """True if the output ``name`` depends on a state, a state derivative, an algebraic variable or an input;
+        False for a parameter or a constant (cached per name). Raises :class:`UnknownNameError` for a name
+        that is not an output."""
+        key = ("is_signal", name)
+        if key not in self._cache:
+            signals = self._cache.get("signal_symbols")
+            if signals is None:
+                signals = self._cache["signal_symbols"] = ca.vertcat(self.xds, self.xs, self.zs, self.us)
+            self._cache[key] = bool(ca.depends_on(self.output_expr([name]), signals))
+        return self._cache[key]
+
+    def require_signals(self, names, who: str = "") -> list:
+        """``names`` (one name or a list) as a list of outputs that are signals, the check every response
+        analysis (FRFs, sweeps, optimal-control outputs) makes on the outputs it is given.
+
+        A parameter or a constant (``"rotor.J"``, a fixed flange's position) is an observable of the model, but
+        its response to any input is 0 at every frequency: asking for it is a mistake, never a silent 0.
+
+        Parameters
+        ----------
+        names : str or list of str
+            Output names.
+        who : str
+            The calling function, put in front of the messages (``"frf"``, ``"stepped_sine"``...).
+
+        Raises
+        ------
+        UnknownNameError
+            A name that is not an output (with the outputs of its component or the closest names), or one that
+            is a parameter or a constant (with the signals of its component).
+        """
+        pre = f"{who}: " if who else ""
+        names = [names] if isinstance(names, str) else list(names)
+        for name in names:
+            if not isinstance(name, str):
+                raise UnknownNameError(f"{pre}an output is a name (str) such as 'table.a', got {name!r}")
+            if name not in self.observables:
+                raise UnknownNameError(f"{pre}no output named '{name}' in '{self.name}'; {self._near_outputs(name)}")
+            if self.is_signal(name):
+                continue
+            comp = name.rpartition(".")[0]
+            others = [k for k in self.observables if k.rpartition(".")[0] == comp and k not in self.p_names
+                      and self.is_signal(k)]
+            what = "a parameter" if name in self.p_names else "a constant"
+            raise UnknownNameError(
+                f"{pre}output '{name}' of '{self.name}' is {what}, not a signal (it depends on no state or input, so "
+                f"its response to any input is zero); " + (f"outputs of '{comp}': {others[:15]}" if others else
+                                                             f"'{comp}' has no signal outputs"),
+                hint="give a signal as the output, e.g. " + (repr(others[0]) if others else
+                                                              "a position, velocity or force"))
+        return names
 
     def output_function(self, names) -> ca.Function:
         """CasADi Function ``(xd, x, z, u, p) -> y`` for the named outputs."""

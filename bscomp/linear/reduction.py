@@ -66,9 +66,9 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from bscomp.errors import SingularSystemError, UsageError
+from bscomp.errors import ParameterError, SingularSystemError, UsageError, check_number
 from bscomp.kernel.damping import as_dense_symmetric
-from bscomp.linear.linearization import SecondOrderModel
+from bscomp.linear.linearization import SecondOrderModel, name_list
 
 __all__ = ["ReducedModel", "ReducedPort", "cms_reduce", "reduce_second_order"]
 
@@ -100,7 +100,7 @@ def _index_list(dofs: Any, n: int, names: Sequence[str] | None, what: str) -> np
     return idx
 
 
-def _rows(at: Any, n: int) -> np.ndarray | sp.csr_matrix:
+def _rows(at: Any, n: int, what: str = "at") -> np.ndarray | sp.csr_matrix:
     """Output selection: DOF index/indices -> selection rows; a (k, n) matrix or (n,) row is used as is."""
     if sp.issparse(at):
         R = sp.csr_matrix(at)
@@ -109,13 +109,29 @@ def _rows(at: Any, n: int) -> np.ndarray | sp.csr_matrix:
         if a.dtype.kind in "iu" and a.ndim <= 1:
             idx = np.atleast_1d(a).astype(int)
             if np.any(idx < -n) or np.any(idx >= n):
-                raise UsageError(f"at: DOF index out of range for {n} DOF")
+                raise UsageError(f"{what}: DOF index out of range for {n} DOF")
             idx = np.where(idx < 0, idx + n, idx)
             return sp.csr_matrix((np.ones(idx.size), (np.arange(idx.size), idx)), shape=(idx.size, n))
+        if a.dtype.kind not in "fc" or a.ndim > 2:
+            raise UsageError(f"{what}: give DOF indices (int) or a (k, {n}) row matrix such as N(z), got {at!r}"[:300]
+                             + " (the reduced model keeps no DOF names: pass the index)")
         R = np.atleast_2d(np.asarray(a, dtype=float))
     if R.shape[1] != n:
-        raise UsageError(f"at: a row/matrix with {n} columns is needed, got shape {R.shape}")
+        raise UsageError(f"{what}: a row/matrix with {n} columns is needed, got shape {R.shape}")
     return R
+
+
+def _finite(name: str, value, rows: int) -> np.ndarray:
+    """``value`` as a float array with ``rows`` rows (a vector or a history), finite, else a named UsageError."""
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise UsageError(f"{name} must be an array of numbers, got {value!r}"[:300]) from None
+    if a.ndim not in (1, 2) or a.shape[0] != rows:
+        raise UsageError(f"{name} must have {rows} rows ((n,) or (n, nt)), got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise UsageError(f"{name} must be finite, got NaN or inf")
+    return a
 
 
 # --------------------------------------------------------------------------------------------
@@ -260,7 +276,7 @@ class ReducedModel:
 
     def force(self, F) -> np.ndarray:
         """Reduced load ``Ψ^T F`` (Eq 5.14); ``F`` is ``(n,)`` or ``(n, nt)``."""
-        return self.Psi.T @ np.asarray(F, dtype=float)
+        return self.Psi.T @ _finite("F (full load vector)", F, self.n_full)
 
     def _T3F(self, F) -> np.ndarray:
         F = np.asarray(F, dtype=float)
@@ -293,9 +309,7 @@ class ReducedModel:
         numpy.ndarray
             ``(n,)``/``(k,)`` (or with a trailing time axis) recovered displacements.
         """
-        x = np.asarray(x, dtype=float)
-        if x.shape[0] != self.n_reduced:
-            raise UsageError(f"x must have {self.n_reduced} rows (reduced coordinates), got {x.shape}")
+        x = _finite("x (reduced coordinates)", x, self.n_reduced)
         if _method(method) == "MD":
             d = self.Psi @ x
         else:
@@ -324,7 +338,7 @@ class ReducedModel:
         row : int, sequence of int, array_like or sparse matrix
             DOF index/indices or a ``(k, n)`` matrix such as ``N(z)`` restricted to the model's DOF.
         """
-        R = _rows(row, self.n_full)
+        R = _rows(row, self.n_full, "row")
         Ri = R[:, self.interior]
         if sp.issparse(Ri):
             Ri = Ri.tocsc()
@@ -386,7 +400,7 @@ def cms_reduce(
     dof_names : sequence of str, optional
         Names of the ``n`` DOF; used for ``boundary_dofs`` and :attr:`ReducedModel.names`.
     rigid_tol : float
-        A free-structure mode is rigid if its eigenvalue is ``<= rigid_tol * max(eig)``.
+        A free-structure mode is rigid if its eigenvalue is ``<= rigid_tol * max(eig)`` (``0 < rigid_tol < 1``).
 
     Returns
     -------
@@ -395,8 +409,10 @@ def cms_reduce(
     Raises
     ------
     UsageError
-        Bad shapes, non-symmetric or non-finite matrices, unknown/duplicate DOF, both or neither of
-        ``n_modes``/``f_cut``, more modes than interior DOF, unknown ``interface``.
+        Bad shapes, unknown/duplicate DOF, both or neither of ``n_modes``/``f_cut``, more modes than interior
+        DOF, unknown ``interface``, ``rigid_tol`` outside ``(0, 1)``.
+    ParameterError
+        Non-symmetric or non-finite matrices, or ``K`` not positive semi-definite.
     SingularSystemError
         ``K_ii`` is singular (the exterior DOF leave a rigid-body motion free), ``M`` is not positive
         definite, or the chosen basis ``Ψ`` is rank deficient.
@@ -412,6 +428,9 @@ def cms_reduce(
     Kd = as_dense_symmetric(K, "K", n)
     Cd = None if C is None else as_dense_symmetric(C, "C", n)
     e, i = _check_cms_arguments(n, boundary_dofs, dof_names, n_modes, f_cut, interface)
+    rigid_tol = check_number("rigid_tol", rigid_tol, positive=True)
+    if not rigid_tol < 1:
+        raise UsageError(f"rigid_tol must be < 1 (a fraction of the largest eigenvalue, e.g. 1e-8), got {rigid_tol!r}")
     lam, V, n_r = _free_modes(Md, Kd, e, rigid_tol)
     G_ii, phi = _constraint_modes(Md, Kd, e, i)
     chi, f_el, P, n_rb = _normal_modes(Md, Kd, lam, V, n_r, i, interface, rigid_body_modes, n_modes, f_cut)
@@ -456,8 +475,8 @@ def _check_cms_arguments(n, boundary_dofs, dof_names, n_modes, f_cut, interface)
     if n_modes is not None and (isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer))
                                 or n_modes < 0):
         raise UsageError(f"n_modes must be a non-negative integer, got {n_modes!r}")
-    if f_cut is not None and not (np.isfinite(f_cut) and f_cut >= 0):
-        raise UsageError(f"f_cut must be a finite non-negative frequency [Hz], got {f_cut!r}")
+    if f_cut is not None:
+        check_number("f_cut (a frequency [Hz])", f_cut, nonnegative=True)
     if interface not in ("free", "fixed"):
         raise UsageError(f"interface must be 'free' or 'fixed', got {interface!r}")
     return e, np.setdiff1d(np.arange(n), e)
@@ -472,6 +491,11 @@ def _free_modes(Md, Kd, e, rigid_tol):
         raise SingularSystemError("M must be positive definite for a CMS reduction") from exc
     lam, V = sla.eigh(Kd, Md)
     scale = max(float(np.max(np.abs(lam))), np.finfo(float).tiny)
+    if lam[0] < -rigid_tol * scale:
+        neg = int(np.count_nonzero(lam < -rigid_tol * scale))
+        raise ParameterError(f"K must be positive semi-definite for a CMS reduction: its most negative eigenvalue "
+                             f"(K phi = lam M phi) is {lam[0]:.4g}, of {neg} negative one(s); check the stiffness "
+                             "matrix's signs and assembly")
     n_r = int(np.count_nonzero(lam <= rigid_tol * scale))
     if n_r:
         s = sla.svdvals(V[np.ix_(e, np.arange(n_r))]) if e.size >= n_r else np.zeros(1)
@@ -512,7 +536,9 @@ def _normal_modes(Md, Kd, lam, V, n_r, i, interface, rigid_body_modes, n_modes, 
     P = int(np.count_nonzero(f_el <= f_cut)) if f_cut is not None else int(n_modes)
     n_rb = V_rb.shape[1]
     if P + n_rb > i.size:
-        raise UsageError(f"{P + n_rb} modes requested but only {i.size} interior DOF exist")
+        rb = f" (+{n_rb} rigid-body)" if n_rb else ""
+        raise UsageError(f"{P} mode(s){rb} requested but only {i.size} interior DOF exist: keep fewer modes"
+                         + (" or pass rigid_body_modes=False" if n_rb else "") + " or fewer boundary DOF")
     chi = np.hstack([V_rb, V_el[:, :P]])
     return (chi[i] if interface == "free" else chi), f_el, P, n_rb
 
@@ -547,12 +573,12 @@ def reduce_second_order(model, boundary, n_modes: int | None = None, *, f_cut: f
     Parameters
     ----------
     model : SecondOrderModel
-    boundary : sequence of str
+    boundary : str or sequence of str
         Coordinate names kept exactly (actuated DOF, joint DOF, anchors; Sec 5.3.2).
     """
 
-    red = cms_reduce(model.M, model.K, list(boundary), n_modes, f_cut=f_cut, C=model.C, interface=interface,
-                     rigid_body_modes=rigid_body_modes, dof_names=list(model.coordinates))
+    red = cms_reduce(model.M, model.K, name_list(boundary, "boundary"), n_modes, f_cut=f_cut, C=model.C,
+                     interface=interface, rigid_body_modes=rigid_body_modes, dof_names=list(model.coordinates))
     Psi = sp.csr_matrix(red.Psi)
 
     def out(A):

@@ -255,7 +255,7 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
         if not isinstance(model, (System, Dae)):
             model, params = as_system(model, params), None
         lin = linearize(model, inputs=ins, outputs=outs, at=at, params=params)
-        _refuse_constants(model, params, [s.replace("/", ".") for s in lin.output_labels], [lin.C, lin.D])
+        refuse_constant_outputs(model, params, [s.replace("/", ".") for s in lin.output_labels], [lin.C, lin.D])
         warn_linearized(getattr(lin, "linearized", ()) if warn else (), "frf", SIMULATE_INSTEAD)
         return Frf(freqs=f, H=_statespace_frf(lin, f), inputs=[s.replace("/", ".") for s in lin.input_labels],
                    outputs=[s.replace("/", ".") for s in lin.output_labels], name=name,
@@ -263,37 +263,23 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
     if isinstance(model, SecondOrderModel):
         so = _restrict(so, ins, outs)
     else:
-        _refuse_constants(model, params, list(so.outputs), [so.Cq, so.Cv, so.Ca, so.D])
+        refuse_constant_outputs(model, params, list(so.outputs), [so.Cq, so.Cv, so.Ca, so.D])
     warn_linearized(so.linearized if warn else (), "frf", SIMULATE_INSTEAD)
     return Frf(freqs=f, H=so.frf(f), inputs=list(so.inputs), outputs=list(so.outputs), name=name)
 
 
-def _refuse_constants(model, params, outputs, rows) -> None:
-    """:class:`UnknownNameError` for an output that is a parameter or a constant (it depends on no state, state
-    derivative, algebraic variable or input: its FRF would be 0 at every frequency, -6000 dB). Only outputs whose
-    rows of the output matrices ``rows`` are all zero are looked at symbolically, so a valid call costs nothing."""
+def refuse_constant_outputs(model, params, outputs, rows, who="frf") -> None:
+    """:class:`UnknownNameError` for an output that is a parameter or a constant (:meth:`bscomp.Dae.require_signals`:
+    its FRF would be 0 at every frequency). Only outputs whose rows of the output matrices ``rows`` are all zero
+    are looked at symbolically, so a valid call costs nothing."""
     zero = np.ones(len(outputs), bool)
     for R in rows:
         R = sp.csr_matrix(R)
         if R.shape[0] == len(outputs) and R.nnz:
             zero &= np.asarray(abs(R).sum(axis=1)).ravel() == 0
-    if not zero.any():
-        return
-    import casadi as ca
-
-    dae = model if isinstance(model, Dae) else as_dae(model, params)
-    signals = ca.vertcat(dae.xds, dae.xs, dae.zs, dae.us)
-    for name in (o for o, z in zip(outputs, zero, strict=True) if z):
-        if ca.depends_on(dae.output_expr([name]), signals):
-            continue                                   # a signal whose linearization is zero here: a true 0
-        comp = name.rsplit(".", 1)[0]
-        others = [k for k in dae.observables if k.startswith(comp + ".") and k not in dae.p_names
-                  and ca.depends_on(dae.output_expr([k]), signals)]
-        what = "a parameter" if name in dae.p_names else "a constant"
-        raise UnknownNameError(f"frf: output '{name}' of '{dae.name}' is {what}, not a signal (it depends on no "
-                               f"state or input, so its response is 0 at every frequency); outputs of '{comp}': "
-                               f"{others[:15]}", hint="give a signal as the output, e.g. " +
-                               (repr(others[0]) if others else "a position, velocity or force"))
+    if zero.any():
+        dae = model if isinstance(model, Dae) else as_dae(model, params)
+        dae.require_signals([o for o, z in zip(outputs, zero, strict=True) if z], who)
 
 
 def _restrict(so, ins, outs):

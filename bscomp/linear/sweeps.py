@@ -22,12 +22,27 @@ from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import modal_frf
-from bscomp.linear.linearization import second_order
+from bscomp.linear.linearization import name_list, second_order
 from bscomp.linear.modal import modes
-from bscomp.linear.response import frf
+from bscomp.linear.response import frf, refuse_constant_outputs
 from bscomp.model import ModelSpec, as_system
 
-__all__ = ["position_sweep", "PositionSweep", "build_system"]
+__all__ = ["position_sweep", "PositionSweep", "build_system", "check_count"]
+
+
+def check_count(name: str, value, who: str, minimum: int = 1, allow_none: bool = True):
+    """``value`` as an int ``>= minimum`` (or None when ``allow_none``): a count such as ``n_modes``,
+    ``workers`` or ``chunksize``. :class:`ArgumentTypeError` for a value that is not a whole number (``"2"``,
+    ``1.5``, ``True``), :class:`UsageError` for one below ``minimum``; both name the argument."""
+    if value is None and allow_none:
+        return None
+    ok_type = isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not ok_type or not np.isfinite(value) or value != int(value):
+        raise ArgumentTypeError(f"{who}: {name} must be {'None or ' if allow_none else ''}a whole number >= {minimum}, "
+                                f"got {value!r} ({type(value).__name__})")
+    if int(value) < minimum:
+        raise UsageError(f"{who}: {name} must be {'None or ' if allow_none else ''}>= {minimum}, got {value!r}")
+    return int(value)
 
 
 def build_system(build, overrides: dict | None = None):
@@ -68,6 +83,8 @@ def _analyse(build, overrides, inputs, outputs, freqs, n_modes, at):
 
     system = build_system(build, overrides)
     so = second_order(system, inputs=inputs, outputs=outputs, at=at)
+    if outputs is not None:
+        refuse_constant_outputs(system, None, list(so.outputs), [so.Cq, so.Cv, so.Ca, so.D], "position_sweep")
     md = modes(so, warn=False)         # not a warning per position
     el = ~md.rigid_body
     f, z = md.frequencies[el], md.damping[el]
@@ -111,6 +128,9 @@ class _TangentUpdate:
         self.dae = flatten(system)
         t1 = time.perf_counter()
         self.so0 = second_order(self.dae, inputs=inputs, outputs=outputs)
+        if outputs is not None:
+            so = self.so0
+            refuse_constant_outputs(self.dae, None, list(so.outputs), [so.Cq, so.Cv, so.Ca, so.D], "position_sweep")
         self.times = {"flatten_s": t1 - t0, "linearize_s": time.perf_counter() - t1}
         self.inputs, self.outputs = inputs, outputs
         m = self.dae.mech
@@ -307,20 +327,27 @@ class PositionSweep:
         (:func:`bscomp.plotting.frequency_position_plot`); ``kind="frf"``: the magnitude of one FRF pair at
         every position (:func:`bscomp.plotting.frf_overlay_plot`)."""
 
+        if kind not in ("frequencies", "frf"):
+            raise UsageError(f"PositionSweep.plot: kind must be 'frequencies' or 'frf', got {kind!r}")
         if kind == "frequencies":
             return plotting.frequency_position_plot(
                 self.positions, self.frequencies, parameter=self.parameter,
                 title=title or f"{self.name}: natural frequencies", path=path)
         if kind == "frf":
             if self.H is None:
-                raise ValueError("this sweep has no FRFs: pass freqs to position_sweep")
-            j = 0 if output is None else self.outputs.index(output)
-            i = 0 if input is None else self.inputs.index(input)
+                raise UsageError("PositionSweep.plot(kind='frf'): this sweep has no FRFs: pass freqs to position_sweep")
+            j = 0 if output is None else self._index(self.outputs, output, "output")
+            i = 0 if input is None else self._index(self.inputs, input, "input")
             labels = [f"{self.parameter} = {p:g}" for p in self.positions]
             return plotting.frf_overlay_plot(
                 self.freqs, self.H[:, :, j, i], labels=labels,
                 title=title or f"{self.inputs[i]} -> {self.outputs[j]}", path=path)
-        raise ValueError(f"kind must be 'frequencies' or 'frf', got {kind!r}")
+
+    @staticmethod
+    def _index(names, name, what):
+        if name not in names:
+            raise UnknownNameError(f"PositionSweep.plot: '{name}' is not an {what} of this sweep; {what}s: {names}")
+        return names.index(name)
 
 
 def position_sweep(build, positions, parameter: str | None = None, freqs=None, inputs=None, outputs=None,
@@ -342,13 +369,14 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
         Frequencies [Hz] at which FRFs are also computed.
     inputs, outputs : list of str, optional
     n_modes : int, optional
-        Number of lowest elastic modes kept per position (default all).
+        Number (>= 1) of lowest elastic modes kept per position (default all).
     overrides : dict, optional
         Further parameter overrides applied at every position.
     at : dict, optional
         Operating point.
     workers : int, optional
-        ``> 1``: run the positions on a ``ProcessPoolExecutor`` with that many processes.
+        ``> 1``: run the positions on a ``ProcessPoolExecutor`` with that many processes (``1`` or None:
+        serially).
     executor : concurrent.futures.Executor, optional
         Use this executor instead (its ``submit`` is used), e.g. a Dask client's executor.
     method : {"auto", "tangent", "rebuild"}
@@ -368,6 +396,14 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
     Returns
     -------
     PositionSweep
+
+    Raises
+    ------
+    UsageError, ArgumentTypeError
+        Bad positions, method, ``n_modes`` or ``workers`` (named).
+    UnknownNameError
+        An unknown parameter, input or output, or an output that is a parameter or a constant
+        (:meth:`bscomp.Dae.require_signals`).
     """
     t_start = time.perf_counter()
     try:
@@ -379,6 +415,9 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
                          f"{positions!r}"[:300])
     if method not in ("auto", "tangent", "rebuild"):
         raise UsageError(f"position_sweep: method must be 'auto', 'tangent' or 'rebuild', got {method!r}")
+    n_modes = check_count("n_modes", n_modes, "position_sweep")
+    workers = check_count("workers", workers, "position_sweep")
+    inputs, outputs = name_list(inputs, "inputs"), name_list(outputs, "outputs")
     base = build_system(build, overrides)
     if parameter is None:
         parameter = position_parameter(base)

@@ -15,7 +15,7 @@ import io
 import casadi as ca
 import numpy as np
 
-from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_number
+from bscomp.errors import ArgumentTypeError, UsageError, check_number
 from bscomp.optimal.result import OcpError, OcpResult
 
 __all__ = ["MAX_DEGREE", "check_count", "check_degree", "check_signal", "check_bound_pair", "reference_values",
@@ -41,30 +41,12 @@ def check_degree(degree) -> int:
     return d
 
 
-def _component_signals(dae, name) -> list:
-    """States, inputs and outputs (not parameters) of the component of ``name``, for messages."""
-    comp = name.rpartition(".")[0]
-    params = set(dae.p_names)
-    names = list(dae.x_names) + list(dae.u_names) + [n for n in dae.observables if n not in params]
-    own = [n for n in dict.fromkeys(names) if n.removeprefix("der(").rpartition(".")[0] == comp]
-    return own[:15]
-
-
 def check_signal(dae, name, what: str) -> None:
     """Refuse an observable ``name`` that is a parameter or a constant (depends on no state, derivative,
-    algebraic variable or input): it cannot be bounded, tracked or limited. ``what`` is the argument, for
-    the message (e.g. ``"bound"``)."""
-    if name in dae.p_names:
-        kind = "a parameter"
-    elif not ca.depends_on(dae.output_expr([name]), ca.vertcat(dae.xds, dae.xs, dae.zs, dae.us)):
-        kind = "a constant (it depends on no state or input)"
-    else:
-        return
-    own = _component_signals(dae, name)
-    comp = name.rpartition(".")[0]
-    listing = f"signals of '{comp}': {own}" if own else f"inputs: {dae.u_names}, states: {dae.x_names[:8]}"
-    raise UnknownNameError(f"{what}: '{name}' is {kind}, not a signal of '{dae.name}' (its value cannot change "
-                           f"along the trajectory); give a state, input or output, e.g. {listing}")
+    algebraic variable or input): it cannot be bounded, tracked or limited (:meth:`bscomp.Dae.require_signals`,
+    the check every response analysis makes). ``what`` is the argument, for the message (e.g. ``"bound"``)."""
+    if name not in dae.x_names and name not in dae.u_names:
+        dae.require_signals([name], what)
 
 
 def check_bound_pair(name, lo: float, hi: float) -> None:

@@ -33,18 +33,23 @@ Costs (2-core machine, axial+torsional test bed, 98 coordinates): one FRF evalua
 
 from __future__ import annotations
 
+from os import PathLike
+
 import casadi as ca
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.components.force_between import ForceBetween
-from bscomp.errors import UnknownNameError
+from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_number
 from bscomp.kernel.component import _Context
+from bscomp.kernel.dae import Dae
 from bscomp.kernel.flattening import flatten
+from bscomp.kernel.system import System
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import dense, modal_frf
-from bscomp.linear.linearization import second_order
+from bscomp.linear.linearization import name_list, second_order
+from bscomp.model import ModelSpec, as_system
 from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin
 from bscomp.simulation.harmonic_balance import HarmonicBalance
 
@@ -139,17 +144,36 @@ class ModalModel:
         return np.sqrt(np.clip(self.lam, 0.0, None)) / (2 * np.pi)
 
 
+def _as_system(model) -> System:
+    """The System of what :class:`CompiledModel` takes, else :class:`ArgumentTypeError` saying what that is."""
+    if isinstance(model, System):
+        return model
+    if isinstance(model, (str, PathLike, ModelSpec, Dae)):
+        return as_system(model)
+    raise ArgumentTypeError(f"CompiledModel: system must be a bscomp.System, a system name, a .py path, a ModelSpec "
+                            f"or a Dae that keeps its System, got {type(model).__name__} {model!r}"[:300])
+
+
+def _required_names(names, argument: str) -> list:
+    """One name or a list of names (one str is one name), at least one."""
+    out = name_list(names, f"CompiledModel: {argument}")
+    if not out:
+        raise ArgumentTypeError(f"CompiledModel: {argument} must name at least one signal, got {names!r}")
+    return out
+
+
 class CompiledModel(TimeSeriesMixin):
     """One model structure, flattened once, evaluated at parameter overrides (module docstring).
 
     Parameters
     ----------
-    system : System
-        The model, nonlinear elements included.
-    inputs : list of str
+    system : System, str, path, ModelSpec or Dae
+        The model, nonlinear elements included (a name, path or spec is built, a Dae's System is used).
+    inputs : str or list of str
         The measured inputs (system inputs, e.g. ``"amp.u"``).
-    outputs : list of str
-        Every output any evaluation will ask for.
+    outputs : str or list of str
+        Every output any evaluation will ask for: signals (a parameter or a constant is refused,
+        :meth:`bscomp.Dae.require_signals`).
     free : list of str, optional
         Parameters that will be varied (structural ones get their sensitivities measured here).
     f_keep : float
@@ -160,9 +184,10 @@ class CompiledModel(TimeSeriesMixin):
     """
 
     def __init__(self, system, inputs, outputs, free=(), f_keep: float = 6000.0, participation: float = 1e-9):
-        self.system = system
-        self.inputs, self.outputs = list(inputs), list(outputs)
-        self.f_keep, self.participation = float(f_keep), float(participation)
+        self.system = system = _as_system(system)
+        self.inputs, self.outputs = _required_names(inputs, "inputs"), _required_names(outputs, "outputs")
+        self.f_keep = check_number("CompiledModel: f_keep", f_keep, positive=True)
+        self.participation = check_number("CompiledModel: participation", participation, nonnegative=True)
         self.elements = [_Element(p, c) for p, c in nonlinear_elements(system)]
         self._el_of = {}
         for i, el in enumerate(self.elements):
@@ -171,15 +196,13 @@ class CompiledModel(TimeSeriesMixin):
         self.linear_system = _cut_nonlinear(system, self.elements) if self.elements else system
         self.dae = flatten(self.linear_system)
         dae = self.dae
-        for name in self.inputs:
-            if name not in dae.u_names:
-                raise UnknownNameError(f"'{name}' is not an input of '{dae.name}' (inputs: {dae.u_names})")
         self.w_inputs = [f"{el.path}.w" for el in self.elements]
+        for name in self.inputs:
+            if name not in dae.u_names or name in self.w_inputs:
+                raise UnknownNameError(f"CompiledModel: '{name}' is not an input of '{dae.name}' (inputs: "
+                                       f"{[u for u in dae.u_names if u not in self.w_inputs]})")
         self.nl_outputs = [f"{el.path}.{q}" for el in self.elements for q in ("s_rel", "v_rel")]
-        obs = set(dae.output_names())
-        bad = [o for o in self.outputs if o not in obs]
-        if bad:
-            raise UnknownNameError(f"{bad} are not outputs of '{dae.name}'")
+        dae.require_signals(self.outputs, "CompiledModel")
         self._so_args = dict(inputs=self.inputs + self.w_inputs, outputs=self.outputs + self.nl_outputs)
         self.so0 = second_order(dae, refresh_damping=False, **self._so_args)
         if dae.mech.has_internal_states:
@@ -477,9 +500,14 @@ class CompiledModel(TimeSeriesMixin):
         of that amplitude by the describing function of the nonlinear elements (thesis Eq 5.7-5.9 laws, first
         harmonic: :class:`~bscomp.simulation.harmonic_balance.HarmonicBalance`, as :func:`bscomp.describing_frf` does
         on the flattened model), the linear part being this modal model; a model without nonlinear elements
-        has the same FRF at every amplitude."""
+        has the same FRF at every amplitude.
+
+        ``freqs`` must be positive and finite [Hz], every pair an ``(input, output)`` of this model, every amplitude
+        a positive finite number for one of its inputs: else a named :class:`~bscomp.errors.UsageError`,
+        :class:`~bscomp.errors.ArgumentTypeError` or :class:`~bscomp.errors.UnknownNameError`."""
+        freqs, pairs, amp = self._check_frf(freqs, pairs, amplitude, extra_damping, delay, points, tol)
         mm = mm or self.modal(params, extra_damping, delay)
-        amp = {k: float(v) for k, v in (amplitude or {}).items() if v} if self.elements else {}
+        amp = amp if self.elements else {}
         out = {}
         small = [pq for pq in pairs if pq[0] not in amp]
         if small:
@@ -492,6 +520,43 @@ class CompiledModel(TimeSeriesMixin):
             H = self._describing(mm, params, freqs, inp, outs, amp[inp], delay, points, tol)
             out.update({(inp, o): H[:, k] for k, o in enumerate(outs)})
         return {pq: out[pq] for pq in pairs}
+
+    def _check_frf(self, freqs, pairs, amplitude, extra_damping, delay, points, tol):
+        """``(freqs, pairs, {input: amplitude})`` of an :meth:`frf` request, every argument checked."""
+        try:
+            f = np.atleast_1d(np.asarray(freqs, float))
+        except (TypeError, ValueError):
+            raise UsageError(f"CompiledModel.frf: freqs must be an array of frequencies [Hz], got {freqs!r}"[:300]) \
+                from None
+        if f.ndim != 1 or not f.size or not np.all(np.isfinite(f)) or np.any(f <= 0):
+            raise UsageError(f"CompiledModel.frf: freqs must be a non-empty 1-D array of positive, finite frequencies "
+                             f"[Hz], got {f!r}"[:300])
+        if isinstance(pairs, (str, bytes)) or not hasattr(pairs, "__iter__"):
+            raise ArgumentTypeError(f"CompiledModel.frf: pairs must be a list of (input, output) tuples, got {pairs!r}")
+        pairs = [tuple(pq) if isinstance(pq, (tuple, list)) else pq for pq in pairs]
+        for pq in pairs:
+            if not (isinstance(pq, tuple) and len(pq) == 2 and all(isinstance(x, str) for x in pq)):
+                raise ArgumentTypeError(f"CompiledModel.frf: each pair must be (input, output) names, got {pq!r}")
+            if pq[0] not in self.inputs:
+                raise UnknownNameError(f"CompiledModel.frf: '{pq[0]}' is not an input of this compiled model; inputs: "
+                                       f"{self.inputs} (give it to CompiledModel(inputs=...))")
+            if pq[1] not in self.outputs:
+                raise UnknownNameError(f"CompiledModel.frf: '{pq[1]}' is not an output of this compiled model; "
+                                       f"outputs: {self.outputs} (give it to CompiledModel(outputs=...))")
+        amp = check_mapping("CompiledModel.frf: amplitude", amplitude, "excitation amplitudes")
+        for k, v in amp.items():
+            if k not in self.inputs:
+                raise UnknownNameError(f"CompiledModel.frf: amplitude given for '{k}', which is not an input of this "
+                                       f"compiled model; inputs: {self.inputs}")
+            amp[k] = check_number(f"CompiledModel.frf: amplitude['{k}']", v, positive=True)
+        check_number("CompiledModel.frf: extra_damping", extra_damping, nonnegative=True)
+        check_number("CompiledModel.frf: delay", delay, nonnegative=True)
+        if amp:
+            check_number("CompiledModel.frf: points", points, integer=True, minimum=16)
+            if points % 4:
+                raise UsageError(f"CompiledModel.frf: points must be a multiple of 4, got {points}")
+            check_number("CompiledModel.frf: tol", tol, positive=True)
+        return f, pairs, amp
 
     @staticmethod
     def _modal_map(mm, freqs, inputs, outputs, delay=0.0):

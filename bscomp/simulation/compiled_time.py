@@ -9,7 +9,7 @@ import casadi as ca
 import numpy as np
 import scipy.linalg as sla
 
-from bscomp.errors import BscompError
+from bscomp.errors import ArgumentTypeError, BscompError, UnknownNameError, UsageError, check_mapping
 from bscomp.linear.frf_engine import dense
 from bscomp.linear.real_form import ModalError, modal_basis
 
@@ -164,13 +164,11 @@ class TimeSeriesMixin:
                  n_sub: int | None = None, n_newton: int = 8, mm=None):
         """Outputs ``{name: y(t)}`` for measured inputs held over each sample (module docstring).
 
-        ``t`` must be uniform; the first sample is the model at rest with the first input value.
+        ``t`` must be uniform; the first sample is the model at rest with the first input value. ``inputs`` maps
+        inputs of this model to ``(nt,)`` arrays (a missing one is 0); ``outputs`` are among its outputs.
         """
-        t = np.asarray(t, float)
+        t, inputs, outputs = self._check_run(t, inputs, outputs)
         dt = float(t[1] - t[0])
-        if np.max(np.abs(np.diff(t) - dt)) > 1e-6 * dt:
-            raise CompiledModelError("CompiledModel.simulate needs a uniformly sampled time grid")
-        outputs = list(self.outputs if outputs is None else outputs)
         mm = mm or self.modal(params, extra_damping, delay)
         _lin, law, _struct = self._split(dict(params or {}))
         r = len(self.elements)
@@ -211,6 +209,38 @@ class TimeSeriesMixin:
         Y = Y + yop[:, None]
         self.stats["last_newton_residual"] = bad
         return {o: Y[i] for i, o in enumerate(outputs)}
+
+    def _check_run(self, t, inputs, outputs):
+        """``(t, inputs, outputs)`` of a :meth:`simulate` request, each checked (named errors)."""
+        try:
+            t = np.asarray(t, float)
+        except (TypeError, ValueError):
+            raise UsageError(f"CompiledModel.simulate: t must be an array of times [s], got {t!r}"[:300]) from None
+        if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
+            raise UsageError("CompiledModel.simulate: t must be a 1-D array of at least 2 finite, increasing times [s]")
+        dt = float(t[1] - t[0])
+        if np.max(np.abs(np.diff(t) - dt)) > 1e-6 * dt:
+            raise CompiledModelError("CompiledModel.simulate needs a uniformly sampled time grid")
+        inputs = check_mapping("CompiledModel.simulate: inputs", inputs, "input histories")
+        for k, v in inputs.items():
+            if k not in self.inputs:
+                raise UnknownNameError(f"CompiledModel.simulate: '{k}' is not an input of this compiled model; inputs: "
+                                       f"{self.inputs}")
+            if np.shape(v) != t.shape or not np.all(np.isfinite(np.asarray(v, float))):
+                raise UsageError(f"CompiledModel.simulate: inputs['{k}'] must be {t.size} finite values (one per "
+                                 f"time), got shape {np.shape(v)}")
+        known = list(self.outputs) + list(getattr(self, "nl_outputs", []))
+        if outputs is None:
+            outputs = list(self.outputs)
+        elif isinstance(outputs, str):
+            outputs = [outputs]
+        elif not all(isinstance(o, str) for o in outputs):
+            raise ArgumentTypeError(f"CompiledModel.simulate: outputs must be names, got {outputs!r}"[:300])
+        bad = [o for o in outputs if o not in known]
+        if bad:
+            raise UnknownNameError(f"CompiledModel.simulate: {bad} are not outputs of this compiled model; outputs: "
+                                   f"{self.outputs} (give them to CompiledModel(outputs=...))")
+        return t, inputs, list(outputs)
 
 
 def real_modal_form(A, max_cond: float = 1e6, tol: float = 1e-10):

@@ -220,7 +220,7 @@ def describing_frf(model, input: str, output, freqs, amplitude: float, *, params
     UsageError, ArgumentTypeError
         Bad frequencies, amplitude or counts (named).
     UnknownNameError
-        ``input`` is not an input of the model.
+        ``input`` is not an input of the model, or an output is not a signal of it (a parameter, a constant).
     DescribingFunctionError
         No friction/backlash element, or a nonlinearity outside them.
     """
@@ -228,6 +228,7 @@ def describing_frf(model, input: str, output, freqs, amplitude: float, *, params
     dae = as_dae(model, params)
     if input not in dae.u_names:
         raise UnknownNameError(f"describing_frf: '{input}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
+    dae.require_signals(outs, "describing_frf")
     p = dae.parameter_vector(run_overrides(model, dae, params))
     bal = _Balance(dae, p, input, outs, points)
     _check_channels(bal, dae, dae.u_names.index(input), float(amplitude))

@@ -117,11 +117,11 @@ def _check(input, output, freqs, amplitude, offset, samples, settle, periods, ma
                         ("max_settle", max_settle, 1)):
         check_number(name, v, integer=True, minimum=lo)
     check_number("tol", tol, positive=True)
-    check_number("offset", offset)
+    offset = check_number("stepped_sine: offset", offset)
     if max_settle < settle:
         raise UsageError(f"stepped_sine: max_settle = {max_settle} periods is less than settle = {settle}: the "
                          "settling check could never run; give max_settle >= settle")
-    return outs, f
+    return outs, f, offset, float(amplitude)
 
 
 def stepped_sine(model, input: str, output, freqs, amplitude: float, *, offset: float = 0.0, params: dict | None = None,
@@ -173,13 +173,15 @@ def stepped_sine(model, input: str, output, freqs, amplitude: float, *, offset: 
     UsageError, ArgumentTypeError
         Bad frequencies, amplitude or counts (named).
     UnknownNameError
-        ``input`` is not an input of the model.
+        ``input`` is not an input of the model, or an output is not a signal of it (a parameter, a constant).
     """
-    outs, f = _check(input, output, freqs, amplitude, offset, samples, settle, periods, max_settle, tol)
+    outs, f, offset, amplitude = _check(input, output, freqs, amplitude, offset, samples, settle, periods, max_settle,
+                                        tol)
     _check_simulate_options(simulate_options)
     dae = as_dae(model, params)
     if input not in dae.u_names:
         raise UnknownNameError(f"stepped_sine: '{input}' is not an input of '{dae.name}'; inputs: {dae.u_names}")
+    dae.require_signals(outs, "stepped_sine")
     own = run_overrides(model, dae, params) or None     # structural ones are in dae already: no re-flattening
     show = (len(f) > 3 and sys.stderr.isatty()) if progress is None else bool(progress)
     H = np.zeros((len(f), len(outs), 1), complex)

@@ -439,7 +439,7 @@ CASES = [
     ("reduce_negative_modes", lambda tmp: _reduce(make_testbed("axial_torsional", nut_joint="moving"), -1), UsageError,
      r"n_modes must be a non-negative integer, got -1"),
     ("reduce_too_many_modes", lambda tmp: _reduce(make_testbed("axial_torsional", nut_joint="moving"), 200), UsageError,
-     r"201 modes requested but only 95 interior DOF"),
+     r"200 mode\(s\) \(\+1 rigid-body\) requested but only 95 interior DOF"),
     ("reduce_unknown_anchor", lambda tmp: _reduce(make_testbed("axial_torsional", nut_joint="moving"),
                                                   anchor="screw.n99.tz"), UsageError,
      r"anchor 'screw.n99.tz' is neither 'centre' nor a DOF of sub-model 1 \(closest: \['screw.n9.tz'"),

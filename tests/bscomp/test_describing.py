@@ -165,8 +165,8 @@ def test_compiled_model_at_an_amplitude_is_the_describing_frf():
     flexibility, the friction cut out as a force) balanced by the same HarmonicBalance -- against
     describing_frf on the flattened model (all states): the Coulomb oscillator's closed form to 2e-3 and
     describing_frf to 1e-5 (measured 1.2e-6 near resonance: the balances' Newton tolerance); a model without
-    elements, or an input without an amplitude, is the small-signal FRF; a law parameter override moves the
-    balance (F_c 1 -> 3 N lowers |X| as the closed form says)."""
+    elements, or an input without an amplitude, is the small-signal FRF (an amplitude for an unknown input is
+    refused); a law parameter override moves the balance (F_c 1 -> 3 N lowers |X| as the closed form says)."""
     from bscomp.simulation.compiled import CompiledModel
 
     r = np.array([0.5, 1.25, 3.0])
@@ -183,7 +183,9 @@ def test_compiled_model_at_an_amplitude_is_the_describing_frf():
     np.testing.assert_allclose(np.abs(H3) * 10.0, np.sqrt(100.0 - (12.0 / np.pi) ** 2) / np.abs(K - M * w ** 2),
                                rtol=2e-3)
     small = cm.frf({}, f, pair)[pair[0]]
-    assert np.array_equal(cm.frf({}, f, pair, amplitude={"other.u": 1.0})[pair[0]], small)
+    assert np.all(np.isfinite(small))
+    with pytest.raises(UnknownNameError, match="'other.u', which is not an input"):
+        cm.frf({}, f, pair, amplitude={"other.u": 1.0})            # an amplitude for no input is a mistake
     lin = CompiledModel(friction_oscillator(M, K, None), ["F.f"], ["m.s"])
     assert np.array_equal(lin.frf({}, f, pair, amplitude={"F.f": 10.0})[pair[0]], lin.frf({}, f, pair)[pair[0]])
 
