@@ -40,17 +40,32 @@ What a component may contribute
 from __future__ import annotations
 
 import copy
-import inspect
+from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from bscomp.errors import ArgumentTypeError, ModelDefinitionError, ParameterError, UnknownNameError
+from bscomp.kernel.docstrings import _format_default, parameters_docstring
 from bscomp.kernel.ports import PortSpec
 from bscomp.kernel.units import Unit, UnitSyntaxError, parse_quantity, parse_unit, same_dimension
 
 __all__ = ["Parameter", "Variable", "Component", "LinearStructure", "Constraint", "PortRef", "parameters_docstring"]
+
+BUILDING: ContextVar = ContextVar("bscomp_building", default=None)
+"""``(component, path)`` whose equations the kernel is building (templates), else None."""
+
+
+def _foreign(obj, what: str) -> None:
+    """Refuse a symbol of component ``obj`` read while another component's equations are built."""
+    cur = BUILDING.get()
+    if cur is None or cur[0] is obj:
+        return
+    raise ModelDefinitionError(
+        f"the equations of component '{cur[1]}' ({type(cur[0]).__name__}) read {what} of another component "
+        f"'{obj._display_name()}' ({type(obj).__name__}): a component's equations may use only its own ports, "
+        "variables and parameters; connect the two through ports (a flange, or a RealOutput -> RealInput signal)")
 
 
 class Parameter:
@@ -111,6 +126,7 @@ class Parameter:
         ctx = obj.__dict__.get("_ctx")
         if ctx is not None:
             return ctx.params[self.name]
+        _foreign(obj, f"parameter '{self.name}'")
         obj.__dict__.setdefault("_read_params", set()).add(self.name)
         return obj._values[self.name]
 
@@ -202,47 +218,6 @@ def _class_of(owner) -> str:
     return f" ({type(owner).__name__})" if owner is not None and owner.__dict__.get("_name") else ""
 
 
-def _format_default(value) -> str:
-    arr = np.asarray(value, dtype=float)
-    if arr.ndim == 0:
-        return f"{float(arr):.6g}"
-    if arr.size > 9:
-        return f"array of shape {arr.shape}"
-    return np.array2string(arr, separator=", ", formatter={"float_kind": lambda x: f"{x:.6g}"})
-
-
-def _is_header(lines: list, i: int) -> bool:
-    under = lines[i + 1].strip() if i + 1 < len(lines) else ""
-    return bool(lines[i].strip()) and len(under) >= 3 and set(under) == {"-"}
-
-
-def parameters_docstring(doc: str | None, params: dict) -> str | None:
-    """``doc`` with the numpydoc ``Parameters`` entries of ``params`` (declared :class:`Parameter` s).
-
-    They are appended to the docstring's ``Parameters`` section when it has one (constructor arguments
-    such as ``ends`` come first), else a ``Parameters`` section is put before the first other section.
-    """
-    if not params:
-        return doc
-    lines = inspect.cleandoc(doc).splitlines() if doc else []
-    entries = [line for p in params.values() for line in p.doc_entry()]
-    headers = [i for i in range(len(lines)) if _is_header(lines, i)]
-    own = [i for i in headers if lines[i].strip() == "Parameters"]
-    if own:
-        nxt = [i for i in headers if i > own[0]]
-        end = nxt[0] if nxt else len(lines)
-        while end > own[0] + 2 and not lines[end - 1].strip():
-            end -= 1
-        lines[end:end] = entries
-    else:
-        at = headers[0] if headers else len(lines)
-        block = ["Parameters", "----------"] + entries
-        if at > 0 and lines[at - 1].strip():
-            block = [""] + block
-        lines[at:at] = block + ([""] if headers else [])
-    return "\n".join(lines) + "\n"
-
-
 class Variable:
     """An internal variable of a component (a descriptor).
 
@@ -271,6 +246,7 @@ class Variable:
             return self
         ctx = obj.__dict__.get("_ctx")
         if ctx is None:
+            _foreign(obj, f"variable '{self.name}'")
             raise ModelDefinitionError(
                 f"variable {obj._display_name()}.{self.name} is symbolic: it only exists while the system is "
                 "flattened (use it inside equations()/observables(), or read results from an analysis)")
@@ -341,12 +317,43 @@ class _PortBinding:
 
 
 class _Context:
-    def __init__(self):
+    def __init__(self, path: str = ""):
+        self.path = path     # the component's path in the system, for messages
+        self.no_der: list = []  # (symbol, name): what der() cannot differentiate (flows, 2nd derivatives...)
         self.params: dict = {}
         self.vars: dict = {}
         self.dvars: dict = {}
         self.ports: dict = {}
         self.der_pairs: list = []  # (symbol, derivative symbol)
+
+
+_KINDS = {Parameter: "Parameter", Variable: "Variable", PortSpec: "port"}
+
+
+def _kind(obj) -> str | None:
+    return next((k for t, k in _KINDS.items() if isinstance(obj, t)), None)
+
+
+def _check_declarations(cls) -> None:
+    """A declaration object bound to one name only; a name keeps its kind (Parameter, Variable, port)
+    in subclasses (a Variable shadowing an inherited Parameter would be listed as both)."""
+    seen = {}
+    for name, obj in vars(cls).items():
+        kind = _kind(obj)
+        if kind is None:
+            continue
+        if id(obj) in seen:
+            raise ModelDefinitionError(
+                f"{cls.__name__}: one {kind} object is declared under two names, '{seen[id(obj)]}' and '{name}'; "
+                f"a {'PortSpec' if kind == 'port' else kind} instance can be declared once: create one per name "
+                f"(e.g. {name} = Flange(...))")
+        seen[id(obj)] = name
+        for base in cls.__mro__[1:]:
+            inherited = _kind(vars(base).get(name))
+            if inherited is not None and inherited != kind:
+                raise ModelDefinitionError(
+                    f"{cls.__name__}.{name} is declared as a {kind} but {base.__name__}.{name} is a {inherited}: a "
+                    f"subclass cannot change what a declared name is; choose another name for the {kind}")
 
 
 class Component:
@@ -355,6 +362,9 @@ class Component:
     def __init_subclass__(cls, **kwargs):
         """Parse the units of the parameters the class declares and document every parameter (numpydoc)."""
         super().__init_subclass__(**kwargs)
+        if cls.__dict__.get("_read_tracker"):   # bscomp.kernel.sharing's recording subclass: nothing to check
+            return
+        _check_declarations(cls)
         for name, p in vars(cls).items():
             if isinstance(p, Parameter):
                 try:
@@ -411,6 +421,10 @@ class Component:
         extra = self.__dict__.setdefault("_extra_ports", {})
         if name in extra or name in self._collect(PortSpec) or name in self.parameters():
             raise ModelDefinitionError(f"{type(self).__name__} already has a port or parameter named '{name}'")
+        if any(s is spec for s in self.ports().values()):
+            raise ModelDefinitionError(f"{type(self).__name__}.add_port('{name}', ...): this PortSpec object is "
+                                       f"already the port '{spec.name}'; a PortSpec instance can be declared once: "
+                                       "create one per port (e.g. Node6(...) in the loop)")
         spec.name = name
         extra[name] = spec
 
@@ -463,11 +477,32 @@ class Component:
 
     # ---- helpers available inside equations ---------------------------------------------------
     def der(self, expr):
-        """Time derivative of an expression of this component's potentials and variables."""
+        """Time derivative of an expression of this component's port potentials (up to their second
+        derivative: ``der(der(flange.s))``), variables (once) and parameters (constant).
+
+        A flow, a signal, a third derivative or ``der(der(v))`` of a variable has no derivative the kernel
+        knows: :class:`~bscomp.errors.ModelDefinitionError` (declare a Variable for the rate instead).
+        """
         import casadi as ca
-        ctx = self._ctx
+        ctx = self.__dict__.get("_ctx")
         if ctx is None:
-            raise ModelDefinitionError("der() can only be used while the system is flattened")
+            raise ModelDefinitionError(f"der() of component '{self._display_name()}' ({type(self).__name__}) can "
+                                       "only be used inside equations()/observables(), while the system is flattened")
+        try:
+            expr = ca.SX(expr)
+        except (NotImplementedError, TypeError) as exc:
+            raise ModelDefinitionError(f"der() in component '{ctx.path or self._display_name()}' "
+                                       f"({type(self).__name__}) takes an expression of its ports, variables and "
+                                       f"parameters, got {type(expr).__name__} {expr!r}"[:400]) from exc
+        if ctx.no_der and ca.depends_on(expr, ca.vertcat(*[s for s, _ in ctx.no_der])):
+            bad = [n for s, n in ctx.no_der if ca.depends_on(expr, s)]
+            raise ModelDefinitionError(
+                f"der() in component '{ctx.path or self._display_name()}' ({type(self).__name__}) cannot "
+                f"differentiate {str(expr)[:200]}: it depends on {bad[:6]}, which has no known derivative (a flow, a "
+                "signal, a third derivative of a potential or a second one of a variable). der() differentiates "
+                "port potentials up to der(der(port.s)), Variables once, and parameters (0). Declare a Variable "
+                "for the quantity or its rate (e.g. v = Variable() with the equation 'v - der(flange.s)', or "
+                "f = Variable() with 'flange.f - f') and differentiate that")
         syms = [a for a, _ in ctx.der_pairs]
         ders = [b for _, b in ctx.der_pairs]
         return ca.jtimes(expr, ca.vertcat(*syms), ca.vertcat(*ders))
@@ -522,6 +557,7 @@ class Component:
         ctx = self.__dict__.get("_ctx")
         if ctx is not None:
             return ctx.ports[name]
+        _foreign(self, f"port '{name}'")
         return PortRef(self, name)
 
     def describe(self) -> str:

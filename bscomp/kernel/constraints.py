@@ -88,7 +88,9 @@ def eliminate_constraints(constraints, nq, coord_names):
         lin, const = _reduce_row(coeffs, b, dep)
         if not lin:
             names = ", ".join(coord_names[c] for c in coeffs)
-            who = ", ".join(origin_of.get(c, "?") for c in coeffs if c in origin_of)
+            who = ", ".join(dict.fromkeys(origin_of[c] for c in coeffs if c in origin_of)) or (
+                "the connections (ports it ties together are connected to each other, directly or through "
+                "other joints)")
             if abs(const) > 1e-9 * max(1.0, abs(b)):
                 raise OverdeterminedError(f"inconsistent constraints on {names}: {origin} contradicts {who}; "
                                           "remove one of them")

@@ -153,6 +153,7 @@ def flatten(system: System, *, check: bool = True) -> Dae:
     if getattr(system, "damping", None) is not None:
         apply_system_damping(dae, system.damping)
     dae.stats["flatten_s"] = time.perf_counter() - t_start
+    dae.stats["templates"] = sum(len(v) for v in asm.templates.values())   # symbolic passes (shared by instances)
     if check:
         dae.check_index1()
     return dae

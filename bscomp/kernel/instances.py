@@ -70,7 +70,7 @@ class Assembly:
         self.observables = {}
         self.blocks = []                           # (coord indices, M, C, K)
         self.structural = set()
-        self.templates = {}
+        self.templates = {}                        # template_key -> [Template] (see bscomp.kernel.sharing)
         self.nonlinear = []                        # "path (Class)" of the components with nonlinear equations
 
     def add(self, lf):
@@ -79,10 +79,12 @@ class Assembly:
         ports = comp.ports()
         params = comp.parameters()
         variables = comp.variables()
-        key = template_key(comp, ports, params, variables)
-        tpl = self.templates.get(key)
+        # one template per class layout and per value of the instance attributes its equations read
+        variants = self.templates.setdefault(template_key(comp, ports, params, variables), [])
+        tpl = next((t for t in variants if t.matches(comp)), None)
         if tpl is None:
-            tpl = self.templates[key] = Template(comp, path, ports, params, variables)
+            tpl = Template(comp, path, ports, params, variables)
+            variants.append(tpl)
         # numeric/structural parts are per instance
         comp.__dict__["_read_params"] = set()
         struct = comp.structure()
@@ -185,6 +187,9 @@ class Assembly:
         J, b = tpl.cons_fun(loc_pv)
         J = np.asarray(J, float).reshape(tpl.n_cons, len(cidx))
         b = np.asarray(b, float).ravel()
+        if not (np.all(np.isfinite(J)) and np.all(np.isfinite(b))):
+            raise ModelDefinitionError(f"the constraints of '{path}' ({type(comp).__name__}) have NaN or inf "
+                                       "coefficients: check the numbers its constraints() compute")
         for r in range(tpl.n_cons):
             coeffs = {}
             for j, a in enumerate(J[r]):

@@ -12,7 +12,13 @@ from __future__ import annotations
 
 import copy
 
-from bscomp.errors import ArgumentTypeError, DuplicateNameError, PortConnectionError, UnknownNameError
+from bscomp.errors import (
+    ArgumentTypeError,
+    DuplicateNameError,
+    PortConnectionError,
+    UnknownNameError,
+    check_mapping,
+)
 from bscomp.kernel.component import Component, PortRef
 from bscomp.kernel.ports import PortSpec
 
@@ -48,17 +54,29 @@ class System:
         if name in self._components:
             raise DuplicateNameError(f"system '{self.name}' already has a component named '{name}' "
                                      f"({type(self._components[name]).__name__}); choose another name")
-        if not isinstance(component, (Component, System)):
-            raise ArgumentTypeError(f"system.add('{name}', ...) needs a Component or System, got "
-                                    f"{type(component).__name__}")
-        if component._parent is not None:
-            raise DuplicateNameError(f"this {type(component).__name__} instance is already in system "
-                                     f"'{component._parent.name}' as '{component._name}'; add a copy "
-                                     "(component.copy()) instead")
+        self._check_new(f"system.add('{name}', ...)", component)
         component._name = name
         component._parent = self
         self._components[name] = component
         return component
+
+    def _check_new(self, call: str, component) -> None:
+        """``component`` may join this system: a Component or System in no system yet, not containing this one."""
+        if not isinstance(component, (Component, System)):
+            raise ArgumentTypeError(f"{call} needs a Component or System, got {type(component).__name__} "
+                                    f"{component!r}"[:300])
+        if component._parent is not None:
+            raise DuplicateNameError(f"this {type(component).__name__} instance is already in system "
+                                     f"'{component._parent.name}' as '{component._name}'; one instance cannot be "
+                                     "in two places: use a copy (component.copy()) instead")
+        obj = self
+        while obj is not None:
+            if obj is component:
+                what = "cannot contain itself" if component is self else \
+                    f"already contains '{self.name}': adding it there would make a cycle"
+                raise DuplicateNameError(f"{call}: system '{component.name}' {what}; add a copy (system.copy()) "
+                                         "instead")
+            obj = obj._parent
 
     def connect(self, a, b) -> None:
         """Connect two ports: potentials equal, flows sum to zero (signals: output drives input).
@@ -118,8 +136,13 @@ class System:
         old = self._components.get(name)
         if old is None:
             raise UnknownNameError(f"system '{self.name}' has no component '{name}'")
+        if component is old:
+            return
+        self._check_new(f"system.replace('{name}', ...)", component)
+        ports = component.ports() if isinstance(component, Component) else \
+            {**component._exposed, **component._components}
         missing = [p for a, b in self._connections for p in (a, b)
-                   if p.split(".")[0] == name and p.split(".", 1)[1].split(".")[0] not in component.ports()]
+                   if p.split(".")[0] == name and p.split(".", 1)[1].split(".")[0] not in ports]
         if missing:
             raise UnknownNameError(f"cannot replace '{name}': the new {type(component).__name__} lacks ports used by "
                                    f"connections {missing}")
@@ -278,8 +301,9 @@ class System:
 
     def with_parameters(self, overrides: dict | None = None) -> "System":
         """A copy with parameter overrides applied."""
+        overrides = check_mapping("with_parameters(overrides)", overrides, "parameter values")
         new = self.copy()
-        for k, v in (overrides or {}).items():
+        for k, v in overrides.items():
             new.set(k, v)
         return new
 

@@ -20,7 +20,8 @@ import casadi as ca
 import numpy as np
 
 from bscomp.errors import ModelDefinitionError
-from bscomp.kernel.component import Constraint, _Context, _PortBinding
+from bscomp.kernel.component import BUILDING, Constraint, _Context, _PortBinding
+from bscomp.kernel.sharing import fingerprint, tracking_reads
 
 __all__ = ["Template", "template_key", "eliminate_explicit", "vc", "parameter_symbol"]
 
@@ -113,10 +114,10 @@ def eliminate_explicit(eqs, unknowns, pvals):
                 coef = ca.jacobian(eq, u)
                 if ca.depends_on(coef, U) or ca.depends_on(coef, pvals[2]):
                     continue
-                if coef.is_constant():
-                    c = float(ca.evalf(coef))
-                else:
-                    c = float(ca.evalf(ca.substitute(coef, pvals[0], pvals[1])))
+                cnum = coef if coef.is_constant() else ca.substitute(coef, pvals[0], pvals[1])
+                if not cnum.is_constant():   # depends on potentials or signals: not explicit
+                    continue
+                c = float(ca.evalf(cnum))
                 if c == 0.0 or not np.isfinite(c):
                     continue
                 rest = ca.substitute(eq, u, ca.SX(0))
@@ -148,6 +149,57 @@ def _nonlinear(e, w) -> bool:
     return any(ca.which_depends(e, w, 2, False))
 
 
+def _as_list(value, method, path, comp) -> list:
+    """What ``equations()`` / ``constraints()`` return, as a list (a tuple or one expression is accepted)."""
+    if isinstance(value, list):
+        return value
+    if isinstance(value, tuple):
+        return list(value)
+    if isinstance(value, (ca.SX, ca.DM)):
+        return [value]
+    hint = " (a missing 'return'?)" if value is None else ""
+    raise ModelDefinitionError(f"{method}() of component '{path}' ({type(comp).__name__}) must return a list of "
+                               f"expressions, got {type(value).__name__}{hint}: e.g. return [self.flange.f - expr]")
+
+
+def _as_sx(e, k, path, comp):
+    """Equation ``k`` as SX, or an error naming it."""
+    try:
+        return ca.SX(e)
+    except Exception as exc:
+        raise ModelDefinitionError(
+            f"equation {k} of component '{path}' ({type(comp).__name__}) is {type(e).__name__} {e!r}"[:300]
+            + ": an equation is an expression of the component's ports, variables and parameters (CasADi SX, "
+              "not MX) or a number") from exc
+
+
+def _check_symbols(comp, path, allowed, ceqs, cons, obs) -> None:
+    """Equations, constraints and observables may use only the component's own symbols (a ``ca.SX.sym``
+    made in ``equations()`` or another component's symbol would be a free symbol of the template)."""
+    exprs = list(ceqs) + [ca.SX(c.expr if isinstance(c, Constraint) else c) for c in cons]
+    exprs += [ca.SX(e) for e in obs.values()]
+    exprs = [e for e in exprs if e.nnz()]
+    if not exprs:
+        return
+    known = {a.nz[j].element_hash() for a in allowed for j in range(a.nnz())}
+    foreign = [x.name() for x in ca.symvar(ca.vertcat(*[ca.vec(e) for e in exprs])) if x.element_hash() not in known]
+    if foreign:
+        raise ModelDefinitionError(
+            f"component '{path}' ({type(comp).__name__}) uses symbol(s) {foreign[:8]} that are not its own: "
+            "equations, constraints and observables may use only the component's ports, variables and parameters "
+            "(declare a Variable or Parameter, or connect another component through a port; never ca.SX.sym())")
+
+
+def _check_constants(fun, comp, path) -> None:
+    """A NaN or inf constant in a component's equations (``float('nan') * s``) is a bug, not a model."""
+    for i in range(fun.n_instructions()):
+        if fun.instruction_id(i) == ca.OP_CONST and not np.isfinite(fun.instruction_constant(i)):
+            raise ModelDefinitionError(
+                f"the equations of component '{path}' ({type(comp).__name__}) contain the constant "
+                f"{fun.instruction_constant(i)}: NaN and inf are not physical coefficients; check the numbers "
+                "its equations() compute (a division by zero, an uninitialised attribute)")
+
+
 class Template:
     """Symbolic processing of one component class, done once and reused for every instance.
 
@@ -171,7 +223,9 @@ class Template:
         self.phys_ports = [n for n, s in ports.items() if not s.kind.is_signal]
         self.sig_ports = [n for n, s in ports.items() if s.kind.is_signal]
         ctx, psyms, q, qd, qdd, flows, sig, out_sig, vs, ds = self._bind(comp, ports, params, variables)
+        ctx.path = path
         ceqs, cons, obs = self._call(comp, path, ctx)
+        _check_symbols(comp, path, psyms + q + qd + qdd + flows + sig + vs + ds, ceqs, cons, obs)
         p_loc = vc(psyms)
         pv = np.concatenate([np.asarray(comp._values[n], float).reshape(-1, order="F") for n in params]) \
             if params else np.zeros(0)
@@ -201,6 +255,7 @@ class Template:
             f"tpl_{type(comp).__name__}",
             [vc(q), vc(qd), vc(qdd), vc(sig), p_loc, vc(vs), vc(ds)],
             [vc(fl_out), vc(outs), vc(rem), vc(obs_e)])
+        _check_constants(self.fun, comp, path)
         self.nonlinear = _nonlinear(ca.vertcat(vc(fl_out), vc(outs), vc(rem)),
                                     ca.vertcat(vc(q), vc(qd), vc(qdd), vc(sig), vc(vs), vc(ds)))
 
@@ -228,6 +283,7 @@ class Template:
             ctx.ports[pname] = _PortBinding(spec, pq, fl, None)
             for a, b_, c in zip(pq, pqd, pqdd):
                 ctx.der_pairs += [(a, b_), (b_, c)]
+            ctx.no_der += [(x, f"{x.name()} (a flow)") for x in fl] + [(x, x.name()) for x in pqdd]
         self.flow_port = flow_port
         sig = []
         out_sig = []
@@ -235,6 +291,7 @@ class Template:
             spec = ports[pname]
             s = ca.SX.sym(pname)
             sig.append(s)
+            ctx.no_der.append((s, f"{pname} (a signal)"))
             ctx.ports[pname] = _PortBinding(spec, [s], [], None)
             if spec.kind.signal == "out":
                 out_sig.append(k)
@@ -245,24 +302,40 @@ class Template:
             ctx.vars[n] = v
             ctx.dvars[n] = d
             ctx.der_pairs.append((v, d))
+            ctx.no_der.append((d, d.name()))
         return ctx, psyms, q, qd, qdd, flows, sig, out_sig, vs, ds
 
-    @staticmethod
-    def _call(comp, path, ctx):
-        """The component's equations (scalarised), constraints and observables, built in ``ctx``."""
+    def _call(self, comp, path, ctx):
+        """The component's equations (scalarised), constraints and observables, built in ``ctx``; records
+        the instance attributes they read (``reads``, ``read_fp``: which instances may share this template)."""
         comp.__dict__["_ctx"] = ctx
+        token = BUILDING.set((comp, path))
         try:
-            ceqs = [ca.SX(e) for e in comp.connector_equations() + comp.equations()]
-            cons = comp.constraints()
-            obs = comp.observables()
+            with tracking_reads(comp) as reads:
+                ceqs = _as_list(comp.connector_equations(), "connector_equations", path, comp) \
+                    + _as_list(comp.equations(), "equations", path, comp)
+                cons = _as_list(comp.constraints(), "constraints", path, comp)
+                obs = comp.observables()
+            ceqs = [_as_sx(e, k, path, comp) for k, e in enumerate(ceqs)]
         except ModelDefinitionError:
             raise
         except Exception as exc:  # a bug in a component file: say which one
             raise ModelDefinitionError(f"component '{path}' ({type(comp).__name__}) failed while building its "
                                        f"equations: {type(exc).__name__}: {exc}") from exc
         finally:
+            BUILDING.reset(token)
             comp.__dict__["_ctx"] = None
+        if not isinstance(obs, dict):
+            raise ModelDefinitionError(f"observables() of component '{path}' ({type(comp).__name__}) must return a "
+                                       f"dict {{name: expression}}, got {type(obs).__name__}")
+        self.reads = frozenset(reads)
+        self.read_fp = fingerprint(comp, self.reads)
         return [e[j] for e in ceqs for j in range(e.numel())], cons, obs
+
+    def matches(self, comp) -> bool:
+        """True if ``comp`` (same :func:`template_key`) holds the same values in the instance attributes this
+        template's equations read, so it may reuse the template."""
+        return fingerprint(comp, self.reads) == self.read_fp
 
     def _constraints(self, comp, path, ctx, cons, p_loc, q, qd, qdd, vs, flows):
         """Affine constraints ``A(p) q + b(p) = 0`` as a Function of the parameters (numeric coefficients
