@@ -6,10 +6,12 @@ Functions: :func:`bode_plot` (FRFs), :func:`mode_shape_plot` (:class:`~bscomp.li
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from bscomp.errors import OutputFileError
-from bscomp.files import atomic_path, check_path_type
+from bscomp.files import atomic_path, check_path_type, writable_dir
 
 
 def pyplot():
@@ -31,8 +33,6 @@ def save_figure(fig, path, dpi=120):
 
     Raises :class:`bscomp.errors.OutputFileError` for an extension matplotlib cannot write (before writing).
     """
-    from pathlib import Path
-
     check_path_type(path, "figure file (path)")
     suffix = Path(path).suffix.lower().lstrip(".")
     known = fig.canvas.get_supported_filetypes()
@@ -171,3 +171,23 @@ def time_plot(t, signals, names, title="", path=None):
         save_figure(fig, path, dpi=120)
         plt.close(fig)
     return fig
+
+
+#: extensions that name a figure file, not the folder the validation plots write several figures into
+_FIGURE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
+
+
+def figure_folder(path, what: str) -> Path:
+    """The folder several figures go to, created if needed: ``path`` must be a str or path, not an existing file
+    and not a name like ``fig.png`` (these functions write several figures into a folder). ``what`` names the
+    argument in errors (``"Comparison.plot: out_dir"``); nothing is created when it is refused."""
+    p = writable_dir(path, what)
+    if not p.is_dir() and p.suffix.lower() in _FIGURE_SUFFIXES:
+        raise OutputFileError(f"{what} {str(p)!r} looks like a figure file, but several figures are written into "
+                              f"this folder: give a folder name, e.g. {str(p.with_suffix(''))!r}")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputFileError(f"{what} {str(p)!r} cannot be created: {exc.strerror or exc}",
+                              hint="choose a writable location") from exc
+    return p

@@ -15,32 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from bscomp.errors import OutputFileError
-from bscomp.files import writable_dir
-from bscomp.plotting.base import _finish, _plt, save_figure
+from bscomp.plotting.base import _finish, _plt, figure_folder, save_figure
 
-__all__ = ["figure_folder", "comparison_plots", "frf_comparison_plot", "band_error_plot", "time_comparison_plot",
+__all__ = ["comparison_plots", "frf_comparison_plot", "band_error_plot", "time_comparison_plot",
            "resid_plot", "signature_plot", "plot_diagnosis", "calibration_plot", "amplitude_plot"]
-
-
-#: extensions that name a figure file, not the folder the validation plots write several figures into
-_FIGURE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff")
-
-
-def figure_folder(path, what: str) -> Path:
-    """The folder several figures go to, created if needed: ``path`` must be a str or path, not an existing file
-    and not a name like ``fig.png`` (these functions write several figures into a folder). ``what`` names the
-    argument in errors (``"Comparison.plot: out_dir"``); nothing is created when it is refused."""
-    p = writable_dir(path, what)
-    if not p.is_dir() and p.suffix.lower() in _FIGURE_SUFFIXES:
-        raise OutputFileError(f"{what} {str(p)!r} looks like a figure file, but several figures are written into "
-                              f"this folder: give a folder name, e.g. {str(p.with_suffix(''))!r}")
-    try:
-        p.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputFileError(f"{what} {str(p)!r} cannot be created: {exc.strerror or exc}",
-                              hint="choose a writable location") from exc
-    return p
 
 
 def _slug(text):
