@@ -89,7 +89,7 @@ class SweepTable:
 
     def to_csv(self, path) -> None:
         """Write a CSV file with a header row (atomic: complete or absent)."""
-        with atomic_path(path) as tmp:
+        with atomic_path(path, what="SweepTable.to_csv: path", suffixes=(".csv",)) as tmp:
             np.savetxt(tmp, self.data, delimiter=",", header=",".join(self.columns), comments="", fmt="%.17g")
 
     def to_json(self, path=None) -> str:
@@ -98,7 +98,7 @@ class SweepTable:
         text = json.dumps({"name": self.name, "parameters": self.parameters, "columns": self.columns, "rows": rows,
                            "stats": self.stats}, indent=1)
         if path is not None:
-            with atomic_write(path) as f:
+            with atomic_write(path, what="SweepTable.to_json: path", suffixes=(".json",)) as f:
                 f.write(text)
         return text
 

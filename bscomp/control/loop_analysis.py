@@ -119,7 +119,7 @@ class LoopAnalysis:
     def to_json(self, path) -> Path:
         path = Path(path)
         text = json.dumps(self.to_dict(), indent=2, default=_json_default)
-        with atomic_write(path) as fh:
+        with atomic_write(path, what="LoopAnalysis.to_json: path", suffixes=(".json",)) as fh:
             fh.write(text)
         return path
 

@@ -423,7 +423,7 @@ class Modes:
         """JSON text (``shapes`` as one list per mode); written to ``path`` if given."""
         text = json.dumps(self.to_dict(), indent=1)
         if path is not None:
-            with atomic_write(path) as fh:
+            with atomic_write(path, what="Modes.to_json: path", suffixes=(".json",)) as fh:
                 fh.write(text)
         return text
 
@@ -431,7 +431,7 @@ class Modes:
         """One row per mode: frequency, damping, rigid flag, modal mass, then the shape over coordinates."""
         import csv
 
-        with atomic_write(path, newline="") as fh:
+        with atomic_write(path, what="Modes.to_csv: path", suffixes=(".csv",), newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["mode", "f_n_hz", "zeta", "rigid_body", "modal_mass"]
                        + [f"phi[{c}]" for c in self.coordinates])

@@ -123,7 +123,7 @@ class Frf:
                 out, inp = self.outputs[j], self.inputs[i]
                 lines.append(f"# unit {out}/{inp}: {self.pair_unit(out, inp, units)}")
         mag, ph = self.magnitude_db, self.phase_deg
-        with atomic_write(path, newline="") as fh:
+        with atomic_write(path, what="Frf.to_csv: path", suffixes=(".csv",), newline="") as fh:
             fh.writelines(line + "\n" for line in lines)
             w = csv.writer(fh, lineterminator="\n")
             head = ["freq_hz"]
@@ -172,7 +172,7 @@ class Frf:
         """JSON text (``H_re``/``H_im`` indexed [freq][output][input]); written to ``path`` if given."""
         text = json.dumps(self.to_dict())
         if path is not None:
-            with atomic_write(path) as fh:
+            with atomic_write(path, what="Frf.to_json: path", suffixes=(".json",)) as fh:
                 fh.write(text)
         return text
 

@@ -297,7 +297,7 @@ class PositionSweep:
         import csv
 
         m = self.frequencies.shape[1]
-        with atomic_write(path, newline="") as fh:
+        with atomic_write(path, what="PositionSweep.to_csv: path", suffixes=(".csv",), newline="") as fh:
             w = csv.writer(fh)
             w.writerow([self.parameter] + [f"f{k + 1}_hz" for k in range(m)]
                        + [f"zeta{k + 1}" for k in range(m)])
@@ -318,7 +318,7 @@ class PositionSweep:
     def to_json(self, path=None) -> str:
         text = json.dumps(self.to_dict())
         if path is not None:
-            with atomic_write(path) as fh:
+            with atomic_write(path, what="PositionSweep.to_json: path", suffixes=(".json",)) as fh:
                 fh.write(text)
         return text
 

@@ -270,7 +270,7 @@ class Calibration:
         """JSON text of :meth:`to_dict`; written to ``path`` if given."""
         text = json.dumps(self.to_dict(), indent=2, default=json_default)
         if path is not None:
-            with atomic_write(path) as fh:
+            with atomic_write(path, what="Calibration.to_json: path", suffixes=(".json",)) as fh:
                 fh.write(text)
         return text
 

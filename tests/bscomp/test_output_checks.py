@@ -15,7 +15,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from bscomp.errors import ArgumentTypeError, FmuExportError, OutputFileError, UsageError
+import bscomp
+from bscomp.errors import ArgumentTypeError, BscompError, FmuExportError, OutputFileError, UsageError
 from bscomp.fmu import export_fmu
 from bscomp.simulation.result import SimulationResult
 from bscomp.systems import get
@@ -219,3 +220,17 @@ def test_report_of_results_still_written(tmp_path, comparison, diagnosis):
     index = write_report([comparison, diagnosis], tmp_path / "report")
     html = index.read_text()
     assert "Comparison 1" in html and "Diagnosis 2" in html and "error_staircase.png" in html
+
+
+@pytest.mark.parametrize("write, name", [
+    (lambda tmp: bscomp.frf("small_drive", "motor.tau", "table.s", [10.0, 20.0]).to_csv(tmp / "h.png"), "Frf.to_csv"),
+    (lambda tmp: bscomp.frf("small_drive", "motor.tau", "table.s", [10.0, 20.0]).to_json(tmp / "h.csv"),
+     "Frf.to_json"),
+    (lambda tmp: bscomp.modes("small_drive").to_csv(tmp / "m.json"), "Modes.to_csv"),
+    (lambda tmp: bscomp.modes("small_drive").to_json(tmp / "m.txt"), "Modes.to_json"),
+])
+def test_every_result_writer_checks_its_suffix(tmp_path, write, name):
+    """CSV into x.png or JSON into x.csv is refused by name, and nothing is written."""
+    with pytest.raises(BscompError, match=name):
+        write(tmp_path)
+    assert not list(tmp_path.iterdir())
