@@ -41,10 +41,17 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from bscomp._sweep_eval import ModesEvaluator
-from bscomp.errors import ArgumentTypeError, BscompError, ParameterError, UnknownNameError, UsageError, check_number
+from bscomp.errors import (
+    ArgumentTypeError,
+    BscompError,
+    ParameterError,
+    UnknownNameError,
+    UsageError,
+    check_names,
+    check_number,
+)
 from bscomp.files import atomic_path, atomic_write
 from bscomp.kernel.system import System
-from bscomp.linear.linearization import name_list
 from bscomp.linear.sweeps import check_count
 from bscomp.model import ModelSpec, spec_of
 from bscomp.plotting.sweep_map import sweep_map
@@ -261,7 +268,7 @@ def design_study(model, grid, analysis="modes", *, n_modes: int = 6, inputs=None
     n_modes = check_count("n_modes", n_modes, "design_study", allow_none=False)
     workers = check_count("workers", workers, "design_study")
     chunksize = check_count("chunksize", chunksize, "design_study")
-    inputs, outputs = name_list(inputs, "inputs"), name_list(outputs, "outputs")
+    inputs, outputs = check_names("inputs", inputs), check_names("outputs", outputs)
     values = _checked_variants(spec, names, raw)
     job = (spec, tuple(names), analysis, n_modes, None if inputs is None else tuple(inputs),
            None if outputs is None else tuple(outputs), None if freqs is None else tuple(freqs))

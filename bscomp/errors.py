@@ -157,6 +157,27 @@ def check_number(name: str, value, *, positive: bool = False, nonnegative: bool 
     return v
 
 
+def check_names(name: str, value, *, unique: bool = False) -> list | None:
+    """``value`` as a list of names (``None`` stays ``None``): one string is one name (``inputs="motor.tau"``,
+    not its characters); anything but strings is an :class:`ArgumentTypeError` naming the argument ``name``;
+    with ``unique`` a name listed twice is a :class:`UsageError` (an FMU variable, a CSV column)."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return [value]
+    try:
+        out = None if isinstance(value, (bytes, dict)) else list(value)
+    except TypeError:
+        out = None
+    if out is None or not all(isinstance(n, str) for n in out):
+        raise ArgumentTypeError(f"{name} must be a name or a list of names (e.g. ['motor.tau']), got "
+                                f"{type(value).__name__} {value!r}"[:300])
+    dup = [n for k, n in enumerate(out) if n in out[:k]]
+    if unique and dup:
+        raise UsageError(f"{name} lists {dup[0]!r} twice: give each name once")
+    return out
+
+
 def check_mapping(name: str, value, what: str = "values") -> dict:
     """``value`` as a dict ``{name: ...}`` (``None`` -> ``{}``), else :class:`ArgumentTypeError` naming the
     argument; keys must be strings (dotted names)."""

@@ -38,7 +38,13 @@ from bscomp import __version__
 from bscomp._fmu_damping import check_damping_parameters, rayleigh_term
 from bscomp._fmu_wrap import TIME_VR, patch_wrapper, state_nominals
 from bscomp._fmu_xml import FmuVariable, derivative_name, derivative_unit, structured_name, write_model_description
-from bscomp.errors import ArgumentTypeError, CompilerNotFoundError, FmuExportError, UnknownNameError, UsageError
+from bscomp.errors import (
+    ArgumentTypeError,
+    CompilerNotFoundError,
+    FmuExportError,
+    UnknownNameError,
+    check_names,
+)
 from bscomp.files import atomic_path, writable_path
 from bscomp.kernel.signal_meta import input_meta, measured_outputs, output_meta, parameter_meta, state_meta
 from bscomp.model import as_dae, run_overrides
@@ -105,9 +111,10 @@ def export_fmu(system, path, inputs=None, outputs=None, parameters=(), *, overri
     """
     path = writable_path(path, "export_fmu: path", (".fmu",)).absolute()
     flags = _check_flags(flags)
-    inputs, outputs = _name_list(inputs, "inputs"), _name_list(outputs, "outputs")
+    inputs = check_names("export_fmu: inputs", inputs, unique=True)
+    outputs = check_names("export_fmu: outputs", outputs, unique=True)
     if not (isinstance(parameters, str) and parameters == "all"):
-        parameters = _name_list(parameters, "parameters")
+        parameters = check_names("export_fmu: parameters", parameters, unique=True)
     cc = _find_compiler(compiler)
     dae = as_dae(system, overrides)
     p_start = dae.parameter_vector(run_overrides(system, dae, overrides))   # a Dae keeps its p0: the overrides
@@ -152,27 +159,6 @@ def _find_compiler(compiler):
             "(Debian/Ubuntu: apt-get install gcc; macOS: xcode-select --install; Windows: Visual Studio Build "
             "Tools) or pass compiler='/path/to/cc'")
     return cc
-
-
-def _name_list(names, what):
-    """``names`` (``None``, one name or a sequence of names) as a list of distinct str, or ``None``."""
-    if names is None:
-        return None
-    if isinstance(names, str):
-        return [names]
-    if not hasattr(names, "__iter__") or isinstance(names, (bytes, dict)):
-        raise ArgumentTypeError(f"export_fmu: {what} must be a name or a list of names, got "
-                                f"{type(names).__name__} {names!r}"[:300])
-    names = list(names)
-    bad = [n for n in names if not isinstance(n, str)]
-    if bad:
-        raise ArgumentTypeError(f"export_fmu: {what} must be dotted names (str), got {type(bad[0]).__name__} "
-                                f"{bad[0]!r}"[:300])
-    dup = [n for k, n in enumerate(names) if n in names[:k]]
-    if dup:
-        raise UsageError(f"export_fmu: {what} lists '{dup[0]}' twice; an FMU needs unique variable names: give "
-                         "each name once")
-    return names
 
 
 def _check_flags(flags):

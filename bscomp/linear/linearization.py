@@ -27,11 +27,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from bscomp.errors import (
-    ArgumentTypeError,
     ModelLimitationWarning,
     NotLinearError,
     SingularSystemError,
     UnknownNameError,
+    check_names,
 )
 from bscomp.kernel.dae import Dae, _sp
 from bscomp.kernel.mechanics import (
@@ -153,24 +153,8 @@ def explicit_form(dae: Dae, Jxd, Jx, Jz, Ju):
     return sol[:nx, :nx], sol[:nx, nx:], sol[nx:, :nx], sol[nx:, nx:]
 
 
-def name_list(names, argument: str) -> list | None:
-    """``names`` as a list of names: one string is one name (``inputs="motor.tau"``, not its characters);
-    anything but strings raises :class:`~bscomp.errors.ArgumentTypeError` naming ``argument``."""
-    if names is None:
-        return None
-    if isinstance(names, str):
-        return [names]
-    try:
-        out = list(names)
-    except TypeError:
-        out = None
-    if out is None or not all(isinstance(n, str) for n in out):
-        raise ArgumentTypeError(f"{argument} must be a name or a list of names (e.g. ['motor.tau']), got {names!r}")
-    return out
-
-
 def _select_inputs(dae: Dae, inputs):
-    inputs = name_list(inputs, "inputs")
+    inputs = check_names("inputs", inputs)
     if inputs is None:
         return list(range(dae.nu)), list(dae.u_names)
     idx = []
@@ -212,7 +196,7 @@ def linearize(model, inputs=None, outputs=None, at: dict | None = None, params: 
     op = operating_point(dae, at, params)
     Jxd, Jx, Jz, Ju = sparse_jacobians(dae, op)
     uidx, unames = _select_inputs(dae, inputs)
-    outputs = name_list(outputs, "outputs")
+    outputs = check_names("outputs", outputs)
     if not uidx:
         raise NotLinearError(f"'{dae.name}' has no inputs and python-control's StateSpace needs at least one: add a "
                              "Force/Torque source (its unconnected input becomes a system input); second_order() "
@@ -370,7 +354,7 @@ def second_order(model, inputs=None, outputs=None, at: dict | None = None, param
     jac = sparse_jacobians(dae, op)
     uidx, unames = _select_inputs(dae, inputs)
     b = second_order_blocks(dae, jac, uidx)
-    outputs = name_list(outputs, "outputs")
+    outputs = check_names("outputs", outputs)
     if outputs is None:
         outputs = list(m.coordinate_names)
     Gxd, Gx, Gz, Gu_y = _output_jac(dae, outputs, op)

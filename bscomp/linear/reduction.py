@@ -66,9 +66,9 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from bscomp.errors import ParameterError, SingularSystemError, UsageError, check_number
+from bscomp.errors import ParameterError, SingularSystemError, UsageError, check_names, check_number
 from bscomp.kernel.damping import as_dense_symmetric
-from bscomp.linear.linearization import SecondOrderModel, name_list
+from bscomp.linear.linearization import SecondOrderModel
 
 __all__ = ["ReducedModel", "ReducedPort", "cms_reduce", "reduce_second_order"]
 
@@ -577,7 +577,7 @@ def reduce_second_order(model, boundary, n_modes: int | None = None, *, f_cut: f
         Coordinate names kept exactly (actuated DOF, joint DOF, anchors; Sec 5.3.2).
     """
 
-    red = cms_reduce(model.M, model.K, name_list(boundary, "boundary"), n_modes, f_cut=f_cut, C=model.C,
+    red = cms_reduce(model.M, model.K, check_names("boundary", boundary), n_modes, f_cut=f_cut, C=model.C,
                      interface=interface, rigid_body_modes=rigid_body_modes, dof_names=list(model.coordinates))
     Psi = sp.csr_matrix(red.Psi)
 

@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from bscomp.errors import ArgumentTypeError, NotLinearError, UnknownNameError, UsageError, check_number
+from bscomp.errors import ArgumentTypeError, NotLinearError, UnknownNameError, UsageError, check_names, check_number
 from bscomp.files import atomic_write
 from bscomp.kernel import Dae, System
 from bscomp.kernel.units import convention_units, parse_unit
@@ -37,15 +37,6 @@ from bscomp.model import as_dae, as_system
 from bscomp.plotting.base import bode_plot
 
 __all__ = ["frf", "Frf", "transfer_function", "ModalSection"]
-
-
-def _names(x, what="input"):
-    """One name or a list of names (``None``: all), else :class:`ArgumentTypeError` naming ``what``."""
-    if x is None or isinstance(x, str):
-        return None if x is None else [x]
-    if not isinstance(x, (list, tuple)) or not all(isinstance(n, str) for n in x):
-        raise ArgumentTypeError(f"{what} must be a name (str) or a list of names, got {type(x).__name__} {x!r}")
-    return list(x)
 
 
 @dataclass
@@ -247,7 +238,7 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
     """
 
     f = _freq_grid(freqs, fmin, fmax, n)
-    ins, outs = _names(input, "input"), _names(output, "output")
+    ins, outs = check_names("input", input), check_names("output", output)
     name = model if isinstance(model, str) else getattr(model, "name", "")
     try:
         so = _second_order(model, ins, outs, at, params)

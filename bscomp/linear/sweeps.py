@@ -16,13 +16,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp import plotting
-from bscomp.errors import ArgumentTypeError, BscompError, UnknownNameError, UsageError
+from bscomp.errors import ArgumentTypeError, BscompError, UnknownNameError, UsageError, check_names
 from bscomp.files import atomic_write
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import modal_frf
-from bscomp.linear.linearization import name_list, second_order
+from bscomp.linear.linearization import second_order
 from bscomp.linear.modal import modes
 from bscomp.linear.response import frf, refuse_constant_outputs
 from bscomp.model import ModelSpec, as_system
@@ -417,7 +417,7 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
         raise UsageError(f"position_sweep: method must be 'auto', 'tangent' or 'rebuild', got {method!r}")
     n_modes = check_count("n_modes", n_modes, "position_sweep")
     workers = check_count("workers", workers, "position_sweep")
-    inputs, outputs = name_list(inputs, "inputs"), name_list(outputs, "outputs")
+    inputs, outputs = check_names("inputs", inputs), check_names("outputs", outputs)
     base = build_system(build, overrides)
     if parameter is None:
         parameter = position_parameter(base)

@@ -41,14 +41,14 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.components.force_between import ForceBetween
-from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_number
+from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_names, check_number
 from bscomp.kernel.component import _Context
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.flattening import flatten
 from bscomp.kernel.system import System
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import dense, modal_frf
-from bscomp.linear.linearization import name_list, second_order
+from bscomp.linear.linearization import second_order
 from bscomp.model import ModelSpec, as_system
 from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin
 from bscomp.simulation.harmonic_balance import HarmonicBalance
@@ -156,7 +156,7 @@ def _as_system(model) -> System:
 
 def _required_names(names, argument: str) -> list:
     """One name or a list of names (one str is one name), at least one."""
-    out = name_list(names, f"CompiledModel: {argument}")
+    out = check_names(f"CompiledModel: {argument}", names)
     if not out:
         raise ArgumentTypeError(f"CompiledModel: {argument} must name at least one signal, got {names!r}")
     return out

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from bscomp.errors import ArgumentTypeError, SolverError, UnknownNameError, UsageError
+from bscomp.errors import ArgumentTypeError, SolverError, UnknownNameError, check_names
 from bscomp.files import atomic_path, check_path_type
 from bscomp.plotting.base import time_plot  # matplotlib only when plotting
 
@@ -65,19 +65,9 @@ class SimulationResult:
     def _names(self, names, what, default, unique=True):
         """``names`` as a list of signal names: one str is one name; ``None`` or empty gives ``default``;
         ``unique``: refuse a name listed twice (a CSV column must be unambiguous)."""
-        if isinstance(names, str):
-            names = [names]
-        elif names is None:
-            names = []
-        elif not hasattr(names, "__iter__"):
-            raise ArgumentTypeError(f"{what} must be a signal name or a list of them, got {type(names).__name__} "
-                                    f"{names!r}"[:300])
-        names = list(names) or list(default)
+        names = check_names(what, names, unique=unique) or list(default)
         for n in names:
-            self[n]                     # a non-str or unknown name raises here, before anything is written
-        dup = sorted({n for n in names if names.count(n) > 1})
-        if dup and unique:
-            raise UsageError(f"{what} lists {dup[0]!r} twice: give each signal once")
+            self[n]                     # an unknown name raises here, before anything is written
         return names
 
     def to_csv(self, path, names=None):

@@ -38,14 +38,14 @@ def _listing(folder):
     ({"parameters": ["rotor.J", "rotor.J"]}, "parameters", "rotor.J"),
 ])
 def test_fmu_refuses_a_name_listed_twice(tmp_path, kw, what, name):
-    with pytest.raises(UsageError, match=rf"export_fmu: {what} lists '{name}' twice.*unique"):
+    with pytest.raises(UsageError, match=rf"export_fmu: {what} lists '{name}' twice: give each name once"):
         export_fmu("small_drive", tmp_path / "d.fmu", **kw)
     assert _listing(tmp_path) == []
 
 
 @pytest.mark.parametrize("kw, match", [
-    ({"inputs": 3}, r"export_fmu: inputs must be a name or a list of names, got int 3"),
-    ({"outputs": [1.0]}, r"export_fmu: outputs must be dotted names \(str\), got float 1.0"),
+    ({"inputs": 3}, r"export_fmu: inputs must be a name or a list of names .*got int 3"),
+    ({"outputs": [1.0]}, r"export_fmu: outputs must be a name or a list of names"),
     ({"flags": 2}, r"export_fmu: flags must be a string .* or a list of strings"),
     ({"flags": ["-O2", None]}, r"export_fmu: flags must be"),
 ])
@@ -121,7 +121,7 @@ def test_result_csv_names(result, tmp_path):
     assert p.read_text().splitlines()[0] == "t,table.a,table.v"
     with pytest.raises(UsageError, match=r"to_csv: names lists 'table.s' twice"):
         result.to_csv(tmp_path / "b.csv", names=["table.s", "table.s"])
-    with pytest.raises(ArgumentTypeError, match=r"to_csv: names must be a signal name or a list"):
+    with pytest.raises(ArgumentTypeError, match=r"to_csv: names must be a name or a list of names"):
         result.to_csv(tmp_path / "b.csv", names=3)
     assert _listing(tmp_path) == ["a.csv"]
 
