@@ -171,7 +171,8 @@ def _finite_run(run, problem, options, method) -> SimulationResult:
     """``run(problem, options)`` (the method's simulator); a :class:`SolverError` naming the inputs when its
     states or outputs overflow."""
     try:
-        res = run(problem, options)
+        with np.errstate(over="ignore", invalid="ignore"):   # an overflow is reported below, as one named error
+            res = run(problem, options)
     except ValueError as exc:              # scipy's check_finite: the run overflowed
         if "infs or NaNs" not in str(exc):
             raise
