@@ -234,13 +234,16 @@ def describing_frf(model, input: str, output, freqs, amplitude: float, *, params
     _check_channels(bal, dae, dae.u_names.index(input), float(amplitude))
     Y, S_all, V_all, res = bal.sweep(f, lambda i: bal.maps(f[i]), float(amplitude), tol)
     H = (Y / amplitude)[:, :, None]
-    failed = [float(x) for x in f[~(res <= 10 * tol)]]
+    bad = ~(res <= 10 * tol)
+    H[bad] = np.nan                     # a balance that did not converge gives no number, not a wrong one
+    failed = [float(x) for x in f[bad]]
     notes = [f"describing function of {bal.names}, {input} = {amplitude:g} sin(2 pi f t), {points} phases"]
     if bal.ch.joints:
         notes.append(f"moving joints {[j.path for j in bal.ch.joints]} held at their start position (tangent)")
     if failed:
         warnings.warn(f"describing_frf on '{dae.name}': the harmonic balance did not converge at {failed[:6]} Hz "
-                      f"(residual above {10 * tol:g}); use stepped_sine there", ModelLimitationWarning, stacklevel=2)
+                      f"(residual above {10 * tol:g}): H is NaN there; use stepped_sine", ModelLimitationWarning,
+                      stacklevel=2)
         notes.append(f"not converged at {failed} Hz")
     return DescribingFrf(freqs=f, H=H, inputs=[input], outputs=outs, name=dae.name, notes=notes,
                          amplitude=float(amplitude), elements=bal.names, motion=S_all, velocity=V_all, residual=res)
