@@ -519,14 +519,21 @@ class Component:
         """Set a parameter: validated against its bounds (:meth:`Parameter.validate`), then the whole set of
         would-be values against the cross-parameter conditions (:meth:`check`) before it is stored, so a
         rejected value leaves the component unchanged."""
-        params = self.parameters()
-        if name not in params:
-            raise UnknownNameError(f"{self._display_name()} ({type(self).__name__}) has no parameter '{name}'; "
-                                   f"it has {sorted(params)}")
-        v = params[name].validate(value, self)
-        self.check({**self._values, name: v})
-        self._values[name] = v
+        self._values.update(self.checked({name: value}))
         return self
+
+    def checked(self, values: dict) -> dict:
+        """``values`` (parameter name -> value) validated against their bounds and, with the component's other
+        values, against :meth:`check`; returned converted, nothing stored (what :meth:`set` stores)."""
+        params = self.parameters()
+        out = {}
+        for name, value in values.items():
+            if name not in params:
+                raise UnknownNameError(f"{self._display_name()} ({type(self).__name__}) has no parameter '{name}'; "
+                                       f"it has {sorted(params)}")
+            out[name] = params[name].validate(value, self)
+        self.check({**self._values, **out})
+        return out
 
     def check(self, values: dict) -> None:
         """Conditions between parameters (or on one that its bounds cannot say, such as ``lead != 0``).

@@ -428,7 +428,7 @@ def position_sweep(build, positions, parameter: str | None = None, freqs=None, i
         if owner is not None:                 # the tangent update writes the values itself: check them first
             _, pname, comp = owner
             for x in positions:
-                comp.check({**comp._values, pname: comp.parameters()[pname].validate(float(x), comp)})
+                comp.checked({pname: float(x)})
         if owner is None and method == "tangent":
             raise UsageError(f"position_sweep(method='tangent'): '{parameter}' is not a non-structural "
                              "parameter of a component with a tangent() (e.g. MovingScrewNut's z0); use "

@@ -27,8 +27,6 @@ MAX_DEGREE = 9
 
 def check_count(name, value) -> int:
     """A count (``N``) as an int >= 1, else :class:`UsageError`; bools (numpy's too) are not counts."""
-    if isinstance(value, np.bool_):      # check_number misses numpy 2's np.bool_ (type name "bool")
-        raise UsageError(f"{name} must be a number, got {value!r} ({type(value).__name__})")
     return check_number(name, value, integer=True, minimum=1)
 
 
@@ -103,9 +101,16 @@ def check_boundary_in_bounds(ocp) -> None:
         raise err
 
 
+_ACCEPTED: set = set()
+"""Option sets Ipopt has accepted in this process (each is tried once, not on every solve)."""
+
+
 def _ipopt_rejects(options: dict) -> str | None:
     """Why Ipopt refuses ``options`` (None if it accepts them): a 1-variable NLP is built and solved with them,
     Ipopt's own output (CasADi's Python bindings write it to ``sys.stdout``) captured for the message."""
+    key = repr(sorted(options.items(), key=lambda kv: kv[0]))
+    if key in _ACCEPTED:
+        return None
     x = ca.SX.sym("x")
     log = io.StringIO()
     with contextlib.redirect_stdout(log):
@@ -118,6 +123,7 @@ def _ipopt_rejects(options: dict) -> str | None:
         except RuntimeError as exc:
             why = str(exc).strip().splitlines()[-1].rpartition(".cpp:")[2].lstrip("0123456789: ")
     if why is None:
+        _ACCEPTED.add(key)
         return None
     lines = log.getvalue().splitlines()
     said = [ln.strip() for ln in lines if "Setting:" in ln or "<=" in ln or "Unknown option" in ln][:2]
