@@ -97,7 +97,7 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         re-linearized per *regime* of the nonlinear laws (the tangent of friction sticking / sliding,
         backlash gap / contact; one cached discretisation per regime), so ``g`` is nearly constant
         inside a regime; steps where the regime changes are redone in 16 re-linearized sub-steps. Linear
-        models: "lti" to ~1e-10 (4.6e-6 on the axial+torsional test bed with B). Measured (``docs/nonlinear.md``):
+        models: "lti" to ~1e-10 (2.4e-11 on the axial+torsional test bed with B). Measured (``docs/nonlinear.md``):
         Coulomb oscillator 5e-3 / 7e-4 of x0 at 2^-12 / 2^-14 s steps; test bed with Table 5.2 friction and
         backlash, 0.4 s vs IDAS rtol 1e-8: table.v 1.3e-4, table.s 8e-6, rotor.w 7e-6 (IDAS default
         tolerances: 4.6e-4, 8e-5, 1.1e-4); 1 s of it in ~1.5 s wall for the first run from a start

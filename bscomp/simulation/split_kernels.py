@@ -17,6 +17,12 @@ NEWTON_TOL = 1e-6    # accepted final residual, as a force relative to 1 + max |
 REGIME_RTOL = 0.5    # a tangent entry belongs to a regime if within this relative distance of its slope ...
 _ALPHAS = (1.0, 0.5, 0.25, 0.125, 0.0625, 0.03125)
 _ROUNDOFF = 64 * np.finfo(float).eps  # relative round-off allowed in the positions of the implicit equation
+RIGID_BLOCK = 2      # modal step: the last (slowest) modal coordinates whose columns of V^-1 A_d V are kept whole
+
+
+def rigid_block(nx) -> int:
+    """Width of the modal step's column block of the slowest modes (:data:`RIGID_BLOCK`, at most ``nx``)."""
+    return min(RIGID_BLOCK, nx)
 
 
 class Numeric:
@@ -167,7 +173,7 @@ class Kernels:
     def layout(self, dense):
         """Names and shapes of the regime inputs of the step Function (packed column-major in one vector)."""
         nx, nu, r, nN = self.nx, self.nu, self.r, self.nN
-        lin = [("Ad", (nx, nx))] if dense else [("d1", (nx, 1)), ("d2", (nx, 1))]
+        lin = [("Ad", (nx, nx))] if dense else [("d1", (nx, 1)), ("d2", (nx, 1)), ("Rc", (nx, rigid_block(nx)))]
         return lin + [("Bm", (nx, nu)), ("Em", (nx, r)), ("fm", (nx, 1)), ("Cm", (nN, nx)), ("Dn", (nN, nu)),
                       ("wc", (nN, 1)), ("H", (nN, r)), ("Jblk", (r, len(self.N)))]
 
@@ -195,7 +201,10 @@ class Kernels:
         core = self.core() if r else None
         xc, gc, res, w, mis = x, g, ca.MX.zeros(nN), ca.MX.zeros(nN), ca.MX.zeros(1)
         for _ in range(nsub):
-            lin = ca.mtimes(q["Ad"], xc) if dense else q["d1"] * xc + q["d2"] * xc[perm]
+            if dense:
+                lin = ca.mtimes(q["Ad"], xc)
+            else:                       # modal: the diagonal, the pairs, the slowest modes' columns whole
+                lin = q["d1"] * xc + q["d2"] * xc[perm] + ca.mtimes(q["Rc"], xc[nx - rigid_block(nx):])
             pred = lin + ca.mtimes(q["Bm"], du) + q["fm"]
             if r:
                 c = q["wc"] + ca.mtimes(q["Cm"], pred) + ca.mtimes(q["Dn"], du)

@@ -13,7 +13,7 @@ import scipy.sparse as sp
 
 from bscomp.kernel.dae import _sp
 from bscomp.linear.linearization import explicit_form
-from bscomp.simulation.split_kernels import REGIME_RTOL, Kernels, Numeric
+from bscomp.simulation.split_kernels import REGIME_RTOL, Kernels, Numeric, rigid_block
 
 __all__ = ["SplitModel", "Regime", "split_model", "nonlinear_structure", "step_key", "FINE"]
 
@@ -278,7 +278,9 @@ class Regime:
         if np.count_nonzero(up) != np.count_nonzero(~real & (lam.imag < 0)):
             return
         Wp = W[:, up]
-        V = np.hstack([np.stack([Wp.real, Wp.imag], axis=2).reshape(n, -1), W[:, real].real])
+        ri = np.flatnonzero(real)
+        ri = ri[np.argsort(-np.abs(lam[ri]), kind="stable")]     # the slowest (rigid-body) modes last
+        V = np.hstack([np.stack([Wp.real, Wp.imag], axis=2).reshape(n, -1), W[:, ri].real])
         V /= np.linalg.norm(V, axis=0)
         with np.errstate(divide="ignore"):
             lu = sla.lu_factor(V, check_finite=False)
@@ -342,13 +344,18 @@ class Regime:
         diag = np.diag(Am).copy()
         off = Am[np.arange(nx), perm].copy()
         off[2 * self.n_pair:] = 0.0
-        # the rest of Am is round-off of the similarity transform, unless A was (nearly) defective
         rest = Am.copy()
         rest[np.arange(nx), np.arange(nx)] = 0.0
         rest[np.arange(2 * self.n_pair), perm[:2 * self.n_pair]] = 0.0
+        # the last columns (the slowest modes, where a rigid-body coordinate drifts without bound) are kept
+        # whole: a coupling of 1e-8 there, multiplied by the drift, is not round-off (docs/nonlinear.md)
+        kb = rigid_block(nx)
+        Rc = rest[:, nx - kb:].copy()
+        rest[:, nx - kb:] = 0.0
+        # the rest of Am is round-off of the similarity transform, unless A was (nearly) defective
         if np.max(np.abs(rest)) > 1e-8 * max(np.max(np.abs(Am)), 1.0):
             self.dense = True  # (nearly) defective A: this regime steps in dense coordinates
-        d.update(d1=diag, d2=off, Bm=sla.lu_solve(lu, Bd), Em=sla.lu_solve(lu, Ed), fm=sla.lu_solve(lu, fd),
+        d.update(d1=diag, d2=off, Rc=Rc, Bm=sla.lu_solve(lu, Bd), Em=sla.lu_solve(lu, Ed), fm=sla.lu_solve(lu, fd),
                  Cm=self.Cn @ V)
 
     def step_params(self, h):
