@@ -284,37 +284,35 @@ def _tag(n_newton):
 
 
 class _Buffered:
-    """Calls a Function through its zero-copy buffer (arguments and results numpy, column-major)."""
+    """Calls a Function through its zero-copy buffer (arguments and results numpy, column-major). The state,
+    inputs and stop rule are copied into arrays the buffer holds from the start; the step matrices and the law's
+    numbers are passed by reference, re-pointed only when another array is given."""
 
     def __init__(self, F, nx, n):
         self.F, self.n = F, n
-        self._mats = self._theta = self._U = None
+        self._mats = self._theta = None
         self.buf, self.trigger = F.buffer()
         self.X = np.zeros((n, nx))           # row k: state after step k (C-order rows = CasADi columns)
         self.I = np.zeros((n, INFO))
         self.buf.set_res(0, memoryview(self.X.reshape(-1)))
         self.buf.set_res(1, memoryview(self.I.reshape(-1)))
+        self.x0 = np.zeros(nx)
+        self.U = np.zeros((n, F.size1_in(1)))  # (n, nu) rows = CasADi columns
+        self.ctl = np.zeros(F.nnz_in(4))
+        for i, a in ((0, self.x0), (1, self.U.reshape(-1)), (4, self.ctl)):
+            self.buf.set_arg(i, memoryview(a))
 
     def __call__(self, x0, U, mats, theta, ctl):
         """``U``: (n, nu) inputs per step, or one (nu,) input held over all of them."""
-        x0 = np.ascontiguousarray(x0, float)
-        if np.ndim(U) == 1:
-            if self._U is None:
-                self._U = np.zeros((self.n, len(U)))
-            self._U[:] = U
-            U = self._U
-        U = np.ascontiguousarray(U, float)            # (n, nu) rows = CasADi columns
-        ctl = np.ascontiguousarray(ctl, float)
-        self.buf.set_arg(0, memoryview(x0))
-        self.buf.set_arg(1, memoryview(U.reshape(-1)))
-        self.buf.set_arg(4, memoryview(ctl))
+        self.x0[:] = x0
+        self.U[:] = U
+        self.ctl[:] = ctl
         if self._mats is not mats:
             self.buf.set_arg(2, memoryview(mats))
             self._mats = mats
         if self._theta is not theta:
             self.buf.set_arg(3, memoryview(theta))
             self._theta = theta
-        self._keep = (x0, U, ctl)
         self.trigger()
         return self.X, self.I
 
