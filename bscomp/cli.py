@@ -148,13 +148,15 @@ def _frf(args) -> int:
                          hint="give a frequency band, e.g. --fmin 1 --fmax 1000")
     if args.method != "modal" and not args.amplitude:
         raise UsageError(f"--method {args.method} applies to an FRF at an amplitude", hint="add --amplitude A")
+    if args.harmonics != 1 and args.method != "describing":
+        raise UsageError("--harmonics applies to --method describing", hint="add --amplitude A --method describing")
     _outputs(args)
     system, n = _build(args), args.n or (24 if args.amplitude and args.method != "describing" else 500)
     if args.amplitude:                  # at a real amplitude: friction and backlash as they act there
         from bscomp.simulation import describing_frf, stepped_sine
         freqs = np.geomspace(args.fmin, args.fmax, n)
         try:
-            res = (describing_frf(system, args.input, args.output, freqs, args.amplitude)
+            res = (describing_frf(system, args.input, args.output, freqs, args.amplitude, harmonics=args.harmonics)
                    if args.method == "describing" else
                    stepped_sine(system, args.input, args.output, freqs, args.amplitude, method=args.method,
                                 jit=args.jit))
@@ -399,6 +401,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--method", choices=["modal", "idas", "describing"], default="modal",
                    help="--amplitude: the stepped sine's simulation method (default modal), or 'describing': one "
                         "harmonic by the describing function (milliseconds per frequency)")
+    p.add_argument("--harmonics", type=ck.number("--harmonics", 1, 16, integer=True, open_low=False), default=1,
+                   help="--method describing: odd harmonics balanced (orders 1, 3, .., 2N-1; default 1)")
     p.add_argument("--jit", action="store_true", help="--amplitude: compile the modal kernels to C (needs gcc)")
     p.add_argument("--csv", help="write the FRF to a CSV file (default: CSV on stdout when no --png)")
     p.add_argument("--png", help="write a Bode plot (.png, .pdf or .svg)")

@@ -579,7 +579,7 @@ class CompiledModel(TimeSeriesMixin):
             T[:, :, 0] *= np.exp(-2j * np.pi * np.asarray(freqs, float) * delay)[:, None]
         hb = HarmonicBalance([el.law for el in self.elements], [pe for pe, *_ in parts], self._el_rest[0::2],
                              self._el_rest[1::2], [kl for _, kl, _, _ in parts], [dl for *_, dl in parts], points)
-        Y, _S, _V, rel = hb.sweep(freqs, lambda i: T[i], amplitude, tol)
+        Y, _S, _V, rel = hb.sweep(freqs, lambda i, k=1: T[i], amplitude, tol)      # the first harmonic alone
         self.stats["describing_residual"] = float(np.max(rel, initial=0.0))
         return Y / amplitude
 

@@ -1,11 +1,15 @@
-r"""The first-harmonic balance of friction and backlash elements against a linear part given as a complex map
-per frequency -- the core of :func:`bscomp.describing_frf` (on the flattened model) and of
-:meth:`bscomp.simulation.compiled.CompiledModel.frf` with ``amplitude=`` (on a fit's modal model), so that
-``compare``, ``calibrate`` and ``diagnose`` see the model at a measurement's amplitude the same way.
+r"""The harmonic balance of friction and backlash elements against a linear part given as a complex map per
+frequency -- the core of :func:`bscomp.describing_frf` (on the flattened model) and of
+:meth:`bscomp.simulation.compiled.CompiledModel.frf` with ``amplitude=`` (on a fit's modal model, first harmonic
+only), so that ``compare``, ``calibrate`` and ``diagnose`` see the model at a measurement's amplitude the same way.
 
 Each element moves as ``s(θ) = s_0 + Re(Ŝ e^{jθ})``, ``v(θ) = v_0 + Re(V̂ e^{jθ})`` and only the first harmonic of
 its force is kept, ``F̂ = (1/π) ∫ f(s(θ), v(θ)) e^{-jθ} dθ`` (Coulomb friction, thesis Eq 5.7: ``4 F_c/π``; a
-clearance, Eq 5.8: the dead zone's closed form; ``tests/bscomp/test_describing.py``).
+clearance, Eq 5.8: the dead zone's closed form; ``tests/bscomp/test_describing.py``). With ``harmonics = h`` the
+odd orders ``k = 1, 3, ..., 2h - 1`` are balanced together (alternating frequency-time: the motion
+``s(θ) = s_0 + Σ_k Re(Ŝ_k e^{jkθ})`` from the linear map at ``k ω``, the force's harmonics ``F̂_k`` by the discrete
+Fourier sum, ``ĝ_k = F̂_k - k_0 Ŝ_k - d_0 V̂_k``); the even orders and the bias vanish for laws odd about the rest
+point under a zero-mean sine (friction; a centred clearance), so they are not carried.
 """
 
 from __future__ import annotations
@@ -31,6 +35,20 @@ def first_harmonic(law, pvec, s0, v0, S, V, points=256):
     e = np.exp(1j * th)
     f = _mapped(law, points)(s0 + (S * e).real, v0 + (V * e).real, pvec)
     return 2.0 / points * np.sum(np.asarray(f).ravel() * np.conj(e))
+
+
+def odd_harmonics(law, pvec, s0, v0, S, V, orders, points=256):
+    """The harmonics ``F̂_k = (2/N) Σ f(s(θ_i), v(θ_i)) e^{-jkθ_i}`` of orders ``orders`` (odd) of a law driven
+    by ``s(θ) = s_0 + Σ_k Re(S_k e^{jkθ})`` (and ``v`` alike) at ``N = points`` phases, counted from the
+    fundamental velocity's as in :func:`first_harmonic` (which is the case ``orders = (1,)``)."""
+    orders = np.asarray(orders)
+    phase = np.angle(V[0]) if V[0] != 0 else np.angle(S[0])
+    th = 2 * np.pi * (np.arange(points) + 0.5) / points - phase
+    e = np.exp(1j * np.outer(orders, th))                      # (orders, points)
+    s = s0 + (S @ e).real
+    v = v0 + (V @ e).real
+    f = np.asarray(_mapped(law, points)(s, v, pvec)).ravel()
+    return 2.0 / points * (np.conj(e) @ f)
 
 
 _MAPPED = {}
@@ -79,46 +97,61 @@ class HarmonicBalance:
         Phases per first harmonic (a multiple of 4).
     """
 
-    def __init__(self, laws, pvecs, s0, v0, k0, d0, points=256):
+    def __init__(self, laws, pvecs, s0, v0, k0, d0, points=256, harmonics=1):
         self.laws, self.pvecs = list(laws), [np.asarray(p, float) for p in pvecs]
         self.s0, self.v0, self.k0, self.d0 = (np.asarray(a, float).ravel() for a in (s0, v0, k0, d0))
         self.n, self.points = len(self.laws), int(points)
+        self.orders = tuple(range(1, 2 * int(harmonics), 2))        # 1, 3, 5, ...
 
-    def residual(self, g, T, U):
-        """``(r, scale, S, V)``: the balance's residual per element at corrections ``g`` (complex)."""
-        y = T[:, 0] * U + T[:, 1:] @ g
-        S, V = y[0:2 * self.n:2], y[1:2 * self.n:2]
-        F = np.array([first_harmonic(law, pv, self.s0[i], self.v0[i], S[i], V[i], self.points)
-                      for i, (law, pv) in enumerate(zip(self.laws, self.pvecs))])
+    def residual(self, g, Ts, U):
+        """``(r, scale, S, V)``: the balance's residual per harmonic and element at corrections ``g`` (complex,
+        ``(harmonics, n)``), ``Ts`` the linear map at each harmonic's frequency (the excitation drives the first)."""
+        n, nh = self.n, len(Ts)                  # the first len(Ts) orders (the first alone: the continuation)
+        S, V = np.empty((nh, n), complex), np.empty((nh, n), complex)
+        for k, T in enumerate(Ts):
+            y = T[:2 * n, 1:] @ g[k] + (T[:2 * n, 0] * U if k == 0 else 0.0)
+            S[k], V[k] = y[0::2], y[1::2]
+        if nh == 1:
+            F = np.array([[first_harmonic(law, pv, self.s0[i], self.v0[i], S[0, i], V[0, i], self.points)
+                           for i, (law, pv) in enumerate(zip(self.laws, self.pvecs))]])
+        else:
+            F = np.column_stack([odd_harmonics(law, pv, self.s0[i], self.v0[i], S[:, i], V[:, i], self.orders[:nh],
+                                               self.points) for i, (law, pv) in enumerate(zip(self.laws, self.pvecs))])
         tangent = self.k0 * S + self.d0 * V
         r = g - (F - tangent)
         scale = max(np.abs(F).max(), np.abs(tangent).max(), np.abs(g).max(), 1e-300)
         return r, scale, S, V
 
-    def solve(self, T, U, g0, tol, max_iter=40):
+    def solve(self, Ts, U, g0, tol, max_iter=40):
         """Damped Newton on the real and imaginary parts of ``ĝ`` (finite-difference Jacobian): ``(g, rel)``."""
         g = np.array(g0, complex)
-        r, scale, *_ = self.residual(g, T, U)
+        shape, m = g.shape, g.size
+        r, scale, *_ = self.residual(g, Ts, U)
+
+        def real(c):
+            return np.r_[c.real.ravel(), c.imag.ravel()]
+
+        def cplx(x):
+            return (x[:m] + 1j * x[m:]).reshape(shape)
+
         for _ in range(max_iter):
             if np.abs(r).max() <= tol * scale:
                 break
-            x = np.r_[g.real, g.imag]
+            x = real(g)
             J = np.empty((x.size, x.size))
             for k in range(x.size):
                 h = 1e-7 * max(abs(x[k]), scale)
                 xk = x.copy()
                 xk[k] += h
-                rk = self.residual(xk[:self.n] + 1j * xk[self.n:], T, U)[0]
-                J[:, k] = (np.r_[rk.real, rk.imag] - np.r_[r.real, r.imag]) / h
+                J[:, k] = (real(self.residual(cplx(xk), Ts, U)[0]) - real(r)) / h
             try:
-                dx = np.linalg.solve(J, -np.r_[r.real, r.imag])
+                dx = np.linalg.solve(J, -real(r))
             except np.linalg.LinAlgError:
                 break
             norm0, alpha = np.abs(r).max(), 1.0
             while alpha > 1e-3:                            # backtracking: the residual must fall
-                xn = x + alpha * dx
-                gn = xn[:self.n] + 1j * xn[self.n:]
-                rn, sn, *_ = self.residual(gn, T, U)
+                gn = cplx(x + alpha * dx)
+                rn, sn, *_ = self.residual(gn, Ts, U)
                 if np.abs(rn).max() < (1 - alpha / 4) * norm0:
                     break
                 alpha /= 2
@@ -129,23 +162,29 @@ class HarmonicBalance:
 
     def sweep(self, freqs, maps, U, tol):
         """Balance at every frequency in ascending order, each started from the last one's solution (from the
-        linear response up an amplitude ladder where that fails). Returns ``(Y, S, V, rel)``:
-        the outputs' rows of ``T [U; ĝ]``, the elements' motion and velocity phasors and the relative residual
-        per frequency. ``maps(i)`` is ``T`` at ``freqs[i]``."""
+        linear response up an amplitude ladder where that fails; with higher harmonics, from the first-harmonic
+        balance at that frequency). Returns ``(Y, S, V, rel)``: the outputs' rows of ``T [U; ĝ]`` at the
+        fundamental, the elements' fundamental motion and velocity phasors and the relative residual per
+        frequency. ``maps(i, k)`` is ``T`` at ``k`` times ``freqs[i]``."""
         f = np.asarray(freqs, float)
-        n, nf = self.n, f.size
+        n, nf, nh = self.n, f.size, len(self.orders)
         Y, S_all, V_all, rel_all = None, np.zeros((nf, n), complex), np.zeros((nf, n), complex), np.zeros(nf)
-        g = np.zeros(n, complex)
+        g = np.zeros((nh, n), complex)
         for i in np.argsort(f, kind="stable"):
-            T = maps(i)
-            g, rel = self.solve(T, U, g, tol)
+            Ts = [maps(i, k) for k in self.orders]
+            g, rel = self.solve(Ts, U, g, tol)
             if not rel <= tol:                        # continuation in the amplitude from the linear response
-                g = np.zeros(n, complex)
+                g1 = np.zeros((1, n), complex)
                 for a in AMPLITUDE_LADDER:
-                    g, rel = self.solve(T, a * U, g, tol)
-            _, _, S, V = self.residual(g, T, U)
-            y = T[2 * n:, 0] * U + T[2 * n:, 1:] @ g
+                    g1, rel = self.solve(Ts[:1], a * U, g1, tol)
+                g = np.zeros((nh, n), complex)
+                g[0] = g1[0]
+                for m in range(2, nh + 1):            # then the higher harmonics, one more order at a time
+                    g[:m], rel = self.solve(Ts[:m], U, g[:m], tol)
+            _, _, S, V = self.residual(g, Ts, U)
+            T = Ts[0]
+            y = T[2 * n:, 0] * U + T[2 * n:, 1:] @ g[0]
             if Y is None:
                 Y = np.zeros((nf, y.size), complex)
-            Y[i], S_all[i], V_all[i], rel_all[i] = y, S, V, rel
+            Y[i], S_all[i], V_all[i], rel_all[i] = y, S[0], V[0], rel
         return Y, S_all, V_all, rel_all
