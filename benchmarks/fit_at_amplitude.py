@@ -17,7 +17,9 @@ also runs ``diagnose`` on the ``atan`` files (FRFs alone, and the 2 V file besid
 square-wave record), as the library does (the describing function at the files' amplitudes) and with the
 evaluator forced to the small-signal FRF, as before.
 
-    python benchmarks/fit_at_amplitude.py [--diagnose]     (~1 min; --diagnose ~6 min more)
+    python benchmarks/fit_at_amplitude.py [--diagnose] [--harmonics H]     (~1 min; --diagnose ~6 min more)
+
+``--harmonics H`` fits with the odd orders up to ``2H - 1`` balanced (``CompiledModel.frf(harmonics=H)``).
 
 Stepped-sine files are cached in ``benchmarks/.cache/fit_at_amplitude``. Results: ``docs/measurements.md``,
 "Fitting FRFs measured at an amplitude".
@@ -88,6 +90,9 @@ def measured(case, volts):
     return out, info
 
 
+HARMONICS = int(sys.argv[sys.argv.index("--harmonics") + 1]) if "--harmonics" in sys.argv else 1
+
+
 def fit(case, volts, names, start):
     """Least squares of ``names`` (log space) on the files at ``volts``: (values, rms of the residual)."""
     data, info = measured(case, volts)
@@ -103,7 +108,7 @@ def fit(case, volts, names, start):
                 v[b] = v[a]
         r = []
         for d in data:
-            H = cm.frf(v, d.freqs, PAIRS, amplitude=d.excitation)
+            H = cm.frf(v, d.freqs, PAIRS, amplitude=d.excitation, harmonics=HARMONICS)
             for pq in PAIRS:
                 q = H[pq] / d.H[pq]
                 r += [20 * np.log10(np.abs(q)), np.angle(q, deg=True) / 10]
@@ -115,7 +120,8 @@ def fit(case, volts, names, start):
 
 
 def calibrations():
-    print("calibration by the describing function on stepped-sine FRFs (relative error against the truth):")
+    print(f"calibration by the describing function ({HARMONICS} odd harmonic(s)) on stepped-sine FRFs (relative "
+          "error against the truth):")
     rows = []
     for volts in ((2.0,), (0.5,), (0.5, 2.0)):
         t0 = time.perf_counter()

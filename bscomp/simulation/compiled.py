@@ -493,19 +493,19 @@ class CompiledModel(TimeSeriesMixin):
 
     # ---- FRF ------------------------------------------------------------------------------------------
     def frf(self, params, freqs, pairs, extra_damping: float = 0.0, delay: float = 0.0, mm: ModalModel = None,
-            amplitude: dict | None = None, points: int = 256, tol: float = 1e-8):
+            amplitude: dict | None = None, points: int = 256, tol: float = 1e-8, harmonics: int = 1):
         """``{(input, output): H(freqs)}`` of the linear equivalent at ``params``.
 
         With ``amplitude`` (``{input: A}``, the input's unit) the pairs of those inputs are the response to a sine
         of that amplitude by the describing function of the nonlinear elements (thesis Eq 5.7-5.9 laws, first
         harmonic: :class:`~bscomp.simulation.harmonic_balance.HarmonicBalance`, as :func:`bscomp.describing_frf` does
-        on the flattened model), the linear part being this modal model; a model without nonlinear elements
-        has the same FRF at every amplitude.
+        on the flattened model; ``harmonics=h``: the odd orders up to ``2h - 1`` balanced too), the linear part
+        being this modal model; a model without nonlinear elements has the same FRF at every amplitude.
 
         ``freqs`` must be positive and finite [Hz], every pair an ``(input, output)`` of this model, every amplitude
         a positive finite number for one of its inputs: else a named :class:`~bscomp.errors.UsageError`,
         :class:`~bscomp.errors.ArgumentTypeError` or :class:`~bscomp.errors.UnknownNameError`."""
-        freqs, pairs, amp = self._check_frf(freqs, pairs, amplitude, extra_damping, delay, points, tol)
+        freqs, pairs, amp = self._check_frf(freqs, pairs, amplitude, extra_damping, delay, points, tol, harmonics)
         mm = mm or self.modal(params, extra_damping, delay)
         amp = amp if self.elements else {}
         out = {}
@@ -517,11 +517,11 @@ class CompiledModel(TimeSeriesMixin):
             out.update({(i, o): H[:, outs.index(o), ins.index(i)] for i, o in small})
         for inp in dict.fromkeys(i for i, _ in pairs if i in amp):
             outs = list(dict.fromkeys(o for i, o in pairs if i == inp))
-            H = self._describing(mm, params, freqs, inp, outs, amp[inp], delay, points, tol)
+            H = self._describing(mm, params, freqs, inp, outs, amp[inp], delay, points, tol, harmonics)
             out.update({(inp, o): H[:, k] for k, o in enumerate(outs)})
         return {pq: out[pq] for pq in pairs}
 
-    def _check_frf(self, freqs, pairs, amplitude, extra_damping, delay, points, tol):
+    def _check_frf(self, freqs, pairs, amplitude, extra_damping, delay, points, tol, harmonics=1):
         """``(freqs, pairs, {input: amplitude})`` of an :meth:`frf` request, every argument checked."""
         try:
             f = np.atleast_1d(np.asarray(freqs, float))
@@ -556,6 +556,10 @@ class CompiledModel(TimeSeriesMixin):
             if points % 4:
                 raise UsageError(f"CompiledModel.frf: points must be a multiple of 4, got {points}")
             check_number("CompiledModel.frf: tol", tol, positive=True)
+            check_number("CompiledModel.frf: harmonics", harmonics, integer=True, minimum=1)
+            if 8 * (2 * harmonics - 1) > points:
+                raise UsageError(f"CompiledModel.frf: harmonics={harmonics} needs points >= {8 * (2 * harmonics - 1)} "
+                                 f"(8 phases per period of the order {2 * harmonics - 1}), got {points}")
         return f, pairs, amp
 
     @staticmethod
@@ -570,16 +574,18 @@ class CompiledModel(TimeSeriesMixin):
         return modal_frf(mm.lam, mm.phi, mm.c_modal, mm.C_struct, B, Cq, Cv, Ca, D, freqs, modes=mm.keep,
                          delay=delay)
 
-    def _describing(self, mm, params, freqs, inp, outs, amplitude, delay, points, tol):
+    def _describing(self, mm, params, freqs, inp, outs, amplitude, delay, points, tol, harmonics=1):
         """``H[freq, output]`` of ``outs`` to ``inp`` at ``amplitude`` (:meth:`frf`)."""
         _lin, law, _struct = self._split(dict(params or {}))
         parts = self.law_slices(self.law_values(law))
-        T = self._modal_map(mm, freqs, [inp] + self.w_inputs, self.nl_outputs + outs)
-        if delay:                                 # the input is delayed, the element forces are not
-            T[:, :, 0] *= np.exp(-2j * np.pi * np.asarray(freqs, float) * delay)[:, None]
         hb = HarmonicBalance([el.law for el in self.elements], [pe for pe, *_ in parts], self._el_rest[0::2],
-                             self._el_rest[1::2], [kl for _, kl, _, _ in parts], [dl for *_, dl in parts], points)
-        Y, _S, _V, rel = hb.sweep(freqs, lambda i, k=1: T[i], amplitude, tol)      # the first harmonic alone
+                             self._el_rest[1::2], [kl for _, kl, _, _ in parts], [dl for *_, dl in parts], points,
+                             harmonics)
+        f = np.asarray(freqs, float)
+        T = {k: self._modal_map(mm, k * f, [inp] + self.w_inputs, self.nl_outputs + outs) for k in hb.orders}
+        if delay:                                 # the input is delayed, the element forces are not
+            T[1][:, :, 0] *= np.exp(-2j * np.pi * f * delay)[:, None]
+        Y, _S, _V, rel = hb.sweep(freqs, lambda i, k=1: T[k][i], amplitude, tol)
         self.stats["describing_residual"] = float(np.max(rel, initial=0.0))
         return Y / amplitude
 

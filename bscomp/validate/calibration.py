@@ -40,7 +40,7 @@ from bscomp.plotting.validate import calibration_plot
 from bscomp.validate.arguments import check_fit, check_uncertain_names, load_datasets
 from bscomp.validate.comparison import user_errors
 from bscomp.validate.datasets import FrfData, warn_amplitude_fit
-from bscomp.validate.evaluation import Problem, Structures, noise_levels, residual_blocks
+from bscomp.validate.evaluation import AMPLITUDE_HARMONICS, Problem, Structures, noise_levels, residual_blocks
 from bscomp.validate.residuals import build_for, data_label
 
 __all__ = ["calibrate", "Calibration", "FitSetup", "fit_uncertain", "parameter_bounds", "user_summary"]
@@ -136,15 +136,16 @@ class FitSetup:
 
     @classmethod
     def build(cls, model, datasets, uncertain=None, overrides: dict | None = None,
-              default_spread: float = 0.2) -> FitSetup:
+              default_spread: float = 0.2, harmonics: int = 1) -> FitSetup:
         """Build the model at each dataset's conditions (``overrides`` over the files' conditions) and read
-        the uncertain parameters (argument, else the drive's declared interface)."""
+        the uncertain parameters (argument, else the drive's declared interface); ``harmonics``: odd harmonics
+        balanced for FRFs measured at an amplitude."""
         systems, keys = _systems(model, datasets, overrides)
         ref = systems[keys[0]]
         unc = _uncertain(ref, uncertain, default_spread)
         return cls(datasets=list(datasets), systems=systems, keys=keys, reference=ref, uncertain=unc,
                    sigmas=[noise_levels(d) for d in datasets],
-                   structures=Structures(systems, datasets, keys, list(unc)))
+                   structures=Structures(systems, datasets, keys, list(unc), harmonics))
 
     def bounds(self, values: dict | None = None) -> list:
         """:func:`parameter_bounds` of the uncertain parameters around the reference values."""
@@ -318,7 +319,7 @@ def fit_uncertain(setup: FitSetup, max_nfev: int | None = None) -> Calibration:
 
 
 def calibrate(model, datasets, uncertain=None, *, overrides: dict | None = None, default_spread: float = 0.2,
-              max_nfev: int | None = None) -> Calibration:
+              max_nfev: int | None = None, harmonics: int = AMPLITUDE_HARMONICS) -> Calibration:
     """Fit a drive's uncertain parameters to measurements, no effect added.
 
     Parameters
@@ -338,6 +339,11 @@ def calibrate(model, datasets, uncertain=None, *, overrides: dict | None = None,
         Relative spread (> 0) of the parameters given as a list.
     max_nfev : int, optional
         Most residual evaluations of the least-squares fit (>= 1).
+    harmonics : int
+        For an FRF file that states its sine amplitude: the odd harmonics balanced in the model at that
+        amplitude (:meth:`~bscomp.simulation.compiled.CompiledModel.frf`). One (the describing function) is
+        biased where the drive sticks and slips (F_c -13 %, table mass +29 % on an FE truth with the model's
+        own friction law); the default five are within 2 % there at ~6x the cost (``docs/measurements.md``).
 
     Returns
     -------
@@ -357,7 +363,9 @@ def calibrate(model, datasets, uncertain=None, *, overrides: dict | None = None,
     """
     datasets = load_datasets(datasets, "calibrate")
     default_spread, max_nfev = check_fit(default_spread, max_nfev)
-    warn_amplitude_fit(datasets, "calibrate")
+    if check_number("calibrate: harmonics", harmonics, integer=True, minimum=1) > 16:
+        raise UsageError(f"calibrate: harmonics must be <= 16 (the orders up to 31 at 256 phases), got {harmonics}")
+    warn_amplitude_fit(datasets, "calibrate", harmonics=harmonics)
     with threadpool_limits(limits=1, user_api="blas"):
-        setup = FitSetup.build(model, datasets, uncertain, overrides, default_spread)
+        setup = FitSetup.build(model, datasets, uncertain, overrides, default_spread, harmonics)
         return fit_uncertain(setup, max_nfev=max_nfev)

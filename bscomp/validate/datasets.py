@@ -131,19 +131,26 @@ def check_coherence(pair, g, source, where=(None, None)):
                       "the comparison rests on few points", MeasurementWarning, stacklevel=3)
 
 
-def warn_amplitude_fit(datasets, who: str, stacklevel: int = 3) -> None:
+def warn_amplitude_fit(datasets, who: str, stacklevel: int = 3, harmonics: int = 1) -> None:
     """Warn (:class:`~bscomp.errors.ModelLimitationWarning`) that ``who`` fits FRFs measured at a stated sine
-    amplitude (``FrfData.excitation``) by the describing function of the model's friction and backlash, one
-    harmonic, whose fits are biased where the drive sticks and slips."""
+    amplitude (``FrfData.excitation``) by the harmonic balance of the model's friction and backlash (``harmonics``
+    odd orders; one -- the describing function -- is biased where the drive sticks and slips)."""
     at_amp = [f"{d.source} ({', '.join(f'{v:g} on {k}' for k, v in d.excitation.items())})" for d in datasets
               if isinstance(d, FrfData) and d.excitation]
-    if at_amp:
-        warnings.warn(f"{who} compares {at_amp}, measured at a stated sine amplitude, with the model at that "
-                      "amplitude: the describing function of its friction and backlash, where it has them (one "
-                      "harmonic; where the drive sticks and slips fits by it are biased: F_c -13..-30 %, the table "
-                      "mass -17..+29 % on the FE truths, docs/measurements.md, 'Fitting FRFs measured at an "
-                      "amplitude'; a model without them has one FRF at every amplitude); a time series identifies "
-                      "friction and backlash", ModelLimitationWarning, stacklevel=stacklevel)
+    if not at_amp:
+        return
+    if harmonics == 1:
+        how = ("the describing function of its friction and backlash, where it has them (one harmonic; where the "
+               "drive sticks and slips fits by it are biased: F_c -13..-30 %, the table mass -17..+29 % on the FE "
+               "truths; calibrate balances 5 odd harmonics: F_c -0.2..-0.8 % with the model's own law")
+    else:
+        how = (f"the harmonic balance of its friction and backlash, where it has them ({harmonics} odd harmonics; "
+               "with the model's own friction law F_c and the table mass within 2 % on the FE truths, with another "
+               "law F_c -20 %")
+    warnings.warn(f"{who} compares {at_amp}, measured at a stated sine amplitude, with the model at that "
+                  f"amplitude: {how}, docs/measurements.md, 'Fitting FRFs measured at an amplitude'; a model without "
+                  "them has one FRF at every amplitude); a time series identifies friction and backlash",
+                  ModelLimitationWarning, stacklevel=stacklevel)
 
 
 # ---- data classes -------------------------------------------------------------------------------------

@@ -16,9 +16,9 @@ Time series are split in two halves in time: the first half is *fitted*, the sec
 to confirm an effect (an effect that only fits noise or stands in for another one does not carry over).
 FRFs are fitted whole; a linear effect fitted to them is confirmed by the time series. An FRF file that states
 the sine amplitude it was measured at (``FrfData.excitation``) is compared with the model at that amplitude: the
-describing function of its friction and backlash elements (:meth:`CompiledModel.frf` ``amplitude=``; one
-harmonic, so biased where the drive sticks and slips: ``docs/measurements.md``); a model without them has one
-FRF at every amplitude.
+describing function of its friction and backlash elements (:meth:`CompiledModel.frf` ``amplitude=``, with
+``harmonics`` odd orders balanced: one is biased where the drive sticks and slips, five are not on the FE truths,
+``docs/measurements.md``); a model without them has one FRF at every amplitude.
 """
 
 from __future__ import annotations
@@ -34,7 +34,10 @@ from bscomp.validate.noise import noise_levels
 from bscomp.validate.residuals import frf_errors
 from bscomp.validate.units_check import check_units
 
-__all__ = ["Evaluator", "Structures", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]
+__all__ = ["Evaluator", "Structures", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks",
+           "AMPLITUDE_HARMONICS"]
+
+AMPLITUDE_HARMONICS = 5   # odd harmonics calibrate balances for an FRF measured at an amplitude (orders 1..9)
 
 
 def residual_blocks(model_out, data, sigmas):
@@ -87,10 +90,13 @@ class Evaluator:
         Condition key of each dataset.
     free : list of str
         Dotted parameters that will be varied (structural ones get their sensitivities measured once).
+    harmonics : int
+        Odd harmonics balanced for an FRF measured at an amplitude (:meth:`CompiledModel.frf`).
     """
 
-    def __init__(self, systems: dict, datasets, keys, free=(), f_keep: float = 6000.0, n_sub: int = 2):
-        self.datasets, self.keys, self.n_sub = list(datasets), list(keys), int(n_sub)
+    def __init__(self, systems: dict, datasets, keys, free=(), f_keep: float = 6000.0, n_sub: int = 2,
+                 harmonics: int = 1):
+        self.datasets, self.keys, self.n_sub, self.harmonics = list(datasets), list(keys), int(n_sub), int(harmonics)
         self.models = {}
         for key, system in systems.items():
             ds = [d for d, k in zip(self.datasets, self.keys) if k == key]
@@ -133,7 +139,8 @@ class Evaluator:
             mm = modal[key]
             if isinstance(d, FrfData):
                 # at the amplitude the file states: the describing function of the model's friction and backlash
-                out.append(cm.frf(mine, d.freqs, list(d.H), delay=delay, mm=mm, amplitude=d.excitation))
+                out.append(cm.frf(mine, d.freqs, list(d.H), delay=delay, mm=mm, amplitude=d.excitation,
+                                  harmonics=self.harmonics))
             elif only_frf:
                 out.append(None)
             else:
@@ -279,12 +286,13 @@ class Structures:
     ----------
     systems : dict
         ``{condition key: System}``: the nominal model at each measurement condition.
-    datasets, keys, free
+    datasets, keys, free, harmonics
         As :class:`Evaluator`.
     """
 
-    def __init__(self, systems, datasets, keys, free):
+    def __init__(self, systems, datasets, keys, free, harmonics=1):
         self.systems, self.datasets, self.keys, self.free = systems, datasets, keys, list(free)
+        self.harmonics = harmonics
         self.cache = {}
 
     def get(self, effects):
@@ -296,5 +304,6 @@ class Structures:
                 for cand, _v, _f in effects:
                     s = cand.structure(s, linear=False, for_engine=True)
                 structured[k] = s
-            self.cache[key] = (Evaluator(structured, self.datasets, self.keys, free=self.free), structured)
+            self.cache[key] = (Evaluator(structured, self.datasets, self.keys, free=self.free,
+                                         harmonics=self.harmonics), structured)
         return self.cache[key]

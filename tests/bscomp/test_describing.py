@@ -231,6 +231,11 @@ def test_compiled_model_at_an_amplitude_is_the_describing_frf():
                                rtol=2e-3)
     small = cm.frf({}, f, pair)[pair[0]]
     assert np.all(np.isfinite(small))
+    H5 = cm.frf({}, f, pair, amplitude={"F.f": 3.0}, harmonics=5)[pair[0]]     # the orders up to 9 (at 9 f too)
+    ref5 = describing_frf(oscillator(), "F.f", "m.s", f, 3.0, harmonics=5)
+    assert np.abs(H5 / ref5.H[:, 0, 0] - 1).max() < 1e-5
+    with pytest.raises(UsageError, match="points"):
+        cm.frf({}, f, pair, amplitude={"F.f": 3.0}, harmonics=17)
     with pytest.raises(UnknownNameError, match="'other.u', which is not an input"):
         cm.frf({}, f, pair, amplitude={"other.u": 1.0})            # an amplitude for no input is a mistake
     lin = CompiledModel(friction_oscillator(M, K, None), ["F.f"], ["m.s"])
