@@ -142,7 +142,7 @@ def warn_amplitude_fit(datasets, who: str, stacklevel: int = 3, harmonics: int =
     if harmonics == 1:
         how = ("the describing function of its friction and backlash, where it has them (one harmonic; where the "
                "drive sticks and slips fits by it are biased: F_c -13..-30 %, the table mass -17..+29 % on the FE "
-               "truths; calibrate balances 5 odd harmonics: F_c -0.2..-0.8 % with the model's own law")
+               "truths; calibrate balances 5 odd harmonics: F_c -0.6..+0.0 % with the model's own law")
     else:
         how = (f"the harmonic balance of its friction and backlash, where it has them ({harmonics} odd harmonics; "
                "with the model's own friction law F_c and the table mass within 2 % on the FE truths, with another "
