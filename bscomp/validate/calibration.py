@@ -39,8 +39,8 @@ from bscomp.kernel.system import System
 from bscomp.plotting.validate import calibration_plot
 from bscomp.validate.arguments import check_fit, check_uncertain_names, load_datasets
 from bscomp.validate.comparison import user_errors
-from bscomp.validate.datasets import FrfData, warn_amplitude_fit
-from bscomp.validate.evaluation import AMPLITUDE_HARMONICS, Problem, Structures, noise_levels, residual_blocks
+from bscomp.validate.datasets import AMPLITUDE_HARMONICS, FrfData, warn_amplitude_fit
+from bscomp.validate.evaluation import Problem, Structures, noise_levels, residual_blocks
 from bscomp.validate.residuals import build_for, data_label
 
 __all__ = ["calibrate", "Calibration", "FitSetup", "fit_uncertain", "parameter_bounds", "user_summary"]

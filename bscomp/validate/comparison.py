@@ -96,9 +96,9 @@ class Comparison:
             a = c.at_amplitude
             if a is not None:
                 exc = ", ".join(f"a sine of {v:g} on {k}" for k, v in a["excitation"].items())
-                L.append(f"  at the measured excitation ({exc}) by the describing function of "
-                         f"{', '.join(a['elements'])}: magnitude error {a['rms_mag_db']:.2f} dB rms, phase error "
-                         f"{a['rms_phase_deg']:.1f} deg rms (the figures above: the small-signal model)"
+                L.append(f"  at the measured excitation ({exc}) by the harmonic balance ({a.get('harmonics', 1)} odd "
+                         f"harmonics) of {', '.join(a['elements'])}: magnitude error {a['rms_mag_db']:.2f} dB rms, "
+                         f"phase error {a['rms_phase_deg']:.1f} deg rms (the figures above: the small-signal model)"
                          if "error" not in a else f"  not compared at the measured excitation ({exc}): {a['error']}")
                 if a.get("resonances"):
                     L.append("    the model's resonances at that amplitude: " + ", ".join(

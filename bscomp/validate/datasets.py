@@ -18,7 +18,8 @@ import numpy as np
 from bscomp.errors import BscompError, ModelLimitationWarning
 
 __all__ = ["FrfData", "TimeData", "MeasurementFileError", "MeasurementWarning", "check_condition",
-           "MIN_COHERENCE", "MIN_FRF_POINTS", "MIN_TIME_SAMPLES", "check_points", "warn_amplitude_fit"]
+           "MIN_COHERENCE", "MIN_FRF_POINTS", "MIN_TIME_SAMPLES", "check_points", "warn_amplitude_fit",
+           "AMPLITUDE_HARMONICS"]
 
 #: a pair whose coherence stays below this everywhere carries no usable signal (error)
 MIN_COHERENCE = 0.1
@@ -129,6 +130,9 @@ def check_coherence(pair, g, source, where=(None, None)):
     if low > 0.5:
         warnings.warn(f"{source}: coherence of {label} is below 0.5 at {100 * low:.0f}% of the frequencies: "
                       "the comparison rests on few points", MeasurementWarning, stacklevel=3)
+
+
+AMPLITUDE_HARMONICS = 5   # odd harmonics (orders 1..9) calibrate and compare balance for an FRF at an amplitude
 
 
 def warn_amplitude_fit(datasets, who: str, stacklevel: int = 3, harmonics: int = 1) -> None:

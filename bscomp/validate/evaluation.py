@@ -34,10 +34,7 @@ from bscomp.validate.noise import noise_levels
 from bscomp.validate.residuals import frf_errors
 from bscomp.validate.units_check import check_units
 
-__all__ = ["Evaluator", "Structures", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks",
-           "AMPLITUDE_HARMONICS"]
-
-AMPLITUDE_HARMONICS = 5   # odd harmonics calibrate balances for an FRF measured at an amplitude (orders 1..9)
+__all__ = ["Evaluator", "Structures", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]
 
 
 def residual_blocks(model_out, data, sigmas):

@@ -24,7 +24,7 @@ from bscomp.linear.modal import modes
 from bscomp.linear.response import frf
 from bscomp.simulation.compiled import nonlinear_elements
 from bscomp.simulation.describing import describing_frf
-from bscomp.validate.datasets import FrfData
+from bscomp.validate.datasets import AMPLITUDE_HARMONICS, FrfData
 from bscomp.validate.peaks import Resonance, merge_resonances, peak_pick
 from bscomp.validate.residuals import check_channels, fit_percent, frf_errors
 
@@ -365,7 +365,7 @@ def _at_amplitude(system, data, Hm):
     try:
         for inp, a in data.excitation.items():
             outs = [o for i, o in data.H if i == inp]
-            r = describing_frf(dae, inp, outs, data.freqs, a)
+            r = describing_frf(dae, inp, outs, data.freqs, a, harmonics=AMPLITUDE_HARMONICS)
             H.update({(inp, o): r.H[:, j, 0] for j, o in enumerate(outs)})
             elements, residual = r.elements, max(residual, float(r.residual.max(initial=0.0)))
     except BscompError as exc:          # e.g. a current limit the describing function does not treat
@@ -373,7 +373,8 @@ def _at_amplitude(system, data, Hm):
     mag, ph = _weighted_rms(frf_errors(H, data), data)
     peaks = merge_resonances([peak_pick(data.freqs, H[p], p, min_prominence_db=1.0) for p in data.H
                               if p[0] in data.excitation])
-    return {"excitation": dict(data.excitation), "elements": elements, "model": H, "rms_mag_db": mag,
+    return {"excitation": dict(data.excitation), "elements": elements, "harmonics": AMPLITUDE_HARMONICS,
+            "model": H, "rms_mag_db": mag,
             "rms_phase_deg": ph, "residual": residual, "resonances": [(r.f, r.zeta) for r in peaks]}
 
 
