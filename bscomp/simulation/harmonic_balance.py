@@ -1,7 +1,7 @@
 r"""The harmonic balance of friction and backlash elements against a linear part given as a complex map per
 frequency -- the core of :func:`bscomp.describing_frf` (on the flattened model) and of
-:meth:`bscomp.simulation.compiled.CompiledModel.frf` with ``amplitude=`` (on a fit's modal model, first harmonic
-only), so that ``compare``, ``calibrate`` and ``diagnose`` see the model at a measurement's amplitude the same way.
+:meth:`bscomp.simulation.compiled.CompiledModel.frf` with ``amplitude=`` (on a fit's modal model), so that
+``compare``, ``calibrate`` and ``diagnose`` see the model at a measurement's amplitude the same way.
 
 Each element moves as ``s(θ) = s_0 + Re(Ŝ e^{jθ})``, ``v(θ) = v_0 + Re(V̂ e^{jθ})`` and only the first harmonic of
 its force is kept, ``F̂ = (1/π) ∫ f(s(θ), v(θ)) e^{-jθ} dθ`` (Coulomb friction, thesis Eq 5.7: ``4 F_c/π``; a

@@ -76,7 +76,7 @@ def _harmonic(t, y, w, samples):
     rest ``y - c0 - c1 t - Re(Y e^{jwt})``. With the fundamental alone the drift column ``t``, which is not
     orthogonal to ``sin(k w t)`` over a window, took part of a strong higher harmonic and moved ``Y``: 2.7 % on
     the test bed's table acceleration in stick-slip (its 3rd and 5th harmonics larger than the 1st) with 4
-    periods, 15 % with 2, 0.7 % with 6 (``docs/nonlinear.md``, "Stepped-sine FRF")."""
+    periods, 15 % with 2, 0.7 % with 6 (``docs/nonlinear.md``, "Describing-function FRF")."""
     tc = t - t.mean()
     k = np.arange(1, max(samples // 2 - 1, 1) + 1)
     ph = w * np.outer(t, k)
