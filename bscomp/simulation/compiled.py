@@ -587,6 +587,7 @@ class CompiledModel(TimeSeriesMixin):
             T[1][:, :, 0] *= np.exp(-2j * np.pi * f * delay)[:, None]
         Y, _S, _V, rel = hb.sweep(freqs, lambda i, k=1: T[k][i], amplitude, tol)
         self.stats["describing_residual"] = float(np.max(rel, initial=0.0))
+        self.stats["describing_orders_min"] = 2 * int(np.min(hb.used, initial=len(hb.orders))) - 1
         return Y / amplitude
 
     # ---- time series ------------------------------------------------------------------------------------

@@ -257,6 +257,12 @@ def describing_frf(model, input: str, output, freqs, amplitude: float, *, params
              + (f", odd harmonics up to {2 * harmonics - 1} balanced" if harmonics > 1 else "")]
     if bal.ch.joints:
         notes.append(f"moving joints {[j.path for j in bal.ch.joints]} held at their start position (tangent)")
+    fewer = [(float(x), 2 * int(m) - 1) for x, m in zip(f, bal.used, strict=True) if m < harmonics and x not in failed]
+    if fewer:
+        warnings.warn(f"describing_frf on '{dae.name}': the balance with the odd orders up to {2 * harmonics - 1} did "
+                      f"not converge at {[x for x, _ in fewer][:6]} Hz; there H is the balance of the orders up to "
+                      f"{sorted({o for _, o in fewer})} (Hz, order): {fewer[:6]}", ModelLimitationWarning, stacklevel=2)
+        notes.append(f"fewer orders balanced at {fewer}")
     if failed:
         warnings.warn(f"describing_frf on '{dae.name}': the harmonic balance did not converge at {failed[:6]} Hz "
                       f"(residual above {10 * tol:g}): H is NaN there; use stepped_sine", ModelLimitationWarning,

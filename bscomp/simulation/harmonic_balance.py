@@ -165,10 +165,12 @@ class HarmonicBalance:
         linear response up an amplitude ladder where that fails; with higher harmonics, from the first-harmonic
         balance at that frequency). Returns ``(Y, S, V, rel)``: the outputs' rows of ``T [U; ĝ]`` at the
         fundamental, the elements' fundamental motion and velocity phasors and the relative residual per
-        frequency. ``maps(i, k)`` is ``T`` at ``k`` times ``freqs[i]``."""
+        frequency. ``maps(i, k)`` is ``T`` at ``k`` times ``freqs[i]``. ``self.used`` holds the orders balanced
+        per frequency: where adding an order does not converge, the balance of the orders below it is kept."""
         f = np.asarray(freqs, float)
         n, nf, nh = self.n, f.size, len(self.orders)
         Y, S_all, V_all, rel_all = None, np.zeros((nf, n), complex), np.zeros((nf, n), complex), np.zeros(nf)
+        self.used = np.full(nf, nh)
         g = np.zeros((nh, n), complex)
         for i in np.argsort(f, kind="stable"):
             Ts = [maps(i, k) for k in self.orders]
@@ -179,8 +181,12 @@ class HarmonicBalance:
                     g1, rel = self.solve(Ts[:1], a * U, g1, tol)
                 g = np.zeros((nh, n), complex)
                 g[0] = g1[0]
+                self.used[i] = 1
                 for m in range(2, nh + 1):            # then the higher harmonics, one more order at a time
-                    g[:m], rel = self.solve(Ts[:m], U, g[:m], tol)
+                    gm, rel_m = self.solve(Ts[:m], U, g[:m], tol)
+                    if not rel_m <= tol and rel <= tol:
+                        break                         # keep the converged balance of the orders below
+                    g[:m], rel, self.used[i] = gm, rel_m, m
             _, _, S, V = self.residual(g, Ts, U)
             T = Ts[0]
             y = T[2 * n:, 0] * U + T[2 * n:, 1:] @ g[0]

@@ -256,3 +256,24 @@ def test_compiled_model_at_an_amplitude_on_the_testbed(bed):
         ref = describing_frf(bed, "amp.u", outs, f, A)
         for k, o in enumerate(outs):
             assert np.abs(H[("amp.u", o)] / ref.H[:, k, 0] - 1).max() < 1e-4, (A, o)
+
+
+def test_an_order_that_does_not_converge_keeps_the_balance_below_it(monkeypatch):
+    """Where adding an odd order to the balance does not converge (forced here: any solve with more than one order
+    reports a residual of 1), the first-harmonic balance is kept there, said in a ModelLimitationWarning and the
+    notes -- not a number from an unconverged balance, not NaN where one order converged."""
+    from bscomp.simulation.harmonic_balance import HarmonicBalance
+
+    solve = HarmonicBalance.solve
+
+    def failing(self, Ts, U, g0, tol, max_iter=40):
+        g, rel = solve(self, Ts, U, g0, tol, max_iter)
+        return g, (1.0 if len(Ts) > 1 else rel)
+
+    f = np.array([0.5, 3.0]) * 100.0 / (2 * np.pi)
+    one = describing_frf(oscillator(), "F.f", "m.s", f, 3.0)
+    monkeypatch.setattr(HarmonicBalance, "solve", failing)
+    with pytest.warns(ModelLimitationWarning, match="did not converge"):
+        d = describing_frf(oscillator(), "F.f", "m.s", f, 3.0, harmonics=3)
+    np.testing.assert_allclose(d.H, one.H, rtol=1e-6)          # the same balance, to its Newton tolerance
+    assert any("fewer orders" in n for n in d.notes)
