@@ -37,7 +37,7 @@ from bscomp.files import atomic_write, json_default
 from bscomp.kernel.interface import interface_of
 from bscomp.kernel.system import System
 from bscomp.plotting.validate import calibration_plot
-from bscomp.validate.arguments import check_fit, check_uncertain_names, load_datasets
+from bscomp.validate.arguments import check_fit, check_harmonics, check_uncertain_names, load_datasets
 from bscomp.validate.comparison import user_errors
 from bscomp.validate.datasets import AMPLITUDE_HARMONICS, FrfData, warn_amplitude_fit
 from bscomp.validate.evaluation import Problem, Structures, noise_levels, residual_blocks
@@ -363,8 +363,7 @@ def calibrate(model, datasets, uncertain=None, *, overrides: dict | None = None,
     """
     datasets = load_datasets(datasets, "calibrate")
     default_spread, max_nfev = check_fit(default_spread, max_nfev)
-    if check_number("calibrate: harmonics", harmonics, integer=True, minimum=1) > 16:
-        raise UsageError(f"calibrate: harmonics must be <= 16 (the orders up to 31 at 256 phases), got {harmonics}")
+    harmonics = check_harmonics("calibrate", harmonics)
     warn_amplitude_fit(datasets, "calibrate", harmonics=harmonics)
     with threadpool_limits(limits=1, user_api="blas"):
         setup = FitSetup.build(model, datasets, uncertain, overrides, default_spread, harmonics)

@@ -159,7 +159,7 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
              n_refine: int = 3, bic_threshold: float = 10.0, min_drop: float = 0.5, min_heldout_drop: float = 0.25,
              noise_tolerance: float = 0.5, overrides: dict | None = None, verbose: bool = False,
              progress: bool | None = None, default_spread: float = 0.2, n_screen: int = 5, n_scan: int = 21,
-             executor=None, **_legacy) -> Diagnosis:
+             harmonics: int = 1, executor=None, **_legacy) -> Diagnosis:
     """Find the physical effects the model is missing (see the module docstring).
 
     Parameters
@@ -184,6 +184,11 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
         conditions.
     progress : bool, optional
         Progress bar on stderr (default: when stderr is a terminal).
+    harmonics : int
+        For an FRF file that states its sine amplitude: the odd harmonics balanced in the model at that amplitude
+        (1, the describing function, by default: many candidate fits; :func:`~bscomp.validate.calibrate` balances
+        five, which removes the one-harmonic bias of fitted values where the drive sticks and slips at ~6x the
+        cost, ``docs/measurements.md``). The acceptance rules are the same.
     executor : concurrent.futures.Executor, optional
         Run each round's candidate fits (the least-squares refinements) on it, e.g. a process pool or a Dask
         ``Client.get_executor()``; the model travels as its name / path / ModelSpec and each worker builds
@@ -206,26 +211,26 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
     n = check_diagnose(_legacy, [k for k in inspect.signature(diagnose).parameters if k != "_legacy"],
                        max_effects=max_effects, n_refine=n_refine, bic_threshold=bic_threshold, min_drop=min_drop,
                        min_heldout_drop=min_heldout_drop, noise_tolerance=noise_tolerance,
-                       default_spread=default_spread, n_screen=n_screen, n_scan=n_scan)
+                       default_spread=default_spread, n_screen=n_screen, n_scan=n_scan, harmonics=harmonics)
     datasets, candidates = load_datasets(datasets, "diagnose"), resolve_candidates(candidates)
     max_effects, n_refine, n_screen, n_scan = n["max_effects"], n["n_refine"], n["n_screen"], n["n_scan"]
     with threadpool_limits(limits=1, user_api="blas"):
         return _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_refine, bic_threshold,
                          min_drop, min_heldout_drop, noise_tolerance, overrides, verbose, progress, default_spread,
                          n_screen, n_scan, None if executor is None else
-                         (executor, job_base(system_or_build, datasets, overrides)))
+                         (executor, job_base(system_or_build, datasets, overrides, n["harmonics"])), n["harmonics"])
 
 
 def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_refine, bic_threshold, min_drop,
               min_heldout_drop, noise_tolerance, overrides, verbose, progress, default_spread, n_screen, n_scan,
-              remote):
+              remote, harmonics=1):
     t_start = time.perf_counter()
-    warn_amplitude_fit(datasets, "diagnose", stacklevel=4)
+    warn_amplitude_fit(datasets, "diagnose", stacklevel=4, harmonics=harmonics)
     amplitude = amplitude_dependence(datasets)
     unconfirmed_why, unconfirmed = frf_confirmation(amplitude, datasets), []
     log = print if verbose else (lambda *a, **k: None)
     progress = sys.stderr.isatty() if progress is None else progress
-    setup = FitSetup.build(system_or_build, datasets, uncertain, overrides, default_spread)
+    setup = FitSetup.build(system_or_build, datasets, uncertain, overrides, default_spread, harmonics)
     ref, unc, sigmas, structures = setup.reference, setup.uncertain, setup.sigmas, setup.structures
     has_frf = any(isinstance(d, FrfData) for d in datasets)
     thresholds = (bic_threshold, min_drop, min_heldout_drop, noise_tolerance)

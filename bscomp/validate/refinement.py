@@ -83,21 +83,21 @@ def _line_search(pr, th0, scores):
 
 
 # ---- on a worker ----------------------------------------------------------------------------------------
-def job_base(system_or_build, datasets, overrides) -> tuple:
+def job_base(system_or_build, datasets, overrides, harmonics: int = 1) -> tuple:
     """The part of every fit's job that is the same for the whole diagnosis."""
     if isinstance(system_or_build, System):
         raise UnknownNameError(f"diagnose(executor=...): a built System ('{system_or_build.name}') cannot travel to "
                                "a worker: pass the system's registered name, .py path, a ModelSpec or a module-level "
                                "build function")
-    return (system_or_build, list(datasets), dict(overrides or {}), uuid.uuid4().hex)
+    return (system_or_build, list(datasets), dict(overrides or {}), int(harmonics), uuid.uuid4().hex)
 
 
 def refine_task(job, unc, cand, effects, scores, unc_nominal, frf_only, rnd):
     """One candidate's refinement as ``diagnose`` does it in process: ``(theta, sol, nfev)``."""
-    model, datasets, overrides, token = job
+    model, datasets, overrides, harmonics, token = job
     key = (token, tuple(unc))
     if key not in _CACHE:
-        _CACHE[key] = FitSetup.build(model, datasets, dict(unc), overrides)
+        _CACHE[key] = FitSetup.build(model, datasets, dict(unc), overrides, harmonics=harmonics)
         while len(_CACHE) > 2:
             _CACHE.pop(next(iter(_CACHE)))
     setup = _CACHE[key]

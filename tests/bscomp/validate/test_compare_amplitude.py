@@ -141,3 +141,20 @@ def test_calibrate_balances_five_harmonics_where_the_mass_sticks(tmp_path):
     assert abs(five["m.m"] / 1.2 - 1) < 0.01
     with pytest.raises(bscomp.errors.UsageError, match="harmonics"):
         calibrate(friction_oscillator, [load(path)], ["m.m"], harmonics=0)
+
+
+def test_diagnose_balances_the_harmonics_it_is_given(measured):
+    """diagnose(harmonics=3) fits the file at its amplitude with the odd orders up to 5 and says so; out of range is
+    a named error (so is calibrate's)."""
+    from bscomp.errors import ModelLimitationWarning, UsageError
+    from bscomp.validate import calibrate, diagnose
+
+    with pytest.warns(ModelLimitationWarning, match="3 odd harmonics"):
+        dg = diagnose(friction_oscillator, [load(measured)], max_effects=0, uncertain=["m.m"], progress=False,
+                      harmonics=3)
+    assert dg.calibration is not None and abs(dg.calibration.values["m.m"] - 1.0) < 0.05
+    for bad in (0, 17, 2.5):
+        with pytest.raises(UsageError, match="harmonics"):
+            diagnose(friction_oscillator, [load(measured)], max_effects=0, uncertain=["m.m"], harmonics=bad)
+        with pytest.raises(UsageError, match="harmonics"):
+            calibrate(friction_oscillator, [load(measured)], ["m.m"], harmonics=bad)
