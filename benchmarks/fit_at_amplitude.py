@@ -182,7 +182,7 @@ def diagnoses():
             try:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", ModelLimitationWarning)
-                    dg = diagnose("testbed_axial_torsional", ds, max_effects=2)
+                    dg = diagnose("testbed_axial_torsional", ds, max_effects=2, harmonics=HARMONICS)
             finally:
                 evaluation.Evaluator.outputs = original
             acc = [(a.name, {k: round(v, 4) for k, v in a.values.items()}) for a in dg.accepted]
