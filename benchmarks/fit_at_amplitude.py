@@ -176,7 +176,8 @@ def diagnoses():
                     d.excitation = e
 
     for what, ds in (("0.2 V and 2 V", data), ("2 V + square-wave record", [data[1], record])):
-        for label, patch in (("describing function (the library)", None), ("small-signal (before)", small_signal)):
+        for label, patch in ((f"at the amplitude, {HARMONICS} odd harmonic(s) (the library)", None),
+                             ("small-signal (before)", small_signal)):
             evaluation.Evaluator.outputs = patch or original
             t0 = time.perf_counter()
             try:
