@@ -45,6 +45,8 @@ __all__ = ["simulate_idas"]
 
 CHUNK = 500  # most output intervals per integrator call
 KAPPA = 1e3  # algebraic absolute tolerances >= KAPPA x their round-off floor (IDACalcIC's test needs < 1 / 300)
+HUGE = 1e100  # a state, rate, algebraic unknown or input beyond this is refused before IDAS (IDACalcIC did not
+              # return in 120 s on the small drive under a 1e150 N m torque)
 
 
 def integrator(dae, h, n_sub, opts, cache):
@@ -177,6 +179,19 @@ def _raise_to_floor(current, need):
     return out
 
 
+def _check_magnitudes(dae, x, w, z, u, window):
+    """SimulationError naming the largest of the states, rates, algebraic unknowns and inputs when it exceeds
+    :data:`HUGE` (an input in the wrong unit, a runaway): IDAS is not called on such a point."""
+    groups = [(x, dae.x_names, "state "), (w, dae.x_names, "the rate of state "), (z, dae.z_names, "unknown "),
+              (u, dae.u_names, "input ")]
+    big = max(((abs(float(v[i])), f"{kind}'{names[i]}'") for v, names, kind in groups if len(v)
+               for i in [int(np.argmax(np.abs(v)))]), default=(0.0, ""))
+    if not big[0] <= HUGE:
+        raise SimulationError(f"IDAS on '{dae.name}' at t = {window[0]:.6g} s: {big[1]} = {big[0]:.3g}, beyond "
+                              f"{HUGE:g} -- an input in the wrong unit or of an unphysical size (inputs here: "
+                              f"{dict(zip(dae.u_names, np.round(u, 6).tolist(), strict=True))}"[:400] + ")")
+
+
 def _integrate(dae, I, opts, h, n, x, w, z, u, p, window):
     """One integrator call from a consistent ``(x, x' = w, z)``: ``(X (nx, n), [X'; Z] (nx + nz, n), retried)``.
 
@@ -184,6 +199,7 @@ def _integrate(dae, I, opts, h, n, x, w, z, u, p, window):
     the consistent derivatives directly. Raises SimulationError naming the window and the largest state.
     """
     retried = 0
+    _check_magnitudes(dae, x, w, z, u, window)
     try:
         try:
             with quiet_native_stderr():

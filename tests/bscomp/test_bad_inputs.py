@@ -34,6 +34,7 @@ from bscomp.kernel.ports import Flange
 from bscomp.model import as_dae, as_system
 from bscomp.optimal import Ocp
 from bscomp.optimal.problem import OcpError
+from bscomp.simulation.result import SimulationError
 from bscomp.systems import small_drive
 from bscomp.systems.parameters import get_value, load_parameters
 from bscomp.systems.testbed import testbed as make_testbed
@@ -215,6 +216,9 @@ CASES = [
     ("simulate_unknown_method", lambda tmp: bscomp.simulate(sd(), T, method="rk4"), UsageError,
      r"method must be one of .*'rk4'"),
     ("simulate_rtol_zero", lambda tmp: bscomp.simulate(sd(), T, rtol=0), UsageError, r"rtol must be > 0"),
+    # IDACalcIC did not return in 120 s on this point: refused before IDAS, the largest quantity named
+    ("simulate_idas_input_1e150", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": 1e150}),
+     SimulationError, r"the rate of state 'der\(rotor.phi\)' = 1.59e\+152, beyond 1e\+100 -- an input in the wrong"),
     ("simulate_rtol_nan", lambda tmp: bscomp.simulate(sd(), T, rtol=NAN), UsageError, r"rtol must be finite"),
     ("simulate_atol_negative", lambda tmp: bscomp.simulate(sd(), T, atol=-1), UsageError, r"atol must be > 0"),
     ("simulate_substeps_zero", lambda tmp: bscomp.simulate(sd(), T, method="fixed", substeps=0), UsageError,
