@@ -51,7 +51,7 @@ from bscomp.linear.frf_engine import dense, modal_frf
 from bscomp.linear.linearization import second_order
 from bscomp.model import ModelSpec, as_system
 from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin
-from bscomp.simulation.harmonic_balance import HarmonicBalance
+from bscomp.simulation.harmonic_balance import HarmonicBalance, check_harmonics
 
 __all__ = ["CompiledModel", "ModalModel", "nonlinear_elements"]
 
@@ -556,10 +556,7 @@ class CompiledModel(TimeSeriesMixin):
             if points % 4:
                 raise UsageError(f"CompiledModel.frf: points must be a multiple of 4, got {points}")
             check_number("CompiledModel.frf: tol", tol, positive=True)
-            check_number("CompiledModel.frf: harmonics", harmonics, integer=True, minimum=1)
-            if 8 * (2 * harmonics - 1) > points:
-                raise UsageError(f"CompiledModel.frf: harmonics={harmonics} needs points >= {8 * (2 * harmonics - 1)} "
-                                 f"(8 phases per period of the order {2 * harmonics - 1}), got {points}")
+            check_harmonics("CompiledModel.frf", harmonics, points)
         return f, pairs, amp
 
     @staticmethod

@@ -54,7 +54,7 @@ from bscomp.errors import (
 )
 from bscomp.linear.response import Frf
 from bscomp.model import as_dae, run_overrides
-from bscomp.simulation.harmonic_balance import HarmonicBalance, first_harmonic
+from bscomp.simulation.harmonic_balance import HarmonicBalance, check_harmonics, first_harmonic
 from bscomp.simulation.modal_channels import Channels, LinearPart
 from bscomp.simulation.stepped import check_sine_request
 
@@ -188,11 +188,7 @@ def _check(input, output, freqs, amplitude, points, tol, harmonics):
         raise UsageError(f"describing_frf: points must be a multiple of 4 (a velocity reversal between two phases), "
                          f"got {points}")
     check_number("tol", tol, positive=True)
-    check_number("harmonics", harmonics, integer=True, minimum=1)
-    if 8 * (2 * harmonics - 1) > points:
-        raise UsageError(f"describing_frf: harmonics={harmonics} balances orders up to {2 * harmonics - 1}, which "
-                         f"{points} phases do not resolve (at least 8 per period of the highest): raise points to "
-                         f"{-(-8 * (2 * harmonics - 1) // 4) * 4} or more")
+    check_harmonics("describing_frf", harmonics, points)
     return list(outs), f
 
 

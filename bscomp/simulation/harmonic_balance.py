@@ -17,9 +17,10 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from bscomp.errors import UsageError, check_number
 from bscomp.simulation.modal_kernels import NumpyCall
 
-__all__ = ["HarmonicBalance", "first_harmonic", "AMPLITUDE_LADDER"]
+__all__ = ["HarmonicBalance", "first_harmonic", "odd_harmonics", "check_harmonics", "AMPLITUDE_LADDER"]
 
 AMPLITUDE_LADDER = (1 / 64, 1 / 16, 1 / 4, 1 / 2, 1.0)   # continuation when Newton fails from the last solution
 
@@ -29,18 +30,15 @@ def first_harmonic(law, pvec, s0, v0, S, V, points=256):
     Function), by the midpoint rule at ``points`` phases (exact for trigonometric polynomials below
     ``points - 1``). The phases are counted from the velocity's (the displacement's when the velocity is zero),
     so a jump at a velocity reversal -- Coulomb friction's sign -- falls between two phases symmetrically and
-    costs ``O(1/points^2)`` instead of ``O(1/points)`` (``points`` a multiple of 4)."""
-    phase = np.angle(V) if V != 0 else np.angle(S)
-    th = 2 * np.pi * (np.arange(points) + 0.5) / points - phase
-    e = np.exp(1j * th)
-    f = _mapped(law, points)(s0 + (S * e).real, v0 + (V * e).real, pvec)
-    return 2.0 / points * np.sum(np.asarray(f).ravel() * np.conj(e))
+    costs ``O(1/points^2)`` instead of ``O(1/points)`` (``points`` a multiple of 4). :func:`odd_harmonics` of
+    the order 1 alone."""
+    return complex(odd_harmonics(law, pvec, s0, v0, np.array([S]), np.array([V]), (1,), points)[0])
 
 
 def odd_harmonics(law, pvec, s0, v0, S, V, orders, points=256):
     """The harmonics ``F̂_k = (2/N) Σ f(s(θ_i), v(θ_i)) e^{-jkθ_i}`` of orders ``orders`` (odd) of a law driven
     by ``s(θ) = s_0 + Σ_k Re(S_k e^{jkθ})`` (and ``v`` alike) at ``N = points`` phases, counted from the
-    fundamental velocity's as in :func:`first_harmonic` (which is the case ``orders = (1,)``)."""
+    fundamental velocity's (:func:`first_harmonic` is the case ``orders = (1,)``)."""
     orders = np.asarray(orders)
     phase = np.angle(V[0]) if V[0] != 0 else np.angle(S[0])
     th = 2 * np.pi * (np.arange(points) + 0.5) / points - phase
@@ -49,6 +47,17 @@ def odd_harmonics(law, pvec, s0, v0, S, V, orders, points=256):
     v = v0 + (V @ e).real
     f = np.asarray(_mapped(law, points)(s, v, pvec)).ravel()
     return 2.0 / points * (np.conj(e) @ f)
+
+
+def check_harmonics(who: str, harmonics, points: int = 256) -> int:
+    """``harmonics`` (odd orders balanced) as an int >= 1 whose highest order ``2h - 1`` the ``points`` phases
+    resolve (8 per its period), else a :class:`~bscomp.errors.UsageError` naming ``who``'s argument."""
+    h = check_number(f"{who}: harmonics", harmonics, integer=True, minimum=1)
+    if 8 * (2 * h - 1) > points:
+        raise UsageError(f"{who}: harmonics={h} balances orders up to {2 * h - 1}, which points={points} phases do "
+                         f"not resolve (at least 8 per period of the highest): harmonics <= {(points // 8 + 1) // 2} "
+                         f"at {points} points")
+    return h
 
 
 _MAPPED = {}
@@ -111,12 +120,8 @@ class HarmonicBalance:
         for k, T in enumerate(Ts):
             y = T[:2 * n, 1:] @ g[k] + (T[:2 * n, 0] * U if k == 0 else 0.0)
             S[k], V[k] = y[0::2], y[1::2]
-        if nh == 1:
-            F = np.array([[first_harmonic(law, pv, self.s0[i], self.v0[i], S[0, i], V[0, i], self.points)
-                           for i, (law, pv) in enumerate(zip(self.laws, self.pvecs))]])
-        else:
-            F = np.column_stack([odd_harmonics(law, pv, self.s0[i], self.v0[i], S[:, i], V[:, i], self.orders[:nh],
-                                               self.points) for i, (law, pv) in enumerate(zip(self.laws, self.pvecs))])
+        F = np.column_stack([odd_harmonics(law, pv, self.s0[i], self.v0[i], S[:, i], V[:, i], self.orders[:nh],
+                                           self.points) for i, (law, pv) in enumerate(zip(self.laws, self.pvecs))])
         tangent = self.k0 * S + self.d0 * V
         r = g - (F - tangent)
         scale = max(np.abs(F).max(), np.abs(tangent).max(), np.abs(g).max(), 1e-300)

@@ -184,10 +184,13 @@ def _check_magnitudes(dae, x, w, z, u, window):
     :data:`HUGE` (an input in the wrong unit, a runaway): IDAS is not called on such a point."""
     groups = [(x, dae.x_names, "state "), (w, dae.x_names, "the rate of state "), (z, dae.z_names, "unknown "),
               (u, dae.u_names, "input ")]
-    big = max(((abs(float(v[i])), f"{kind}'{names[i]}'") for v, names, kind in groups if len(v)
-               for i in [int(np.argmax(np.abs(v)))]), default=(0.0, ""))
-    if not big[0] <= HUGE:
-        raise SimulationError(f"IDAS on '{dae.name}' at t = {window[0]:.6g} s: {big[1]} = {big[0]:.3g}, beyond "
+    big, what = 0.0, ""
+    for v, names, kind in groups:
+        i = int(np.argmax(np.abs(v))) if len(v) else None
+        if i is not None and abs(float(v[i])) > big:
+            big, what = abs(float(v[i])), f"{kind}'{names[i]}'"
+    if big > HUGE:
+        raise SimulationError(f"IDAS on '{dae.name}' at t = {window[0]:.6g} s: {what} = {big:.3g}, beyond "
                               f"{HUGE:g} -- an input in the wrong unit or of an unphysical size (inputs here: "
                               f"{dict(zip(dae.u_names, np.round(u, 6).tolist(), strict=True))}"[:400] + ")")
 

@@ -15,12 +15,13 @@ import warnings
 from pathlib import Path
 
 from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_number
+from bscomp.simulation.harmonic_balance import check_harmonics
 from bscomp.validate.candidates import Candidate, default_candidates
 from bscomp.validate.datasets import FrfData, TimeData, check_points
 from bscomp.validate.readers import load_all
 
 __all__ = ["load_datasets", "check_bands", "check_compare", "check_fit", "check_diagnose", "resolve_candidates",
-           "check_uncertain_names", "LEGACY_DIAGNOSE", "check_harmonics"]
+           "check_uncertain_names", "LEGACY_DIAGNOSE"]
 
 #: keywords of earlier versions of diagnose, accepted and ignored (with a DeprecationWarning)
 LEGACY_DIAGNOSE = ("compare_signatures", "n_starts", "n_swap")
@@ -90,15 +91,6 @@ def check_fit(default_spread, max_nfev=None):
     return spread, max_nfev
 
 
-def check_harmonics(who: str, harmonics) -> int:
-    """The odd harmonics balanced for FRFs measured at an amplitude: an int 1..16 (the orders up to 31, which the
-    balance's 256 phases resolve), else a named :class:`UsageError`."""
-    h = check_number(f"{who}: harmonics", harmonics, integer=True, minimum=1)
-    if h > 16:
-        raise UsageError(f"{who}: harmonics must be <= 16 (the orders up to 31 at 256 phases), got {harmonics}")
-    return h
-
-
 def check_diagnose(legacy: dict, allowed, **numbers) -> dict:
     """The numeric settings of :func:`~bscomp.validate.diagnose`, checked; ``legacy`` (the extra keywords) may
     hold only :data:`LEGACY_DIAGNOSE` (ignored, with a DeprecationWarning)."""
@@ -121,7 +113,7 @@ def check_diagnose(legacy: dict, allowed, **numbers) -> dict:
         elif k == "default_spread":
             out[k] = check_number(k, v, positive=True)
         elif k == "harmonics":
-            out[k] = check_harmonics("diagnose", v)
+            out[k] = check_harmonics("diagnose", v)     # at the balance's 256 phases
         else:                                   # min_drop, min_heldout_drop, noise_tolerance
             out[k] = check_number(k, v, nonnegative=True)
     return out

@@ -37,7 +37,8 @@ from bscomp.files import atomic_write, json_default
 from bscomp.kernel.interface import interface_of
 from bscomp.kernel.system import System
 from bscomp.plotting.validate import calibration_plot
-from bscomp.validate.arguments import check_fit, check_harmonics, check_uncertain_names, load_datasets
+from bscomp.simulation.harmonic_balance import check_harmonics
+from bscomp.validate.arguments import check_fit, check_uncertain_names, load_datasets
 from bscomp.validate.comparison import user_errors
 from bscomp.validate.datasets import AMPLITUDE_HARMONICS, FrfData, warn_amplitude_fit
 from bscomp.validate.evaluation import Problem, Structures, noise_levels, residual_blocks
