@@ -135,6 +135,10 @@ def _controllers(controllers) -> list:
     return out
 
 
+HUGE = 1e100  # an input, state or output beyond this is refused: an input in the wrong unit or a runaway (IDAS's
+              # IDACalcIC did not return in 120 s on the small drive under a 1e150 N m torque)
+
+
 def input_matrix(dae, t, inputs, fixed=()):
     """``(nu, nt - 1)`` input values held on each interval ``[t_k, t_{k+1})``.
 
@@ -167,6 +171,11 @@ def input_matrix(dae, t, inputs, fixed=()):
         if not np.all(np.isfinite(U[i])):
             j = int(np.flatnonzero(~np.isfinite(U[i]))[0])
             raise UsageError(f"input '{k}' is not finite ({U[i, j]}) on the interval starting at t = {t[j]}")
+        if np.max(np.abs(U[i]), initial=0.0) > HUGE:
+            j = int(np.argmax(np.abs(U[i])))
+            raise UsageError(f"input '{k}' = {U[i, j]:.3g} on the interval starting at t = {t[j]:.6g} s is beyond "
+                             f"{HUGE:g}: no physical drive takes it (no method would return a meaningful number)",
+                             hint="give the input in SI units (N m, V, m) and of a physical size")
     for k in fixed:
         if k not in dae.u_names:
             raise UnknownNameError(f"'{k}' is not an input of '{dae.name}'; inputs: {dae.u_names}")

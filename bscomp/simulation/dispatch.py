@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from bscomp.errors import ArgumentTypeError, SolverError, UsageError, check_number
-from bscomp.simulation.common import SimulationOptions, prepare
+from bscomp.simulation.common import HUGE, SimulationOptions, prepare
 from bscomp.simulation.fixed_step import simulate_fixed
 from bscomp.simulation.idas import simulate_idas
 from bscomp.simulation.modal import ModalResult, check_modal_options, simulate_modal
@@ -177,10 +177,16 @@ def _finite_run(run, problem, options, method) -> SimulationResult:
         if "infs or NaNs" not in str(exc):
             raise
         raise _overflow(problem, method) from exc
-    bad = [k for k, v in res.outputs.items() if not np.all(np.isfinite(v))]
-    if bad or (not isinstance(res, ModalResult) and not np.all(np.isfinite(res.x))):  # modal: x rebuilt on demand
+    bad = [k for k, v in res.outputs.items() if not _bounded(v)]
+    if bad or (not isinstance(res, ModalResult) and not _bounded(res.x)):  # modal: x rebuilt on demand
         raise _overflow(problem, method, bad)
     return res
+
+
+def _bounded(v) -> bool:
+    """Finite and within :data:`~bscomp.simulation.common.HUGE` (a runaway is no physical answer either)."""
+    v = np.asarray(v)
+    return bool(np.all(np.isfinite(v)) and np.max(np.abs(v), initial=0.0) <= HUGE)
 
 
 def _check_flag(name, value) -> None:
@@ -195,6 +201,7 @@ def _overflow(problem, method, outputs=()) -> SolverError:
     peak = {n: float(np.max(np.abs(U[i]))) for i, n in enumerate(dae.u_names)} if U.size else {}
     big = ", ".join(f"|{n}| up to {v:.3g}" for n, v in sorted(peak.items(), key=lambda kv: -kv[1])[:3] if v)
     what = f"outputs {outputs[:5]}" if outputs else "the states"
-    return SolverError(f"simulate(method={method!r}) on '{dae.name}': {what} overflowed (not finite) with inputs "
+    return SolverError(f"simulate(method={method!r}) on '{dae.name}': {what} overflowed (not finite or beyond "
+                       f"{HUGE:g}) with inputs "
                        f"{big or 'all zero'}", hint="give inputs of a physical size (in SI units) or check the "
                        "model's parameters")

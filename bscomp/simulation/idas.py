@@ -37,7 +37,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from bscomp.kernel.dae import _sp
-from bscomp.simulation.common import Progress, SampledLoop, finish
+from bscomp.simulation.common import HUGE, Progress, SampledLoop, finish
 from bscomp.simulation.native import quiet_native_stderr
 from bscomp.simulation.result import SimulationError
 
@@ -45,8 +45,6 @@ __all__ = ["simulate_idas"]
 
 CHUNK = 500  # most output intervals per integrator call
 KAPPA = 1e3  # algebraic absolute tolerances >= KAPPA x their round-off floor (IDACalcIC's test needs < 1 / 300)
-HUGE = 1e100  # a state, rate, algebraic unknown or input beyond this is refused before IDAS (IDACalcIC did not
-              # return in 120 s on the small drive under a 1e150 N m torque)
 
 
 def integrator(dae, h, n_sub, opts, cache):

@@ -25,6 +25,7 @@ from bscomp.errors import (
     ParameterError,
     ParameterFileError,
     PortConnectionError,
+    SolverError,
     UnconnectedPortError,
     UnderdeterminedError,
     UnknownNameError,
@@ -216,9 +217,21 @@ CASES = [
     ("simulate_unknown_method", lambda tmp: bscomp.simulate(sd(), T, method="rk4"), UsageError,
      r"method must be one of .*'rk4'"),
     ("simulate_rtol_zero", lambda tmp: bscomp.simulate(sd(), T, rtol=0), UsageError, r"rtol must be > 0"),
-    # IDACalcIC did not return in 120 s on this point: refused before IDAS, the largest quantity named
+    # an input beyond 1e100 is refused by every method before it runs (IDACalcIC did not return in 120 s on 1e150;
+    # modal and fixed returned numbers of 1e150)
     ("simulate_idas_input_1e150", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": 1e150}),
-     SimulationError, r"the rate of state 'der\(rotor.phi\)' = 1.59e\+152, beyond 1e\+100 -- an input in the wrong"),
+     UsageError, r"input 'motor\.tau' = 1e\+150 on the interval starting at t = 0 s is beyond 1e\+100"),
+    ("simulate_modal_input_1e150", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": 1e150},
+                                                               method="modal"), UsageError, r"'motor\.tau' = 1e\+150"),
+    ("simulate_fixed_input_1e150", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": -1e150},
+                                                               method="fixed"), UsageError, r"'motor\.tau' = -1e\+150"),
+    # within the input limit but the states run beyond it: IDAS before its first step, the others after the run
+    ("simulate_idas_rate_beyond", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": 1e100}),
+     SimulationError, r"the rate of state 'der\(rotor.phi\)' = 1.59e\+102, beyond 1e\+100 -- an input in the wrong"),
+    ("simulate_fixed_states_beyond", lambda tmp: bscomp.simulate(sd(), T, inputs={"motor.tau": 1e100},
+                                                                 method="fixed"), SolverError,
+     r"method='fixed'\) on 'small_drive': the states overflowed \(not finite or beyond 1e\+100\) with inputs "
+     r"\|motor\.tau\| up to 1e\+100"),
     ("simulate_rtol_nan", lambda tmp: bscomp.simulate(sd(), T, rtol=NAN), UsageError, r"rtol must be finite"),
     ("simulate_atol_negative", lambda tmp: bscomp.simulate(sd(), T, atol=-1), UsageError, r"atol must be > 0"),
     ("simulate_substeps_zero", lambda tmp: bscomp.simulate(sd(), T, method="fixed", substeps=0), UsageError,
