@@ -227,7 +227,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     t_start = time.perf_counter()
     warn_amplitude_fit(datasets, "diagnose", stacklevel=4, harmonics=harmonics)
     amplitude = amplitude_dependence(datasets)
-    unconfirmed_why, unconfirmed = frf_confirmation(amplitude, datasets), []
+    unconfirmed_why, unconfirmed = frf_confirmation(amplitude, datasets, harmonics), []
     log = print if verbose else (lambda *a, **k: None)
     progress = sys.stderr.isatty() if progress is None else progress
     setup = FitSetup.build(system_or_build, datasets, uncertain, overrides, default_spread, harmonics)
