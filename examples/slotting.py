@@ -42,9 +42,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import scipy.sparse as sp
 
-from bscomp import flatten, second_order
+from bscomp import flatten
 from bscomp.components import (
     CoulombFriction,
     DigitalPController,
@@ -209,27 +208,6 @@ def cutting_force(p, window, mean=-350.0):
 
 # ---------------------------------------------------------------------------------------------------
 # model
-def _with_drive_damping(closed, nut_position, coupling, nut_joint="point"):
-    """Flatten ``closed`` and add the test bed's modal damping (DriveModalDamping, toml ``[damping]``).
-
-    ``flatten`` applies a system damping only to purely mechanical models (it needs the second-order
-    form), so the matrix is computed on the mechanical test bed and added to the closed loop's
-    structural C on the same coordinates.
-    """
-    mech = testbed_axial_torsional(nut_position=nut_position, coupling=coupling, nut_joint=nut_joint)
-    damping, mech.damping = mech.damping, None
-    so = second_order(flatten(mech), inputs=[], outputs=[])
-    C = sp.csc_matrix(damping.matrix(so.M, so.K, coordinates=list(so.coordinates)))
-    closed.damping = None
-    dae = flatten(closed)
-    names = dae.mech.coordinate_names
-    idx = [names.index(c) for c in so.coordinates]
-    P = sp.csr_matrix((np.ones(len(idx)), (idx, np.arange(len(idx)))), shape=(len(names), len(idx)))
-    dae.mech.C = (dae.mech.C + P @ C @ P.T).tocsc()
-    dae._cache.clear()
-    return dae
-
-
 def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", friction: bool = False,
                       nut_joint: str = "point"):
     """The test bed with the analog part of the controller: ``"P-PI"`` adds the PI velocity loop of
@@ -251,7 +229,7 @@ def closed_loop_plant(p, kind: str, nut_position="C", coupling="bellows", fricti
         s.connect("pi.y", "amp.u")
         s.connect("tacho.flange", "rotor.flange_a")
         s.connect("tacho.v", "pi.u_m")
-    return _with_drive_damping(s, nut_position, coupling, nut_joint)
+    return flatten(s)       # the test bed's modal damping (toml [damping]) with the PI's state held
 
 
 def rst_thesis(p):

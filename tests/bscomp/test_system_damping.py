@@ -107,3 +107,40 @@ def test_an_override_that_leaves_the_modes_keeps_the_dae_and_one_that_moves_them
     lam, V = sl.eigh(K, M)
     zeta = np.diag(V.T @ C @ V)[1:] / (2 * np.sqrt(lam[1:]))
     np.testing.assert_allclose(zeta, [0.02, 0.07], rtol=1e-8)
+
+
+@pytest.mark.parametrize("nut_joint", ["point", "moving"])
+def test_a_controller_state_keeps_the_test_beds_modal_damping(nut_joint):
+    """The FE test bed closed by the analog P-PI loop of Fig 4.3 (the PI's integrator is an internal state) with
+    Table 5.2's guideway friction: flattening applies the bed's DriveModalDamping (toml ``[damping]``) computed
+    from the structure alone, so its damping on the mechanical coordinates is the one of the bare bed
+    (examples/slotting.py used to add it by hand); the mechanical modes keep their ratios (6 %, 10 % at C)."""
+    from bscomp.components import CoulombFriction, Fixed, PIController, Tachometer
+    from bscomp.systems.testbed import testbed_axial_torsional
+
+    def bed():
+        return testbed_axial_torsional(nut_position="C", coupling="bellows", nut_joint=nut_joint)
+
+    closed = bed()
+    closed.add("pi", PIController(K_v=18.217, K_i=4081.2))
+    closed.add("tacho", Tachometer(H_g=0.0319))
+    closed.connect("pi.y", "amp.u")
+    closed.connect("tacho.flange", "rotor.flange_a")
+    closed.connect("tacho.v", "pi.u_m")
+    closed.add("guide_ground", Fixed())
+    closed.add("friction", CoulombFriction(F_c_pos=2066.0, F_c_neg=2066.0, v_reg=1e-4))
+    closed.connect("friction.flange_a", "guide_ground.flange")
+    closed.connect("friction.flange_b", "table.flange_b")
+    dae = bscomp.flatten(closed)
+    mech = bscomp.flatten(bed())
+    assert dae.mech.has_internal_states and dae.stats["system_damping"] == mech.stats["system_damping"]
+    added_closed, added_bed = dae.system_damping_basis[2].toarray(), mech.system_damping_basis[2].toarray()
+    names, ref = list(dae.mech.coordinate_names), list(mech.mech.coordinate_names)
+    idx = [names.index(c) for c in ref]
+    np.testing.assert_allclose(added_closed[np.ix_(idx, idx)], added_bed, rtol=0, atol=1e-9 * np.abs(added_bed).max())
+    assert np.abs(np.delete(np.delete(added_closed, idx, 0), idx, 1)).max(initial=0.0) == 0.0
+    M, K, _ = mech.system_damping_basis
+    w2, V = sl.eigh(K.toarray(), M.toarray())
+    elastic = w2 > 1.0
+    zeta = np.diag(V[:, elastic].T @ added_bed @ V[:, elastic]) / (2 * np.sqrt(w2[elastic]))
+    np.testing.assert_allclose(zeta[:2], [0.06, 0.10], rtol=1e-6)
