@@ -106,3 +106,18 @@ def test_cutting_force_shows_at_the_tooth_passing_frequency(run):
     print(f"tooth-passing line: {amp * 1e9:.2f} nm, peak/median {peak / np.median(spec[band]):.0f}, "
           f"ratio to the mass line {ratio:.2f}")
     assert 0.5 < ratio < 2.0
+
+
+def test_band_peak_reads_a_vibration_and_keeps_out_a_later_step():
+    """The vibration measure of the slotting tables (Fig 5.19(c)-5.22): a 0.5 G line at 120 Hz beside 1 G at
+    30 Hz and the 0.03 G tooth-passing line reads 0.5 G in the axial-mode band (measured to 1e-6) and nothing at
+    333 Hz (1.3e-8 G); a 1.5 G step CUT_SETTLE after the window (the next rapid) stays out of it (3.1e-6 G; 0.30 G
+    right after it)."""
+    t = slotting.DT * np.arange(int(1.0 / slotting.DT))
+    y = 0.5 * np.sin(2 * np.pi * 120 * t) + np.sin(2 * np.pi * 30 * t) + 0.03 * np.sin(2 * np.pi * 1666.7 * t)
+    window = (0.3, 0.7)
+    assert abs(slotting.band_peak(t, y, slotting.AXIAL_BAND, window) / 0.5 - 1) < 1e-4
+    assert slotting.band_peak(t, y, slotting.BAND_333, window) < 1e-6
+    step = np.where(t >= window[1] + slotting.CUT_SETTLE, 1.5, 0.0)
+    assert slotting.band_peak(t, step, slotting.AXIAL_BAND, window) < 1e-4
+    assert slotting.band_peak(t, step, slotting.AXIAL_BAND, (window[1], window[1] + 0.2)) > 0.1
