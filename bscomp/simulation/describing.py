@@ -62,6 +62,8 @@ __all__ = ["describing_frf", "DescribingFrf", "DescribingFunctionError", "first_
 
 #: eigenvector condition number above which the resolvent is solved directly per frequency
 COND_MAX = 1e8
+#: an element whose fundamental force is within this fraction of its tangent at rest acts as its linearization
+SMALL_SIGNAL = 0.05
 
 
 class DescribingFunctionError(BscompError):
@@ -88,6 +90,12 @@ class DescribingFrf(Frf):
         ``max |ĝ - F̂ + k_0 Ŝ + d_0 V̂|`` at the solution over the elements' force scale.
     harmonics : int
         Odd harmonics balanced (1: the describing function; ``h``: the orders 1, 3, ..., ``2h - 1``).
+    deviation : (nf, n_el) ndarray
+        How far each element's fundamental force is from its tangent at rest, ``|F̂_1 - k_0 Ŝ - d_0 V̂| /
+        max(|F̂_1|, |k_0 Ŝ + d_0 V̂|)``: below :data:`SMALL_SIGNAL` the element acts as its linearization at rest
+        (friction stuck, a clearance that stays open or closed), so the FRF there measures its slope at rest
+        (for regularised Coulomb friction ``F_c / v_reg``), not its level; about 1 where it slides or impacts.
+        For ``tanh`` friction it is ``(|V̂| / v_reg)^2 / 4`` for small ``|V̂|``.
     """
 
     amplitude: float = 0.0
@@ -96,12 +104,45 @@ class DescribingFrf(Frf):
     velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), complex))
     residual: np.ndarray = field(default_factory=lambda: np.zeros(0))
     harmonics: int = 1
+    deviation: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+    def small_signal(self) -> dict:
+        """Element -> the frequencies [Hz] at which it acts as its tangent at rest (``deviation`` below
+        :data:`SMALL_SIGNAL`): there this amplitude does not move it out of its small-signal range."""
+        out = {}
+        for j, name in enumerate(self.elements):
+            quiet = self.deviation[:, j] < SMALL_SIGNAL if self.deviation.size else np.zeros(0, bool)
+            if quiet.any():
+                out[name] = self.freqs[quiet]
+        return out
 
     def summary(self) -> str:
-        """One line: the amplitude, the elements, the harmonics and the largest residual."""
+        """One line: the amplitude, the elements, the harmonics, the largest residual and the elements that stay
+        in their small-signal range (:meth:`small_signal`)."""
         kept = "one harmonic" if self.harmonics == 1 else f"odd harmonics up to {2 * self.harmonics - 1}"
-        return (f"describing function at {self.amplitude:g} of {', '.join(self.elements)} ({kept}; largest "
+        line = (f"describing function at {self.amplitude:g} of {', '.join(self.elements)} ({kept}; largest "
                 f"balance residual {self.residual.max(initial=0.0):.1e}; stepped_sine for every harmonic)")
+        for name, f in self.small_signal().items():
+            where = ("at every frequency" if f.size == self.freqs.size else
+                     f"at {f.size} of {self.freqs.size} frequencies ({_spans(self.freqs, f)} Hz)")
+            line += (f"; {name} stays within {100 * SMALL_SIGNAL:g} % of its tangent at rest {where}: there this "
+                     "amplitude measures its slope at rest (friction stuck, a clearance not crossed), not its level")
+        return line
+
+
+def _spans(freqs, chosen) -> str:
+    """``"10-25.1, 39.8-200"``: the runs of consecutive frequencies (in ascending order) that are in ``chosen``."""
+    f = np.sort(np.asarray(freqs, float))
+    inside = np.isin(f, chosen)
+    runs, start = [], None
+    for i, x in enumerate(inside):
+        if x and start is None:
+            start = i
+        if start is not None and (not x or i == f.size - 1):
+            end = i if x else i - 1
+            runs.append(f"{f[start]:.4g}" if end == start else f"{f[start]:.4g}-{f[end]:.4g}")
+            start = None
+    return ", ".join(runs)
 
 
 class _Balance(HarmonicBalance):
@@ -266,4 +307,4 @@ def describing_frf(model, input: str, output, freqs, amplitude: float, *, params
         notes.append(f"not converged at {failed} Hz")
     return DescribingFrf(freqs=f, H=H, inputs=[input], outputs=outs, name=dae.name, notes=notes,
                          amplitude=float(amplitude), elements=bal.names, motion=S_all, velocity=V_all, residual=res,
-                         harmonics=int(harmonics))
+                         harmonics=int(harmonics), deviation=np.where(bad[:, None], np.nan, bal.deviation))

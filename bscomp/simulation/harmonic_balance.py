@@ -171,11 +171,15 @@ class HarmonicBalance:
         balance at that frequency). Returns ``(Y, S, V, rel)``: the outputs' rows of ``T [U; ĝ]`` at the
         fundamental, the elements' fundamental motion and velocity phasors and the relative residual per
         frequency. ``maps(i, k)`` is ``T`` at ``k`` times ``freqs[i]``. ``self.used`` holds the orders balanced
-        per frequency: where adding an order does not converge, the balance of the orders below it is kept."""
+        per frequency: where adding an order does not converge, the balance of the orders below it is kept;
+        ``self.deviation`` (nf, n) how far each element's fundamental force is from its tangent at rest,
+        ``|F̂_1 - k_0 Ŝ - d_0 V̂| / max(|F̂_1|, |k_0 Ŝ + d_0 V̂|)`` (0: the element acts as its linearization at rest,
+        friction stuck or a clearance that stays open or closed; about 1: it slides or impacts)."""
         f = np.asarray(freqs, float)
         n, nf, nh = self.n, f.size, len(self.orders)
         Y, S_all, V_all, rel_all = None, np.zeros((nf, n), complex), np.zeros((nf, n), complex), np.zeros(nf)
         self.used = np.full(nf, nh)
+        self.deviation = np.zeros((nf, n))
         g = np.zeros((nh, n), complex)
         for i in np.argsort(f, kind="stable"):
             Ts = [maps(i, k) for k in self.orders]
@@ -198,4 +202,7 @@ class HarmonicBalance:
             if Y is None:
                 Y = np.zeros((nf, y.size), complex)
             Y[i], S_all[i], V_all[i], rel_all[i] = y, S[0], V[0], rel
+            tangent = self.k0 * S[0] + self.d0 * V[0]          # at the solution F̂_1 = ĝ_1 + tangent
+            self.deviation[i] = np.abs(g[0]) / np.maximum(np.maximum(np.abs(g[0] + tangent), np.abs(tangent)),
+                                                          1e-300)
         return Y, S_all, V_all, rel_all

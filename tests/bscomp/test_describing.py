@@ -14,7 +14,7 @@ import bscomp
 from bscomp.components import Backlash, CoulombFriction
 from bscomp.errors import ArgumentTypeError, ModelLimitationWarning, UnknownNameError, UsageError
 from bscomp.simulation.compiled import _Element
-from bscomp.simulation.describing import DescribingFunctionError, describing_frf, first_harmonic
+from bscomp.simulation.describing import DescribingFunctionError, _spans, describing_frf, first_harmonic
 from bscomp.simulation.harmonic_balance import odd_harmonics
 from bscomp.systems import friction_oscillator, get
 from bscomp.systems.thesis_effects import with_friction_backlash
@@ -108,6 +108,31 @@ def test_small_amplitude_is_the_linear_frf():
     assert np.abs(d.H / ref.H - 1).max() < 1e-9
 
 
+def test_deviation_from_the_tangent_at_rest_says_where_friction_stays_stuck():
+    """``DescribingFrf.deviation``: for tanh friction driven at velocity amplitude ``x v_reg`` the fundamental is
+    ``F_c (x - x^3/4 + x^5/12 - 17 x^7 / 576 ...)`` against the tangent ``F_c x``, so the deviation is
+    ``x^2/4 - x^4/12 + 17 x^6 / 576``: matched to 1e-4 at x = 0.05, 0.2, 0.3 (the oscillator held by friction's
+    slope at rest, F_0 < F_c), and the
+    summary names the element as measured at its slope at rest; sliding (F_0 = 10 N, away from resonance) it
+    is ~1 and the summary says nothing of it."""
+    dae = oscillator()
+    f = np.array([5.0, 100 / (2 * np.pi), 40.0])
+    for F0 in (0.05, 0.2, 0.3):
+        d = describing_frf(dae, "F.f", "m.v", f, F0)
+        x = np.abs(d.velocity[:, 0]) / 1e-4                    # v_reg of friction_oscillator
+        assert 0.04 < x.min() and x.max() < 0.32
+        series = x ** 2 / 4 - x ** 4 / 12 + 17 * 35 / (315 * 64) * x ** 6     # tanh's series, cos^n's fundamentals
+        np.testing.assert_allclose(d.deviation[:, 0], series, rtol=1e-4)
+        assert "fr stays within 5 % of its tangent at rest at every frequency" in d.summary()
+        assert set(d.small_signal()) == {"fr"} and d.small_signal()["fr"].size == 3
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ModelLimitationWarning)
+        slide = describing_frf(dae, "F.f", "m.v", [5.0, 40.0], 10.0)
+    assert slide.deviation.min() > 0.99 and slide.small_signal() == {} and "tangent at rest" not in slide.summary()
+    f5 = np.array([10.0, 20.0, 30.0, 40.0, 50.0])               # the summary's frequency runs
+    assert _spans(f5, [10.0, 20.0, 40.0, 50.0]) == "10-20, 40-50" and _spans(f5[::-1], [30.0, 50.0]) == "30, 50"
+
+
 @pytest.fixture(scope="module")
 def bed():
     return bscomp.flatten(with_friction_backlash(get("testbed_axial_torsional"), backlash=False))
@@ -130,6 +155,8 @@ def test_testbed_with_guideway_friction_against_the_stepped_sine(bed):
         err = np.abs(d.H[:, :, 0] / ss.H[:, :, 0] - 1)
         assert err.max() < bar, (A, err)
         assert d.residual.max() < 1e-7
+        # stuck at 0.2 V (the friction's fundamental within 5 % of its slope at rest), sliding at 2 V
+        assert (d.deviation.max() < 0.05) if A == 0.2 else (d.deviation.min() > 0.5), (A, d.deviation)
     assert np.abs(ss.H[:, 0, 0] / lin.H[:, 0, 0]).min() > 20     # what the linearized FRF misses at 2 V
     assert np.abs(d.H[:, 0, 0] / lin.H[:, 0, 0]).min() > 20
 
