@@ -58,7 +58,7 @@ from bscomp.simulation.harmonic_balance import HarmonicBalance, check_harmonics,
 from bscomp.simulation.modal_channels import Channels, LinearPart
 from bscomp.simulation.stepped import check_sine_request
 
-__all__ = ["describing_frf", "DescribingFrf", "DescribingFunctionError", "first_harmonic", "HarmonicBalance"]
+__all__ = ["describing_frf", "DescribingFrf", "DescribingFunctionError", "first_harmonic", "HarmonicBalance", "spans"]
 
 #: eigenvector condition number above which the resolvent is solved directly per frequency
 COND_MAX = 1e8
@@ -124,13 +124,13 @@ class DescribingFrf(Frf):
                 f"balance residual {self.residual.max(initial=0.0):.1e}; stepped_sine for every harmonic)")
         for name, f in self.small_signal().items():
             where = ("at every frequency" if f.size == self.freqs.size else
-                     f"at {f.size} of {self.freqs.size} frequencies ({_spans(self.freqs, f)} Hz)")
+                     f"at {f.size} of {self.freqs.size} frequencies ({spans(self.freqs, f)} Hz)")
             line += (f"; {name} stays within {100 * SMALL_SIGNAL:g} % of its tangent at rest {where}: there this "
                      "amplitude measures its slope at rest (friction stuck, a clearance not crossed), not its level")
         return line
 
 
-def _spans(freqs, chosen) -> str:
+def spans(freqs, chosen) -> str:
     """``"10-25.1, 39.8-200"``: the runs of consecutive frequencies (in ascending order) that are in ``chosen``."""
     f = np.sort(np.asarray(freqs, float))
     inside = np.isin(f, chosen)

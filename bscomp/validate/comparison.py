@@ -103,6 +103,10 @@ class Comparison:
                 if a.get("resonances"):
                     L.append("    the model's resonances at that amplitude: " + ", ".join(
                         f"{f_:.4g} Hz (zeta {z:.3g})" for f_, z in a["resonances"]))
+                for el, st in (a.get("small_signal") or {}).items():
+                    L.append(f"    at that amplitude the model's {el} stays at its slope at rest (within 5 %: friction "
+                             f"stuck, a clearance not crossed) at {len(st['freqs'])} of {st['of']} frequencies "
+                             f"({st['spans']} Hz): there the file measures that slope, not the element's level")
             if len(c.pair_errors) > 1:
                 L.append("  per pair: " + "; ".join(
                     f"{o}/{i} magnitude {e['mag_db_rms']:.2f} dB rms (mean |dlog10| {e['mag_mean_abs_dlog10']:.3f}), "

@@ -14,7 +14,7 @@ import bscomp
 from bscomp.components import Backlash, CoulombFriction
 from bscomp.errors import ArgumentTypeError, ModelLimitationWarning, UnknownNameError, UsageError
 from bscomp.simulation.compiled import _Element
-from bscomp.simulation.describing import DescribingFunctionError, _spans, describing_frf, first_harmonic
+from bscomp.simulation.describing import DescribingFunctionError, describing_frf, first_harmonic, spans
 from bscomp.simulation.harmonic_balance import odd_harmonics
 from bscomp.systems import friction_oscillator, get
 from bscomp.systems.thesis_effects import with_friction_backlash
@@ -130,7 +130,7 @@ def test_deviation_from_the_tangent_at_rest_says_where_friction_stays_stuck():
         slide = describing_frf(dae, "F.f", "m.v", [5.0, 40.0], 10.0)
     assert slide.deviation.min() > 0.99 and slide.small_signal() == {} and "tangent at rest" not in slide.summary()
     f5 = np.array([10.0, 20.0, 30.0, 40.0, 50.0])               # the summary's frequency runs
-    assert _spans(f5, [10.0, 20.0, 40.0, 50.0]) == "10-20, 40-50" and _spans(f5[::-1], [30.0, 50.0]) == "30, 50"
+    assert spans(f5, [10.0, 20.0, 40.0, 50.0]) == "10-20, 40-50" and spans(f5[::-1], [30.0, 50.0]) == "30, 50"
 
 
 @pytest.fixture(scope="module")
