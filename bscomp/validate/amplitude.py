@@ -33,11 +33,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bscomp.errors import BscompError
 from bscomp.validate.datasets import FrfData
 from bscomp.validate.noise import FLOOR, noise_levels, robust_sigma
 
-__all__ = ["AmplitudeDependence", "amplitude_dependence", "frf_confirmation", "amplitude_note", "CHI2_LIMIT",
-           "RESOLUTION", "NOISE_CREDIBLE", "H0_Q99"]
+__all__ = ["AmplitudeDependence", "amplitude_dependence", "frf_confirmation", "amplitude_note", "stuck_note",
+           "CHI2_LIMIT", "RESOLUTION", "NOISE_CREDIBLE", "H0_Q99"]
 
 CHI2_LIMIT = 4.0
 """Normalised difference above which two amplitudes' FRFs differ by more than noise."""
@@ -279,3 +280,43 @@ def amplitude_note(amplitude, datasets) -> str:
     return (f". The FRFs measured at {a.amplitudes[0]:g} and {a.amplitudes[1]:g} on {a.pair[0]} differ beyond their "
             f"noise ({a.pair[1]} {a.rms_db:.1f} dB rms apart{where}, chi^2 {a.chi2:.3g}): a nonlinearity acts there; "
             f"{what}")
+
+
+def stuck_note(setup, result, recalibrated) -> str:
+    """Where a nonlinear candidate fitted to FRFs at stated amplitudes stays at its slope at rest: ``"; at 0.2 on
+    amp.u the fitted friction stays at its slope at rest at 13 of 14 frequencies (...): ..."`` or ``""``.
+
+    The candidate is added with its fitted values to the model at each such file's conditions (the uncertain
+    parameters at ``recalibrated``) and balanced at the file's amplitude (one harmonic,
+    :meth:`~bscomp.simulation.describing.DescribingFrf.small_signal`): where its element's force stays within
+    5 % of its tangent at rest, friction is stuck on its regularised slope and the file measures ``F_c / v_reg``,
+    not ``F_c`` (the FE truth ``friction`` at 0.2 V: F_c 2891 N fitted for 1151 N, ``docs/validation.md``)."""
+    import warnings
+
+    from bscomp.simulation.describing import describing_frf, spans
+
+    cand = result.candidate
+    if not cand.nonlinear:
+        return ""
+    parts = []
+    for d, key in zip(setup.datasets, setup.keys, strict=True):
+        if not (isinstance(d, FrfData) and d.excitation):
+            continue
+        s = setup.systems[key].copy()
+        for k, v in recalibrated.items():
+            s.set(k, v)
+        s = cand.apply(s, **result.values)
+        mine = set((getattr(s, "_effect_state", None) or {}).get(cand.name, {}).get("added", ()))
+        for inp, a in d.excitation.items():
+            try:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    r = describing_frf(s, inp, [o for i, o in d.H if i == inp], d.freqs, a)
+            except BscompError:
+                continue
+            parts += [f"at {a:g} on {inp} the fitted {el} stays at its slope at rest at {f.size} of {r.freqs.size} "
+                      f"frequencies ({spans(r.freqs, f)} Hz)" for el, f in r.small_signal().items() if el in mine]
+    if not parts:
+        return ""
+    return ("; " + "; ".join(parts) + ": there those files measure its slope at rest (friction stuck: F_c / v_reg), "
+            "not its level -- an FRF at a larger amplitude, or a time series, pins the level")

@@ -56,7 +56,7 @@ from scipy.optimize import minimize_scalar
 from threadpoolctl import threadpool_limits
 
 from bscomp.kernel.interface import NotApplicable
-from bscomp.validate.amplitude import amplitude_dependence, amplitude_note, frf_confirmation
+from bscomp.validate.amplitude import amplitude_dependence, amplitude_note, frf_confirmation, stuck_note
 from bscomp.validate.arguments import check_diagnose, load_datasets, resolve_candidates
 from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
@@ -324,7 +324,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         u = unconfirmed[0]
         message = (f"no missing effect confirmed: {u.candidate.title} would explain the FRFs (error "
                    f"{u.error_before:.4g} -> {u.error_after:.4g}), but "
-                   f"{unconfirmed_why[1 if u.candidate.nonlinear else 0]}")
+                   f"{unconfirmed_why[1 if u.candidate.nonlinear else 0]}") + stuck_note(setup, u, unc_values)
     elif max_effects == 0:
         message = "no effect searched (max_effects=0): the uncertain parameters were only re-calibrated"
     elif not message:

@@ -204,3 +204,28 @@ def test_a_stated_coherence_sets_the_noise():
     assert same.stated and same.verdict == "same" and same.chi2 < CHI2_LIMIT, same.summary()
     (apart,) = amplitude_dependence([d(0.2), d(2.0, gain=np.where(f < 30.0, 10 ** (3 / 20), 1.0))])
     assert apart.stated and apart.verdict == "amplitude-dependent" and apart.band[1] < 30.0, apart.summary()
+
+
+def test_frfs_below_breakaway_pin_the_friction_slope_and_diagnose_says_so(measured):
+    """The friction truth's stepped sines, guideway friction alone as the candidate, five harmonics. At 0.2 V the
+    motor pushes the table with ~389 N, below the truth's breakaway (1151 N): that file alone fits F_c to the law's
+    slope at rest -- the candidate's ``F_c / v_reg + d`` within 35 % of the truth's ``(2/pi) F_c / v_s + d``
+    (measured 2.5e7 vs 3.3e7 N s/m, F_c 12,467 N). With the 2 V file too (whose own fit is F_c 1,813 N) one F_c
+    at a fixed ``v_reg`` cannot serve both: 2,891 N, unconfirmed, and the message says where the fitted friction
+    stays at its slope at rest (13 of 14 frequencies at 0.2 V, 5 at 2 V: measured)."""
+    from bscomp.validate.candidates.nonlinear import V_REG
+
+    hidden = truth_system("friction", nut_joint="point")[1]["hidden"]["friction"]
+    slope_truth = 2 / np.pi * hidden["F_c"] / hidden["v_s"] + hidden["d"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ModelLimitationWarning)
+        low = diagnose("testbed_axial_torsional", measured["friction"][:1], max_effects=1,
+                       candidates=[GuidewayFriction()], harmonics=5)
+        both = diagnose("testbed_axial_torsional", measured["friction"], max_effects=1,
+                        candidates=[GuidewayFriction()], harmonics=5)
+    v = (low.unconfirmed or low.ranked)[0].values
+    assert abs((v["F_c"] / V_REG + v["d"]) / slope_truth - 1) < 0.35, (v, slope_truth)
+    assert not both.accepted and [r.name for r in both.unconfirmed] == ["guideway_friction"], both.table()
+    assert both.unconfirmed[0].values["F_c"] > 2 * hidden["F_c"]     # the level is not what the 0.2 V file pins
+    assert "at 0.2 on amp.u the fitted friction stays at its slope at rest at 1" in both.message, both.message
+    assert "not its level" in both.message
