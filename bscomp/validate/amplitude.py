@@ -29,11 +29,13 @@ points would make differences of its own.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from bscomp.errors import BscompError
+from bscomp.simulation.describing import describing_frf, spans
 from bscomp.validate.datasets import FrfData
 from bscomp.validate.noise import FLOOR, noise_levels, robust_sigma
 
@@ -291,10 +293,6 @@ def stuck_note(setup, result, recalibrated) -> str:
     :meth:`~bscomp.simulation.describing.DescribingFrf.small_signal`): where its element's force stays within
     5 % of its tangent at rest, friction is stuck on its regularised slope and the file measures ``F_c / v_reg``,
     not ``F_c`` (the FE truth ``friction`` at 0.2 V: F_c 2891 N fitted for 1151 N, ``docs/validation.md``)."""
-    import warnings
-
-    from bscomp.simulation.describing import describing_frf, spans
-
     cand = result.candidate
     if not cand.nonlinear:
         return ""
