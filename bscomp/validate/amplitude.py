@@ -316,5 +316,7 @@ def stuck_note(setup, result, recalibrated) -> str:
                       f"frequencies ({spans(r.freqs, f)} Hz)" for el, f in r.small_signal().items() if el in mine]
     if not parts:
         return ""
-    return ("; " + "; ".join(parts) + ": there those files measure its slope at rest (friction stuck: F_c / v_reg), "
-            "not its level -- an FRF at a larger amplitude, or a time series, pins the level")
+    what = ("friction stuck: F_c / v_reg" if "friction" in (cand.group or cand.name) else
+            "the clearance not crossed: its contact or open slope")
+    return (f"; {'; '.join(parts)}: there those files measure its slope at rest ({what}), not its level -- an FRF at "
+            "a larger amplitude, or a time series, pins the level")
