@@ -58,7 +58,8 @@ from bscomp.simulation.harmonic_balance import HarmonicBalance, check_harmonics,
 from bscomp.simulation.modal_channels import Channels, LinearPart
 from bscomp.simulation.stepped import check_sine_request
 
-__all__ = ["describing_frf", "DescribingFrf", "DescribingFunctionError", "first_harmonic", "HarmonicBalance", "spans"]
+__all__ = ["describing_frf", "DescribingFrf", "DescribingFunctionError", "first_harmonic", "HarmonicBalance", "spans",
+           "frequency_share", "SMALL_SIGNAL"]
 
 #: eigenvector condition number above which the resolvent is solved directly per frequency
 COND_MAX = 1e8
@@ -123,11 +124,16 @@ class DescribingFrf(Frf):
         line = (f"describing function at {self.amplitude:g} of {', '.join(self.elements)} ({kept}; largest "
                 f"balance residual {self.residual.max(initial=0.0):.1e}; stepped_sine for every harmonic)")
         for name, f in self.small_signal().items():
-            where = ("at every frequency" if f.size == self.freqs.size else
-                     f"at {f.size} of {self.freqs.size} frequencies ({spans(self.freqs, f)} Hz)")
-            line += (f"; {name} stays within {100 * SMALL_SIGNAL:g} % of its tangent at rest {where}: there this "
-                     "amplitude measures its slope at rest (friction stuck, a clearance not crossed), not its level")
+            line += (f"; {name} stays within {100 * SMALL_SIGNAL:g} % of its tangent at rest "
+                     f"{frequency_share(self.freqs, f)}: there this amplitude measures its slope at rest (friction "
+                     "stuck, a clearance not crossed), not its level")
         return line
+
+
+def frequency_share(freqs, chosen) -> str:
+    """``"at every frequency"`` or ``"at 13 of 14 frequencies (10-25.14, 39.85-200 Hz)"`` (:func:`spans`)."""
+    n, m = np.size(freqs), np.size(chosen)
+    return "at every frequency" if m == n else f"at {m} of {n} frequencies ({spans(freqs, chosen)} Hz)"
 
 
 def spans(freqs, chosen) -> str:

@@ -35,7 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from bscomp.errors import BscompError
-from bscomp.simulation.describing import describing_frf, spans
+from bscomp.kernel.flattening import flatten
+from bscomp.simulation.describing import describing_frf, frequency_share
 from bscomp.validate.datasets import FrfData
 from bscomp.validate.noise import FLOOR, noise_levels, robust_sigma
 
@@ -296,24 +297,26 @@ def stuck_note(setup, result, recalibrated) -> str:
     cand = result.candidate
     if not cand.nonlinear:
         return ""
-    parts = []
+    parts, fitted = [], {}
     for d, key in zip(setup.datasets, setup.keys, strict=True):
         if not (isinstance(d, FrfData) and d.excitation):
             continue
-        s = setup.systems[key].copy()
-        for k, v in recalibrated.items():
-            s.set(k, v)
-        s = cand.apply(s, **result.values)
-        mine = set((getattr(s, "_effect_state", None) or {}).get(cand.name, {}).get("added", ()))
+        if key not in fitted:                          # the fitted model, flattened once per condition
+            s = setup.systems[key].copy()
+            for k, v in recalibrated.items():
+                s.set(k, v)
+            s = cand.apply(s, **result.values)
+            fitted[key] = (flatten(s), set(cand.added(s)))
+        dae, mine = fitted[key]
         for inp, a in d.excitation.items():
             try:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
-                    r = describing_frf(s, inp, [o for i, o in d.H if i == inp], d.freqs, a)
+                    r = describing_frf(dae, inp, [o for i, o in d.H if i == inp], d.freqs, a)
             except BscompError:
                 continue
-            parts += [f"at {a:g} on {inp} the fitted {el} stays at its slope at rest at {f.size} of {r.freqs.size} "
-                      f"frequencies ({spans(r.freqs, f)} Hz)" for el, f in r.small_signal().items() if el in mine]
+            parts += [f"at {a:g} on {inp} the fitted {el} stays at its slope at rest {frequency_share(r.freqs, f)}"
+                      for el, f in r.small_signal().items() if el in mine]
     if not parts:
         return ""
     what = ("friction stuck: F_c / v_reg" if "friction" in (cand.group or cand.name) else

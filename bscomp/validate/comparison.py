@@ -33,6 +33,7 @@ import numpy as np
 from bscomp.files import atomic_write
 from bscomp.model import model_name
 from bscomp.plotting.validate import comparison_plots
+from bscomp.simulation.describing import SMALL_SIGNAL
 from bscomp.validate.amplitude import amplitude_dependence
 from bscomp.validate.arguments import check_compare, load_datasets
 from bscomp.validate.datasets import FrfData, TimeData
@@ -104,9 +105,9 @@ class Comparison:
                     L.append("    the model's resonances at that amplitude: " + ", ".join(
                         f"{f_:.4g} Hz (zeta {z:.3g})" for f_, z in a["resonances"]))
                 for el, st in (a.get("small_signal") or {}).items():
-                    L.append(f"    at that amplitude the model's {el} stays at its slope at rest (within 5 %: friction "
-                             f"stuck, a clearance not crossed) at {len(st['freqs'])} of {st['of']} frequencies "
-                             f"({st['spans']} Hz): there the file measures that slope, not the element's level")
+                    L.append(f"    at that amplitude the model's {el} stays at its slope at rest (within "
+                             f"{100 * SMALL_SIGNAL:g} %: friction stuck, a clearance not crossed) {st['where']}: there "
+                             "the file measures that slope, not the element's level")
             if len(c.pair_errors) > 1:
                 L.append("  per pair: " + "; ".join(
                     f"{o}/{i} magnitude {e['mag_db_rms']:.2f} dB rms (mean |dlog10| {e['mag_mean_abs_dlog10']:.3f}), "

@@ -23,7 +23,7 @@ from bscomp.kernel.flattening import flatten
 from bscomp.linear.modal import modes
 from bscomp.linear.response import frf
 from bscomp.simulation.compiled import nonlinear_elements
-from bscomp.simulation.describing import describing_frf, spans
+from bscomp.simulation.describing import describing_frf, frequency_share, spans
 from bscomp.validate.datasets import AMPLITUDE_HARMONICS, FrfData
 from bscomp.validate.peaks import Resonance, merge_resonances, peak_pick
 from bscomp.validate.residuals import check_channels, fit_percent, frf_errors
@@ -125,7 +125,7 @@ class FrfComparison:
         amplitude}), ``elements``, ``model`` ({pair: H} at that amplitude by the describing function; the
         small-signal H for pairs of other inputs), ``rms_mag_db``, ``rms_phase_deg``, ``residual`` (the
         harmonic balance's, largest), ``resonances`` ([(f, zeta)] of the model at that amplitude, by the
-        measurement's own estimator), ``small_signal`` ({element: {freqs, of, spans}}: where the element stays
+        measurement's own estimator), ``small_signal`` ({element: {freqs, of, spans, where}}: where the element stays
         within 5 % of its tangent at rest at that amplitude, :meth:`DescribingFrf.small_signal`); or ``error``
         (why it could not be taken).
     """
@@ -370,8 +370,8 @@ def _at_amplitude(system, data, Hm):
             r = describing_frf(dae, inp, outs, data.freqs, a, harmonics=AMPLITUDE_HARMONICS)
             H.update({(inp, o): r.H[:, j, 0] for j, o in enumerate(outs)})
             elements, residual = r.elements, max(residual, float(r.residual.max(initial=0.0)))
-            stuck.update({el: {"freqs": f.tolist(), "of": int(r.freqs.size), "spans": spans(r.freqs, f)}
-                          for el, f in r.small_signal().items()})
+            stuck.update({el: {"freqs": f.tolist(), "of": int(r.freqs.size), "spans": spans(r.freqs, f),
+                               "where": frequency_share(r.freqs, f)} for el, f in r.small_signal().items()})
     except BscompError as exc:          # e.g. a current limit the describing function does not treat
         return {"excitation": dict(data.excitation), "error": str(exc)}
     mag, ph = _weighted_rms(frf_errors(H, data), data)

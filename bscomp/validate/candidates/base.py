@@ -236,6 +236,11 @@ class Candidate:
     def code(self, values: dict, system=None) -> str:
         return "\n".join(self.code_lines(values, system))
 
+    def added(self, system) -> list:
+        """Names of the components this effect added to ``system`` (one returned by :meth:`structure` or
+        :meth:`apply`)."""
+        return list(_state(system, self).get("added", ()))
+
     def __repr__(self):
         return f"<Candidate {self.name}: {self.title} at {self.role}>"
 
