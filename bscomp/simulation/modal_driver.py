@@ -118,6 +118,7 @@ class ModalSimulator:
         self._pads = []
         self.outputs = {}     # names -> modal.Outputs (rows per modal part)
         self._checked = set()
+        self._csets = {}
         self.stats = {"setup_channels_s": time.perf_counter() - t0, "modal_parts": 0, "modal_part_s": 0.0}
         self._rest_part()
 
@@ -136,6 +137,7 @@ class ModalSimulator:
                 raise
             self.ch = Channels(self.dae, self.p, rigid=dampers)
             self.cands = [self.ch.candidate_regimes(i) for i in range(len(self.ch.elements))]
+            self._csets, self._slopes = {}, None
             self.stats["rigid_body_dampers"] = [d.path for d in dampers]
             self.part(tuple(0 for _ in self.ch.elements), z0)
 
@@ -181,12 +183,16 @@ class ModalSimulator:
         return None if out == list(slopes) else out
 
     def channel_set(self, z, z_ref):
-        """Per joint ``(S, elements)``: the potentials the correction touches with the contact point at ``z``."""
-        out = []
-        for jt, zj, zr in zip(self.ch.joints, z, z_ref, strict=True):
-            e = jt.element_of(zj)
-            out.append((jt.dofs_for([e], zr), (e,)))
-        return tuple(out)
+        """Per joint ``(S, elements)``: the potentials the correction touches with the contact point at ``z``
+        (cached by the contact points' and references' elements: the same object for the same set, which the
+        stepper cache compares by identity)."""
+        elems = tuple(jt.element_of(zj) for jt, zj in zip(self.ch.joints, z, strict=True))
+        key = (elems, tuple(jt.element_of(zr) for jt, zr in zip(self.ch.joints, z_ref, strict=True)))
+        out = self._csets.get(key)
+        if out is None:
+            out = self._csets[key] = tuple((jt.dofs_for([e], zr), (e,))
+                                           for jt, e, zr in zip(self.ch.joints, elems, z_ref, strict=True))
+        return out
 
     def law(self, cset):
         sizes = tuple((len(S), len(el)) for S, el in cset)
@@ -272,12 +278,15 @@ class ModalSimulator:
             laws = [el.law(s[i], v[i], ca.DM(el.pvec)) for i, el in enumerate(self.ch.elements)]
             J = ca.vertcat(*[ca.horzcat(ca.jacobian(f, s[i]), ca.jacobian(f, v[i])) for i, f in enumerate(laws)])
             self._slopes = NumpyCall(ca.Function("slopes", [s, v], [ca.densify(J)]))
-        kd = self._slopes(y[0:2 * n:2], y[1:2 * n:2])[0]
+            self._cand_abs = []
+            for cand in self.cands:
+                c = np.abs(np.array(cand, float))
+                eps = regime_eps(c)
+                self._cand_abs.append((np.log(c + eps), eps))
+        kd = np.abs(self._slopes(y[0:2 * n:2], y[1:2 * n:2])[0])
         out = []
-        for i in range(n):
-            c = np.abs(np.array(self.cands[i]))
-            eps = regime_eps(c)
-            dist = np.abs(np.log((np.abs(kd[i]) + eps) / (c + eps))).sum(axis=1)
+        for i, (logc, eps) in enumerate(self._cand_abs):
+            dist = np.abs(np.log(kd[i] + eps) - logc).sum(axis=1)
             best = int(np.argmin(dist))
             keep = current is not None and dist[current[i]] <= dist[best] + REGIME_MARGIN
             out.append(current[i] if keep else best)
