@@ -31,9 +31,10 @@ from bscomp.simulation.modal import ModalResult, check_modal_options, simulate_m
 from bscomp.simulation.result import SimulationError, SimulationResult
 from bscomp.simulation.sampled import SampledController
 from bscomp.simulation.split import simulate_split
+from bscomp.simulation.travel import NutOffScrewError, check_travel, travel_limits
 from bscomp.simulation.zoh import simulate_zoh
 
-__all__ = ["simulate", "METHODS", "SimulationResult", "SimulationError", "SampledController"]
+__all__ = ["simulate", "METHODS", "SimulationResult", "SimulationError", "SampledController", "NutOffScrewError"]
 
 #: method name -> ``run(problem: SimulationProblem, options: SimulationOptions) -> SimulationResult``
 METHODS = {
@@ -136,7 +137,8 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
     ------
     SimulationError
         With the time window, the largest state (IDAS) or the failing Newton iteration (fixed, split) and
-        a hint.
+        a hint; :class:`~bscomp.simulation.travel.NutOffScrewError` when a moving nut leaves its screw (the
+        time, position and span; ``.partial`` holds the run up to then).
     UnknownNameError
         An unknown model, input, state or output name.
     ValueError
@@ -145,26 +147,42 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
     run = METHODS.get(method)
     if run is None:
         raise UsageError(f"method must be one of {', '.join(map(repr, METHODS))}, got {method!r}")
-    check_number("rtol", rtol, positive=True)
-    check_number("atol", atol, positive=True)
-    if check_number("max_order", max_order, integer=True, minimum=1) > 5:
-        raise UsageError(f"max_order must be 1 to 5 (the BDF orders IDAS has), got {max_order!r}",
-                         hint="2 keeps A-stability for lightly damped structures")
-    _check_flag("jit", jit)
-    _check_flag("progress", progress)
-    check_number("max_num_steps", max_num_steps, integer=True, minimum=1)
-    check_number("substeps", substeps, integer=True, minimum=1)
-    check_number("newton_iter", newton_iter, integer=True, minimum=1)
-    if method == "modal":
-        check_modal_options(modal_options)
+    options = SimulationOptions(rtol=rtol, atol=atol, max_order=max_order, max_num_steps=max_num_steps,
+                                substeps=substeps, newton_iter=newton_iter, jit=jit, modal=modal_options)
+    _check_options(options, method, progress)
     problem = prepare(model, t, inputs, x0, params, outputs, controllers, progress)
     if problem.dae.nx == 0:
         raise UsageError(f"'{problem.dae.name}' has no states: there is nothing to integrate",
                          hint="evaluate its outputs directly (they are algebraic functions of the inputs), or add "
                               "a component with dynamics (a mass, an inertia, a filter)")
-    options = SimulationOptions(rtol=rtol, atol=atol, max_order=max_order, max_num_steps=max_num_steps,
-                                substeps=substeps, newton_iter=newton_iter, jit=jit, modal=modal_options)
-    return _finite_run(run, problem, options, method)
+    asked, limits = list(problem.outputs), travel_limits(problem.dae)
+    problem.outputs = asked + [n for n, *_ in limits if n not in asked]   # each moving nut's position, checked
+    return _travelled(_finite_run(run, problem, options, method), limits, asked, method, problem.dae.name)
+
+
+def _check_options(o, method, progress) -> None:
+    """Each numeric option and switch of :func:`simulate` checked, by its argument name."""
+    check_number("rtol", o.rtol, positive=True)
+    check_number("atol", o.atol, positive=True)
+    if check_number("max_order", o.max_order, integer=True, minimum=1) > 5:
+        raise UsageError(f"max_order must be 1 to 5 (the BDF orders IDAS has), got {o.max_order!r}",
+                         hint="2 keeps A-stability for lightly damped structures")
+    _check_flag("jit", o.jit)
+    _check_flag("progress", progress)
+    check_number("max_num_steps", o.max_num_steps, integer=True, minimum=1)
+    check_number("substeps", o.substeps, integer=True, minimum=1)
+    check_number("newton_iter", o.newton_iter, integer=True, minimum=1)
+    if method == "modal":
+        check_modal_options(o.modal)
+
+
+def _travelled(res, limits, asked, method, name) -> SimulationResult:
+    """``res`` with every moving nut checked to stay on its screw (:mod:`bscomp.simulation.travel`), holding the
+    outputs asked for."""
+    check_travel(res, limits, method, name)
+    for n in set(res.outputs) - set(asked):
+        del res.outputs[n]
+    return res
 
 
 def _finite_run(run, problem, options, method) -> SimulationResult:

@@ -151,3 +151,49 @@ def test_slow_creep_matches_frozen_quasi_static_stretch(method):
     w_frozen = np.array([_frozen_stretch(z[k], F) for k in check])
     assert w_frozen[-1] / w_frozen[0] - 1 > 0.2
     np.testing.assert_allclose(w_moving, w_frozen, rtol=1e-3)
+
+
+def _creeping(z0, v, F=2000.0):
+    """The creep test's drive (nut + table pushed by F, screw turning against a damper: creeps at v) and its
+    start state at that speed."""
+    from bscomp import flatten
+    from bscomp.kernel.damping import ModalDamping
+
+    K = thesis_screw_nut().stiffness_matrix()
+    r_g = -K[2, 5] / K[2, 2]
+    screw = Ballscrew(CREEP_SECTIONS, dofs=("w", "tz"))
+    s = System("creep")
+    s.add("screw", screw)
+    s.add("joint", MovingNutJoint.from_screw_nut(thesis_screw_nut(), screw.z_nodes, z0=z0))
+    for i in range(screw.n_nodes):
+        s.connect(f"screw.n{i}", f"joint.n{i}")
+    _loaded_nut(s, brake=F * r_g**2 / v)
+    s.connect("joint.nut", "nut.c")
+    s.damping = ModalDamping(0.05)
+    dae = flatten(s)
+    x0 = {"der(nut.com.w)": v, **{n: -v / r_g for n in dae.x_names if n.startswith("der(screw.n")
+                                  and n.endswith(".tz)")}}
+    return dae, x0
+
+
+@pytest.mark.parametrize("method", ["idas", "modal", "fixed"])
+def test_a_nut_driven_off_the_screw_is_refused_with_the_time_it_left(method):
+    """Creeping at 0.4 m/s from z0 = 0.55 m, the nut passes the 0.8 m screw's last node at 0.625 s; the
+    components clamp the shape functions there (the run would go on with the nut glued to the end node), so
+    every method raises NutOffScrewError naming the joint, the time and the span, with the run up to then --
+    and a run that ends before stays silent (its outputs as asked, the checked position not added)."""
+    from bscomp.simulation.dispatch import NutOffScrewError, simulate
+
+    dae, x0 = _creeping(0.55, 0.4)
+    t = np.arange(0.0, 0.8 + 1e-12, 2.0**-9)
+    with pytest.raises(NutOffScrewError, match=r"'joint' left the screw at t = 0\.6.*last node.*\[0, 0\.8\] m") as exc:
+        simulate(dae, t, inputs={"F.f": 2000.0}, x0=x0, outputs=["nut.com.w"], method=method, rtol=1e-5)
+    err = exc.value
+    assert err.joint == "joint" and err.span == pytest.approx((0.0, 0.8))
+    assert err.t == pytest.approx(0.625, abs=0.01) and err.z > 0.8
+    part = err.partial
+    assert part.t[-1] < err.t and len(part.t) == len(part["nut.com.w"]) == part.x.shape[0]
+    assert 0.55 + part["nut.com.w"][-1] <= 0.8 + 1e-9 and "joint.z" in part.outputs
+    assert "simulate(method=" in str(err) and "joint.z0" in err.hint
+    r = simulate(dae, t[t < 0.6], inputs={"F.f": 2000.0}, x0=x0, outputs=["nut.com.w"], method=method, rtol=1e-5)
+    assert list(r.outputs) == ["nut.com.w"]
