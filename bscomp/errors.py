@@ -24,6 +24,7 @@ __all__ = [
     "ParameterFileError",
     "MissingParameterFileError",
     "ModelLimitationWarning",
+    "SlowMethodWarning",
     "check_number",
     "check_mapping",
     "FmuExportError",
@@ -129,6 +130,11 @@ class MissingParameterFileError(ParameterFileError, FileNotFoundError):
 
 class ModelLimitationWarning(UserWarning):
     """A method ignores part of the model (e.g. ``simulate(method="lti")`` on a nonlinear model)."""
+
+
+class SlowMethodWarning(UserWarning):
+    """A method chosen for a model it handles orders of magnitude slower than another one (named in the
+    message), e.g. ``simulate(method="split")`` with a nut moving along the screw."""
 
 
 def check_number(name: str, value, *, positive: bool = False, nonnegative: bool = False, integer: bool = False,

@@ -31,6 +31,7 @@ import numpy as np
 from bscomp.simulation.common import Progress, SampledLoop, finish
 from bscomp.simulation.native import native_function
 from bscomp.simulation.result import SimulationError
+from bscomp.simulation.travel import warn_slow_with_moving_nut
 
 __all__ = ["simulate_fixed", "Stepper", "chunk_function", "nonlinear_rows"]
 
@@ -243,6 +244,7 @@ def simulate_fixed(problem, options):
         ``newton_max_update``, ``newton_retries``, ``jit``.
     """
     substeps, newton_iter = options.fixed_steps()
+    warn_slow_with_moving_nut(problem.dae, "fixed", stacklevel=4)
     jit = bool(options.jit)
     dae, t, U, p, xs = problem.dae, problem.t, problem.U, problem.p, problem.x0
     t_wall = time.perf_counter()

@@ -88,6 +88,7 @@ from bscomp.simulation.common import Progress, SampledLoop, finish
 from bscomp.simulation.result import SimulationError
 from bscomp.simulation.split_kernels import NEWTON_TOL, REGIME_RTOL, Kernels
 from bscomp.simulation.split_regime import FINE, Regime, SplitModel, nonlinear_structure, split_model
+from bscomp.simulation.travel import warn_slow_with_moving_nut
 
 __all__ = ["simulate_split", "SplitModel", "Regime", "Kernels", "split_model", "nonlinear_structure", "NEWTON_TOL",
            "REGIME_RTOL", "FINE", "CHUNK", "SETTLE"]
@@ -117,6 +118,7 @@ def simulate_split(problem, options):
         ``nonlinear_variables``, the Newton counters.
     """
     substeps, newton_iter = options.fixed_steps()
+    warn_slow_with_moving_nut(problem.dae, "split", stacklevel=4)
     return _SplitRun(problem, substeps, newton_iter, bool(options.jit)).run()
 
 

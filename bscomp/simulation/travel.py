@@ -12,12 +12,26 @@ position and the screw's span, and carrying the run up to that time) when it lea
 
 from __future__ import annotations
 
+import warnings
+
+import casadi as ca
 import numpy as np
 
+from bscomp.errors import SlowMethodWarning
 from bscomp.simulation.moving_joints import find_moving_joints
 from bscomp.simulation.result import SimulationError, SimulationResult
 
-__all__ = ["NutOffScrewError", "travel_limits", "check_travel"]
+__all__ = ["NutOffScrewError", "travel_limits", "check_travel", "moving_nuts", "warn_slow_with_moving_nut"]
+
+#: measured cost of a moving nut to the methods that re-linearize it (axial + torsional test bed, friction and
+#: backlash, 2026-12-05): what the warning quotes
+SLOW_WITH_MOVING_NUT = {
+    "split": "every screw coordinate its shape functions reach is nonlinear and the split integrator "
+             "re-linearizes densely (~1,000x slower than with the nut frozen: 138 s per 2 ms simulated on the "
+             "axial + torsional test bed)",
+    "fixed": "the Newton matrix of every step changes with the nut's position and is factorized again (30x "
+             "slower than with the nut frozen: 18.5 s per 10 ms simulated on the axial + torsional test bed)",
+}
 
 REL_TOL = 1e-9   # of the screw's length: round-off at a nut parked on an end node
 
@@ -49,6 +63,25 @@ def travel_limits(dae) -> list:
         if name in names and zn is not None and len(zn) >= 2:
             out.append((name, path, float(zn[0]), float(zn[-1])))
     return out
+
+
+def moving_nuts(dae) -> list:
+    """Paths of the moving joints whose contact point moves with the state (``<path>.z`` depends on it)."""
+    out = []
+    for name, path, *_ in travel_limits(dae):
+        if ca.depends_on(dae.output_expr([name]), dae.xs):
+            out.append(path)
+    return out
+
+
+def warn_slow_with_moving_nut(dae, method, stacklevel) -> None:
+    """A :class:`~bscomp.errors.SlowMethodWarning` before ``method`` runs on a model whose nut moves."""
+    nuts = moving_nuts(dae)
+    if nuts:
+        warnings.warn(f"simulate(method={method!r}) on '{dae.name}': the nut of {nuts} moves along the screw, so "
+                      f"{SLOW_WITH_MOVING_NUT[method]}; method='modal' keeps the linear part exact and moves only "
+                      "the joint's low-rank part into the correction (docs/nonlinear.md)", SlowMethodWarning,
+                      stacklevel=stacklevel + 1)
 
 
 def check_travel(res, limits, method, model_name) -> None:
