@@ -505,7 +505,8 @@ def modes(model, inputs=None, outputs=None, at: dict | None = None, params: dict
         raise UsageError(f"damping must be 'auto', 'complex' or 'projection', got {damping!r}")
     so = _second_order(model, inputs, outputs, at, params)
     warn_linearized(so.linearized if warn else (), "modes", "its modes are those of small motions about that point; "
-                    "for the behaviour at a real amplitude simulate with bscomp.simulate(..., method='idas')")
+                    "for the behaviour at a real amplitude simulate with bscomp.simulate(..., method='modal') "
+                    "(friction, backlash, a moving nut; fast) or method='idas' (any model)")
     red = _condense(so)
     if red.symmetric:
         lam, phi, rigid, method = _undamped(red, n=n, fmax=fmax)
