@@ -257,7 +257,7 @@ def _simulate(args) -> int:
     if args.json:
         print(json.dumps({"system": dae.name, "method": args.method, "t_end": float(t[-1]), "dt": args.dt,
                           "wall_s": wall, "real_time_factor": None if rtf is None else float(rtf),
-                          "outputs": summary}, indent=1))
+                          "outputs": summary, "nut_travel": res.stats.get("nut_travel", {})}, indent=1))
         return 0
     speed = f"; {wall:.3g} s wall, {float(rtf):.3g}x real time" if wall and rtf else ""
     print(f"{dae.name}: method {args.method!r}, {t[-1]:g} s in {n} steps of {args.dt:g} s{speed}")
@@ -265,6 +265,9 @@ def _simulate(args) -> int:
     for o, v in summary.items():
         u = unit_suffix(v["unit"])
         print(f"  {o:<{width}}  min {v['min']:11.4g}{u}  max {v['max']:11.4g}{u}  final {v['final']:11.4g}{u}")
+    for path, z in res.stats.get("nut_travel", {}).items():
+        print(f"  nut of {path} between z = {z['z_min']:.6g} and {z['z_max']:.6g} m (its screw: {z['screw'][0]:.6g} to "
+              f"{z['screw'][1]:.6g} m)")
     for f_ in (args.csv, args.png):
         if f_:
             print(f"  written {f_}")

@@ -85,9 +85,12 @@ def warn_slow_with_moving_nut(dae, method, stacklevel) -> None:
 
 
 def check_travel(res, limits, method, model_name) -> None:
-    """Raise :class:`NutOffScrewError` at the first output time a joint's ``z`` is outside its screw."""
+    """Raise :class:`NutOffScrewError` at the first output time a joint's ``z`` is outside its screw; else record
+    each joint's travel in ``res.stats["nut_travel"]``: ``{path: {"z_min", "z_max", "screw": [first, last]}}`` [m]."""
     for name, path, lo, hi in limits:
         z = np.asarray(res.outputs[name], float)
+        res.stats.setdefault("nut_travel", {})[path] = {"z_min": float(z.min()), "z_max": float(z.max()),
+                                                        "screw": [lo, hi]}
         tol = REL_TOL * (hi - lo)
         off = np.flatnonzero((z < lo - tol) | (z > hi + tol))
         if not off.size:

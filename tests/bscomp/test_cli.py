@@ -244,3 +244,22 @@ def test_simulate_json_summary_and_bad_signal(tmp_path, capsys):
     assert main(["simulate", str(path), "--input", "F.f=square:1"]) == 2
     err = capsys.readouterr().err
     assert "UsageError" in err and "--input F.f" in err and "square:A:F" in err
+
+
+def test_simulate_reports_the_nut_travel_and_refuses_a_nut_off_the_screw(capsys):
+    """On the CMS-reduced test bed with the moving nut (``testbed_reduced``), the summary says where the nut went
+    (the Ch 5 square wave: within the 0.92 m screw, a few mm around C) and the JSON has it; 4 s of a constant
+    2.125 V drive it off the screw's first node: exit code 1 with NutOffScrewError, the time and the span."""
+    assert main(["simulate", "testbed_reduced", "--input", "amp.u=square:2.125:5", "--output", "table.a",
+                 "--method", "modal"]) == 0
+    out = capsys.readouterr().out
+    assert "nut of sn between z = 0.41" in out and "(its screw: 0 to 0.9205 m)" in out
+    assert main(["simulate", "testbed_reduced", "--input", "amp.u=square:2.125:5", "--output", "table.a",
+                 "--method", "modal", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)["nut_travel"]["sn"]
+    assert 0.40 < d["z_min"] < d["z_max"] < 0.44 and d["screw"] == pytest.approx([0.0, 0.9205])
+    assert main(["simulate", "testbed_reduced", "--input", "amp.u=2.125", "--output", "table.a", "--method", "modal",
+                 "--t-end", "4"]) == 1
+    err = capsys.readouterr().err
+    assert "NutOffScrewError" in err and "left the screw at t = 1.5" in err and "[0, 0.9205] m" in err
+    assert "Traceback" not in err
