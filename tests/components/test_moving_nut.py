@@ -104,6 +104,29 @@ def _frozen_stretch(z, F):
     return float(np.interp(z, z_nodes, w))
 
 
+def _creeping(z0, v, F=2000.0):
+    """The creep test's drive (nut + table pushed by F, screw turning against a damper: creeps at v) and its
+    start state at that speed."""
+    from bscomp import flatten
+    from bscomp.kernel.damping import ModalDamping
+
+    K = thesis_screw_nut().stiffness_matrix()
+    r_g = -K[2, 5] / K[2, 2]  # helical null motion: nut travel = -r_g * screw rotation
+    screw = Ballscrew(CREEP_SECTIONS, dofs=("w", "tz"))
+    s = System("creep")
+    s.add("screw", screw)
+    s.add("joint", MovingNutJoint.from_screw_nut(thesis_screw_nut(), screw.z_nodes, z0=z0))
+    for i in range(screw.n_nodes):
+        s.connect(f"screw.n{i}", f"joint.n{i}")
+    _loaded_nut(s, brake=F * r_g**2 / v)
+    s.connect("joint.nut", "nut.c")
+    s.damping = ModalDamping(0.05)  # leaves the helical rigid motion undamped
+    dae = flatten(s)
+    x0 = {"der(nut.com.w)": v, **{n: -v / r_g for n in dae.x_names if n.startswith("der(screw.n")
+                                  and n.endswith(".tz)")}}
+    return dae, x0
+
+
 @pytest.mark.parametrize("method", ["idas", "modal"])
 def test_slow_creep_matches_frozen_quasi_static_stretch(method):
     """A nut creeping at 0.4 m/s across a screw node loads the screw as the frozen joint does statically.
@@ -119,27 +142,13 @@ def test_slow_creep_matches_frozen_quasi_static_stretch(method):
     ``method="modal"`` holds the joint frozen at its start in the linear part and moves the contact point in
     the low-rank correction across the node (bscomp/simulation/moving_joints.py).
     """
-    from bscomp import flatten
-    from bscomp.kernel.damping import ModalDamping
     from bscomp.simulation.dispatch import simulate
 
-    F, v, z0 = 2000.0, 0.4, 0.25
-    K = thesis_screw_nut().stiffness_matrix()
-    r_g = -K[2, 5] / K[2, 2]  # helical null motion: nut travel = -r_g * screw rotation
-    screw = Ballscrew(CREEP_SECTIONS, dofs=("w", "tz"))
-    s = System("creep")
-    s.add("screw", screw)
-    s.add("joint", MovingNutJoint.from_screw_nut(thesis_screw_nut(), screw.z_nodes, z0=z0))
-    for i in range(screw.n_nodes):
-        s.connect(f"screw.n{i}", f"joint.n{i}")
-    _loaded_nut(s, brake=F * r_g**2 / v)
-    s.connect("joint.nut", "nut.c")
-    s.damping = ModalDamping(0.05)  # leaves the helical rigid motion undamped
-    dae = flatten(s)
-    x0 = {"der(nut.com.w)": v, **{n: -v / r_g for n in dae.x_names if n.startswith("der(screw.n")
-                                  and n.endswith(".tz)")}}
+    F, v = 2000.0, 0.4
+    dae, x0 = _creeping(0.25, v, F)
+    screw_z = Ballscrew(CREEP_SECTIONS, dofs=("w", "tz")).z_nodes
     t = np.arange(0.0, 0.3 + 1e-12, 2.0**-10)
-    w_names = [f"screw.n{i}.w" for i in range(1, screw.n_nodes)]
+    w_names = [f"screw.n{i}.w" for i in range(1, screw_z.size)]
     r = simulate(dae, t, inputs={"F.f": F}, x0=x0, outputs=["joint.z"] + w_names, rtol=1e-5, atol=1e-10,
                  method=method)
     z = r["joint.z"]
@@ -147,33 +156,10 @@ def test_slow_creep_matches_frozen_quasi_static_stretch(method):
     assert z[0] < 0.3 < z[-1]                                   # and crosses a screw node
     W = np.column_stack([np.zeros_like(t)] + [r[n] for n in w_names])
     check = np.flatnonzero(t >= 0.08)[::25]
-    w_moving = np.array([np.interp(z[k], screw.z_nodes, W[k]) for k in check])
+    w_moving = np.array([np.interp(z[k], screw_z, W[k]) for k in check])
     w_frozen = np.array([_frozen_stretch(z[k], F) for k in check])
     assert w_frozen[-1] / w_frozen[0] - 1 > 0.2
     np.testing.assert_allclose(w_moving, w_frozen, rtol=1e-3)
-
-
-def _creeping(z0, v, F=2000.0):
-    """The creep test's drive (nut + table pushed by F, screw turning against a damper: creeps at v) and its
-    start state at that speed."""
-    from bscomp import flatten
-    from bscomp.kernel.damping import ModalDamping
-
-    K = thesis_screw_nut().stiffness_matrix()
-    r_g = -K[2, 5] / K[2, 2]
-    screw = Ballscrew(CREEP_SECTIONS, dofs=("w", "tz"))
-    s = System("creep")
-    s.add("screw", screw)
-    s.add("joint", MovingNutJoint.from_screw_nut(thesis_screw_nut(), screw.z_nodes, z0=z0))
-    for i in range(screw.n_nodes):
-        s.connect(f"screw.n{i}", f"joint.n{i}")
-    _loaded_nut(s, brake=F * r_g**2 / v)
-    s.connect("joint.nut", "nut.c")
-    s.damping = ModalDamping(0.05)
-    dae = flatten(s)
-    x0 = {"der(nut.com.w)": v, **{n: -v / r_g for n in dae.x_names if n.startswith("der(screw.n")
-                                  and n.endswith(".tz)")}}
-    return dae, x0
 
 
 @pytest.mark.filterwarnings("ignore::bscomp.errors.SlowMethodWarning")     # fixed with a moving nut: said below
