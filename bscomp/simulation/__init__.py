@@ -9,7 +9,8 @@ evaluation, progress), :mod:`~bscomp.simulation.sampled` (sampled controllers in
 :mod:`~bscomp.simulation.result`, :mod:`~bscomp.simulation.native` (C compilation, native messages);
 :mod:`~bscomp.simulation.compiled` / :mod:`~bscomp.simulation.compiled_time` (CompiledModel);
 :mod:`~bscomp.simulation.stepped` (the FRF of a nonlinear model at a real amplitude, by simulation) and
-:mod:`~bscomp.simulation.describing` (the same by the describing function: one harmonic, milliseconds).
+:mod:`~bscomp.simulation.describing` (the same by the describing function: one harmonic, milliseconds);
+:mod:`~bscomp.simulation.travel` (a moving nut kept on its screw, every method).
 """
 
 from bscomp.simulation.compiled import CompiledModel, ModalModel, nonlinear_elements
@@ -19,7 +20,8 @@ from bscomp.simulation.dispatch import METHODS, simulate
 from bscomp.simulation.result import SimulationError, SimulationResult
 from bscomp.simulation.sampled import SampledController, sampled_controller
 from bscomp.simulation.stepped import SteppedSine, stepped_sine
+from bscomp.simulation.travel import NutOffScrewError
 
 __all__ = ["simulate", "METHODS", "SimulationResult", "SimulationError", "SampledController", "sampled_controller",
            "CompiledModel", "ModalModel", "nonlinear_elements", "CompiledModelError", "stepped_sine", "SteppedSine",
-           "describing_frf", "DescribingFrf", "DescribingFunctionError"]
+           "describing_frf", "DescribingFrf", "DescribingFunctionError", "NutOffScrewError"]
