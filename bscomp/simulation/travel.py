@@ -56,24 +56,24 @@ class NutOffScrewError(SimulationError):
 
 def travel_limits(dae) -> list:
     """``(observable, joint path, first node, last node)`` of every moving joint of ``dae`` whose position is an
-    observable (``<path>.z``)."""
-    names = set(dae.output_names())
-    out = []
-    for path, comp in find_moving_joints(dae.system):
-        name = f"{path}.z"
-        zn = getattr(comp, "z_nodes", None)
-        if name in names and zn is not None and len(zn) >= 2:
-            out.append((name, path, float(zn[0]), float(zn[-1])))
+    observable (``<path>.z``), and whether that position moves with the state; found once per Dae (cached)."""
+    out = dae._cache.get("nut_travel_limits")
+    if out is None:
+        names = set(dae.output_names())
+        out = []
+        for path, comp in find_moving_joints(dae.system):
+            name = f"{path}.z"
+            zn = getattr(comp, "z_nodes", None)
+            if name in names and zn is not None and len(zn) >= 2:
+                moves = bool(ca.depends_on(dae.output_expr([name]), dae.xs))
+                out.append((name, path, float(zn[0]), float(zn[-1]), moves))
+        dae._cache["nut_travel_limits"] = out
     return out
 
 
 def moving_nuts(dae) -> list:
     """Paths of the moving joints whose contact point moves with the state (``<path>.z`` depends on it)."""
-    out = []
-    for name, path, *_ in travel_limits(dae):
-        if ca.depends_on(dae.output_expr([name]), dae.xs):
-            out.append(path)
-    return out
+    return [path for _, path, _, _, moves in travel_limits(dae) if moves]
 
 
 def warn_slow_with_moving_nut(dae, method, stacklevel) -> None:
@@ -89,7 +89,7 @@ def warn_slow_with_moving_nut(dae, method, stacklevel) -> None:
 def check_travel(res, limits, method, model_name) -> None:
     """Raise :class:`NutOffScrewError` at the first output time a joint's ``z`` is outside its screw; else record
     each joint's travel in ``res.stats["nut_travel"]``: ``{path: {"z_min", "z_max", "screw": [first, last]}}`` [m]."""
-    for name, path, lo, hi in limits:
+    for name, path, lo, hi, _ in limits:
         z = np.asarray(res.outputs[name], float)
         res.stats.setdefault("nut_travel", {})[path] = {"z_min": float(z.min()), "z_max": float(z.max()),
                                                         "screw": [lo, hi]}
