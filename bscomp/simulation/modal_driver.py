@@ -31,7 +31,7 @@ from bscomp.simulation.modal_channels import (
     rigid_body_dampers,
 )
 from bscomp.simulation.modal_kernels import SKIPPED, Kernel, NumpyCall
-from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec, regime_eps
+from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec, coefficient_patterns, regime_eps
 from bscomp.simulation.modal_parts import ModalPart
 from bscomp.simulation.modal_steps import THETAS, Stepper
 
@@ -195,14 +195,18 @@ class ModalSimulator:
         return out
 
     def law(self, cset):
+        """The :class:`~bscomp.simulation.modal_laws.LawSpec` of a channel set's shape: its sizes and where the
+        joints' polynomial coefficients are nonzero (cached)."""
         sizes = tuple((len(S), len(el)) for S, el in cset)
-        spec = self.laws.get(sizes)
+        pats = coefficient_patterns(self.ch, cset)
+        key = (sizes, tuple(tuple(p.tobytes() for p in pj) for pj in pats))
+        spec = self.laws.get(key)
         if spec is None:
-            spec = LawSpec(self.ch, sizes, self.cands)
+            spec = LawSpec(self.ch, sizes, self.cands, pats)
             spec.f = spec.function()
             spec.fs = spec.functions()
             spec.fast = NumpyCall(spec.f)
-            self.laws[sizes] = spec
+            self.laws[key] = spec
         return spec
 
     def stepper(self, mp, cset):
@@ -218,7 +222,7 @@ class ModalSimulator:
             theta = spec.pack(mp.regime, mp.lin.regime, mp.z_ref, cset)      # the slopes the part was built with
             S_list = [S for S, _ in cset]
             rows, gsel = self.rows(mp, S_list), self.gsel(mp, S_list)
-            shape = (self._padded(mp.lam.size), self.dae.nu, gsel.size, rows[0].shape[0], spec.sizes)
+            shape = (self._padded(mp.lam.size), self.dae.nu, gsel.size, rows[0].shape[0], spec.key)
             kern = self.kernels.get(shape)
             if kern is None:
                 kern = self.kernels[shape] = Kernel(*shape[:4], spec.fs, 2 * len(self.ch.elements), THETAS,

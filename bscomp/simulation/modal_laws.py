@@ -18,7 +18,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-__all__ = ["LawSpec", "regime_eps"]
+__all__ = ["LawSpec", "regime_eps", "joint_coefficients", "coefficient_patterns"]
 
 _EPS_REGIME = 1e-3   # slopes below this fraction of an element's steepest candidate count as zero
 REGIME_MARGIN = 2.3  # hysteresis: another regime is taken when its slopes are 10x closer (log-distance)
@@ -39,6 +39,34 @@ def regime_eps(cands) -> np.ndarray:
     return _EPS_REGIME * np.maximum(c.max(axis=0), 1e-300)
 
 
+def joint_coefficients(jt, S, e) -> np.ndarray:
+    """``(4, m_eff, |S|)``: the coefficients of the joint's ``E(ξ) = Σ_k c_k ξ^k`` (Eq 3.27 / A.7) for element
+    ``e``, on the potentials ``S`` (columns of ``S`` outside the element: zero)."""
+    cols, coef = jt.elements[e]
+    full = np.zeros((4, jt.m_eff, len(S)))
+    where = {int(c): i for i, c in enumerate(S)}
+    full[:, :, [where[int(c)] for c in cols]] = coef[:, jt.eff_rows, :]
+    return full
+
+
+def coefficient_patterns(ch, cset) -> tuple:
+    """Per joint and covered element of a channel set, where :func:`joint_coefficients` is nonzero: the law
+    is built on these (a bar element's linear shape functions fill 11 of the 60 coefficients of the
+    axial + torsional joint; the others would be multiplied by zero at every evaluation)."""
+    return tuple(tuple(joint_coefficients(jt, S, e) != 0 for e in elems)
+                 for jt, (S, elems) in zip(ch.joints, cset, strict=True))
+
+
+def _sparse_powers(piece, pat) -> list:
+    """The packed nonzeros (C order of ``pat``) as one sparse SX matrix per power of ``ξ``."""
+    out, off = [], 0
+    for k in range(pat.shape[0]):
+        r, c = np.nonzero(pat[k])
+        out.append(ca.SX.triplet(r.tolist(), c.tolist(), piece[off:off + r.size], pat.shape[1], pat.shape[2]))
+        off += r.size
+    return out
+
+
 class LawSpec:
     """Shape and packing of the channel laws for one channel set.
 
@@ -51,8 +79,13 @@ class LawSpec:
         Candidate regimes per element.
     """
 
-    def __init__(self, ch, sizes, candidates):
+    def __init__(self, ch, sizes, candidates, patterns=None):
         self.ch, self.sizes, self.cands = ch, tuple(sizes), [list(c) for c in candidates]
+        if patterns is None:                  # every coefficient a number (dense polynomials)
+            patterns = tuple(tuple(np.ones((4, jt.m_eff, nS), bool) for _ in range(ne))
+                             for jt, (nS, ne) in zip(ch.joints, self.sizes, strict=True))
+        self.patterns = patterns
+        self.key = (self.sizes, tuple(tuple(pat.tobytes() for pat in pj) for pj in patterns))
         self.layout = []                      # (name, shape) of every packed piece, in order
         for i, el in enumerate(ch.elements):
             self.layout += [(f"p{i}", (len(el.pnames),)), (f"reg{i}", (2,)), (f"cand{i}", (len(self.cands[i]), 2)),
@@ -63,7 +96,7 @@ class LawSpec:
             if jt.C is not None:
                 self.layout += [(f"C{j}", (m, m)), (f"Cr{j}", (nS, nS))]
             for e in range(ne):
-                self.layout += [(f"coef{j}_{e}", (4, m, nS)), (f"zab{j}_{e}", (2,))]
+                self.layout += [(f"coef{j}_{e}", (int(patterns[j][e].sum()),)), (f"zab{j}_{e}", (2,))]
         self.n_theta = sum(int(np.prod(s)) for _, s in self.layout)
         self.ny = 2 * len(ch.elements) + sum(nS * (2 if jt.C is not None else 1)
                                              for jt, (nS, _) in zip(ch.joints, sizes, strict=True))
@@ -90,11 +123,11 @@ class LawSpec:
                 vals[f"C{j}"] = jt.C[np.ix_(rows, rows)]
                 vals[f"Cr{j}"] = Cr[np.ix_(S, S)]
             for k, e in enumerate(elems):
-                cols, coef = jt.elements[e]
-                full = np.zeros((4, jt.m_eff, len(S)))
-                where = {int(c): i for i, c in enumerate(S)}
-                full[:, :, [where[int(c)] for c in cols]] = coef[:, rows, :]
-                vals[f"coef{j}_{k}"] = full
+                full, pat = joint_coefficients(jt, S, e), self.patterns[j][k]
+                if np.any(full[~pat]):
+                    raise ValueError(f"{jt.path}: element {e}'s polynomial has a coefficient outside the pattern "
+                                     "this law was built for (build the law from this channel set)")
+                vals[f"coef{j}_{k}"] = full[pat]
                 vals[f"zab{j}_{k}"] = np.array([jt.z_nodes[e], jt.z_nodes[e + 1]])
         return np.concatenate([_flat(vals[n]) for n, _ in self.layout]) if self.layout else np.zeros(0)
 
@@ -104,7 +137,10 @@ class LawSpec:
         for n, shape in self.layout:
             size = int(np.prod(shape))
             piece = theta[off:off + size]
-            if len(shape) == 2:
+            if n.startswith("coef"):          # the polynomial's nonzeros: sparse matrices, one per power
+                j, e = (int(a) for a in n[4:].split("_"))
+                piece = _sparse_powers(piece, self.patterns[j][e])
+            elif len(shape) == 2:
                 piece = ca.reshape(piece, shape[0], shape[1])
             elif len(shape) == 3:
                 piece = [ca.reshape(piece[k * shape[1] * shape[2]:(k + 1) * shape[1] * shape[2]], shape[1],
