@@ -124,9 +124,10 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         an input).
     modal_options : dict, optional
         ``method="modal"``: ``tol`` (interpolation error of the nonlinear forces inside a step, relative to the
-        largest of them; default 1e-3), ``f_keep`` (highest undamped natural frequency kept dynamically [Hz],
-        the others static; default 3e4, None keeps all), ``window`` (elements between the moving contact
-        point and the reference position of the linear part before the reference follows it; default 2).
+        step's largest, at least 0.1 x the run's largest so far; default 1e-3), ``f_keep`` (highest undamped
+        natural frequency kept dynamically [Hz], the others static; default 3e4, None keeps all), ``window``
+        (elements between the moving contact point and the reference position of the linear part before the
+        reference follows it; default 2).
 
     Returns
     -------

@@ -30,7 +30,7 @@ from bscomp.simulation.modal_channels import (
     ModalSimulationError,
     rigid_body_dampers,
 )
-from bscomp.simulation.modal_kernels import SKIPPED, Kernel, NumpyCall
+from bscomp.simulation.modal_kernels import FORCE_FLOOR, SKIPPED, Kernel, NumpyCall
 from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec, coefficient_patterns, regime_eps
 from bscomp.simulation.modal_parts import ModalPart
 from bscomp.simulation.modal_steps import THETAS, Stepper
@@ -392,14 +392,16 @@ class ModalSimulator:
         self._checked.add(key)
 
     def _ctl(self, tol):
-        """The kernel's stop rule (the one of :meth:`_flags`): ``[tol, running force scale, Newton acceptance]``."""
+        """The kernel's stop rule (the one of :meth:`_flags`): ``[tol, running force scale, Newton acceptance]``;
+        errors are judged against the step's largest force, at least ``FORCE_FLOOR`` x the running scale."""
         return np.array([tol, self.scale, NEWTON_ACCEPT * tol])
 
     def _flags(self, info, tol):
         """``(j, switch, scale)`` of a block of step infos: the first ``j`` steps are accepted; ``switch``: the
         last of them ended in another regime (the linear part is switched there); ``scale(i)`` the running force
         scale after step i. A step is bad if its interpolation error or last Newton update exceeds the tolerance
-        or its contact point left the element.
+        times its largest force (at least ``FORCE_FLOOR`` x the running scale) or its contact point left the
+        element.
 
         The kernel applies the same rule and skips every step after the first bad or regime-changing one
         (:data:`~bscomp.simulation.modal_kernels.SKIPPED`), so only the last computed step is tested here."""
@@ -414,7 +416,7 @@ class ModalSimulator:
         if c == 0:
             return 0, False, scale
         err, fmax, okr, oke, upd = info[c - 1]
-        sc = scale(c - 1)
+        sc = max(fmax, FORCE_FLOOR * scale(c - 1))
         bad = err > tol * sc or oke < 0.5 or not upd < NEWTON_ACCEPT * tol * sc
         if bad:
             return c - 1, False, scale

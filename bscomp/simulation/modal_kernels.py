@@ -13,9 +13,9 @@ driver to switch the linear part.
 
 A chunk stops computing after its first step the driver will not accept (the driver's own rule, evaluated in
 the kernel from ``ctl = [tol, force scale, Newton acceptance]``: error or last Newton update too large for the
-running force scale, contact point out of its element, or a regime change at the end): the remaining steps are
-skipped by a short-circuit conditional and report an error of ``SKIPPED``, so a chunk that fails early costs
-what it computed, not its length.
+step's largest force (at least :data:`FORCE_FLOOR` of the running force scale), contact point out of its
+element, or a regime change at the end): the remaining steps are skipped by a short-circuit conditional and
+report an error of ``SKIPPED``, so a chunk that fails early costs what it computed, not its length.
 """
 
 from __future__ import annotations
@@ -31,6 +31,13 @@ from bscomp.simulation.native import native_functions
 __all__ = ["pack_step", "Kernel", "NumpyCall"]
 
 INFO = 5
+#: A step's errors are judged against its own largest force, but at least this fraction of the run's largest so
+#: far: a light mass in a long stretch of small forces (a contact's parabolic corner, 1-160 N beside 2.2 kN
+#: impacts) otherwise gathers the force error of the impacts' scale step after step. Measured on 80 random
+#: friction + backlash chains against IDAS rtol 1e-10: the geometric mean of modal's error over IDAS's at its
+#: default rtol 1e-6 went 0.29 -> 0.13 (1.0, the run's scale alone), runs worse than IDAS 19 -> 12, for 35 % more
+#: sub-steps; 0.01 gave the same errors.
+FORCE_FLOOR = 0.1
 SKIPPED = 1e300   # the error a skipped step reports (never accepted)
 # a change of this file or of the laws' construction recompiles
 _SOURCE_KEY = hashlib.sha1(Path(__file__).read_bytes()
@@ -175,7 +182,9 @@ class Kernel:
         args = [x, aux, u, *P, th, Mc, ctl]
         x1, info = step(x, u, *P, th, Mc)
         sc = ca.fmax(aux[0], info[1])
-        bad = ca.logic_or(ca.logic_or(info[0] > ctl[0] * sc, info[3] < 0.5), ca.logic_not(info[4] < ctl[2] * sc))
+        judge = ca.fmax(info[1], FORCE_FLOOR * sc)
+        bad = ca.logic_or(ca.logic_or(info[0] > ctl[0] * judge, info[3] < 0.5),
+                          ca.logic_not(info[4] < ctl[2] * judge))
         stop = ca.logic_or(bad, info[2] < 0.5)
         run = ca.Function(f"modal_run_{_tag(n_newton)}", args, [x1, info, ca.vertcat(sc, stop)])
         skip = ca.Function(f"modal_skip_{_tag(n_newton)}", args,
