@@ -9,10 +9,11 @@ acceleration and the friction force against IDAS at rtol 1e-10, atol 1e-13 (the 
 defaults and at ``tol`` 1e-4 and for IDAS at its defaults (rtol 1e-6); the worst NRMSE of the three outputs (RMS
 error over the reference's peak-to-peak) per case, then the summary docs/nonlinear.md quotes.
 
-    python benchmarks/fuzz_modal.py [FIRST LAST] [--floor F]    # seeds FIRST..LAST-1, default 0 80 (~20 min)
+    python benchmarks/fuzz_modal.py [FIRST LAST] [--floor F] [--others]    # seeds FIRST..LAST-1 (default 0 80)
 
 ``--floor 1`` is the baseline of before 2026-12-05: a step's force error judged against the run's largest force
 alone (:data:`bscomp.simulation.modal_kernels.FORCE_FLOOR`, now 0.1 with the step's own largest force).
+``--others`` adds ``modal`` with ``jit=True``, ``split`` and ``fixed`` (their errors, walls and failures).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import numpy as np
 from bscomp import System
 from bscomp.components import Backlash, CoulombFriction, Damper, Fixed, Force, Mass, Spring, StribeckFriction
 from bscomp.kernel.flattening import flatten
-from bscomp.simulation import modal_driver, modal_kernels, simulate
+from bscomp.simulation import SimulationError, modal_driver, modal_kernels, simulate
 
 
 def chain(rng):
@@ -71,8 +72,14 @@ def nrmse(a, b):
     return float(np.sqrt(np.mean((a - b) ** 2)) / span) if span > 0 else float(np.max(np.abs(a - b)))
 
 
-def case(seed, t):
-    """``(errors, walls)`` of one seed: worst NRMSE and wall time of modal (defaults), modal (tol 1e-4), IDAS."""
+RUNS = [("modal", {"method": "modal"}), ("modal tol 1e-4", {"method": "modal", "modal_options": {"tol": 1e-4}}),
+        ("idas", {"max_num_steps": 10**7})]
+OTHERS = [("modal jit", {"method": "modal", "jit": True}), ("split", {"method": "split"}),
+          ("fixed", {"method": "fixed"})]
+
+
+def case(seed, t, runs=RUNS):
+    """``(errors, walls)`` of one seed: worst NRMSE and wall time of each run (nan: it raised SimulationError)."""
     rng = np.random.default_rng(seed)
     system, F_c, last = chain(rng)
     amp, f = F_c * rng.uniform(0.5, 4), rng.uniform(5, 60)
@@ -86,31 +93,39 @@ def case(seed, t):
     outs = [f"m{last}.v", f"m{last}.a", "fr.f"]
     ref = simulate(dae, t, inputs={"F.f": u}, outputs=outs, rtol=1e-10, atol=1e-13, max_num_steps=10**7)
     errs, walls = [], []
-    for kw in ({"method": "modal"}, {"method": "modal", "modal_options": {"tol": 1e-4}}, {"max_num_steps": 10**7}):
+    for _, kw in runs:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             t0 = time.perf_counter()
-            r = simulate(dae, t, inputs={"F.f": u}, outputs=outs, **kw)
+            try:
+                r = simulate(dae, t, inputs={"F.f": u}, outputs=outs, **kw)
+            except SimulationError:
+                r = None
             walls.append(time.perf_counter() - t0)
-        errs.append(max(nrmse(r[o], ref[o]) for o in outs))
+        errs.append(np.nan if r is None else max(nrmse(r[o], ref[o]) for o in outs))
     return errs, walls
 
 
-def main(first=0, last=80):
+def main(first=0, last=80, others=False):
     t = np.linspace(0.0, 0.2, 2001)
-    rows = []
+    runs = RUNS + (OTHERS if others else [])
+    names = [n for n, _ in runs]
+    E, W = [], []
     for seed in range(first, last):
-        errs, walls = case(seed, t)
-        rows.append((seed, *errs, *walls))
-        print(f"seed {seed:3d}: worst NRMSE modal {errs[0]:.1e} (tol 1e-4: {errs[1]:.1e}), IDAS rtol 1e-6 "
-              f"{errs[2]:.1e}; wall modal {walls[0]:.2f} s, IDAS {walls[2]:.2f} s", flush=True)
-    a = np.array(rows)
-    em, e4, ei = a[:, 1], a[:, 2], a[:, 3]
-    print(f"\n{len(a)} cases: modal (defaults) less accurate than IDAS (defaults) in {int(np.sum(em > ei))}, "
+        errs, walls = case(seed, t, runs)
+        E.append(errs)
+        W.append(walls)
+        print(f"seed {seed:3d}: worst NRMSE " + ", ".join(f"{n} {e:.1e} ({w:.2f} s)" for n, e, w in
+                                                          zip(names, errs, walls, strict=True)), flush=True)
+    E, W = np.array(E), np.array(W)
+    em, ei = E[:, 0], E[:, 2]
+    print(f"\n{len(E)} cases: modal (defaults) less accurate than IDAS (defaults) in {int(np.sum(em > ei))}, "
           f">3x in {int(np.sum(em > 3 * ei))}, >10x in {int(np.sum(em > 10 * ei))}; geometric mean of modal / "
-          f"IDAS error {np.exp(np.mean(np.log(em / ei))):.2f}; medians modal {np.median(em):.1e}, tol 1e-4 "
-          f"{np.median(e4):.1e}, IDAS {np.median(ei):.1e}; wall sums modal {a[:, 4].sum():.1f} s, IDAS "
-          f"{a[:, 6].sum():.1f} s")
+          f"IDAS error {np.exp(np.mean(np.log(em / ei))):.2f}")
+    for i, n in enumerate(names):
+        ok = ~np.isnan(E[:, i])
+        print(f"  {n:<16} median {np.median(E[ok, i]):.1e}, above 1e-2 in {int(np.sum(E[ok, i] > 1e-2))}, raised "
+              f"SimulationError in {int(np.sum(~ok))}; wall sum {W[:, i].sum():.1f} s")
 
 
 if __name__ == "__main__":
@@ -118,4 +133,5 @@ if __name__ == "__main__":
         i = sys.argv.index("--floor")
         modal_kernels.FORCE_FLOOR = modal_driver.FORCE_FLOOR = float(sys.argv[i + 1])
         del sys.argv[i:i + 2]
-    main(*[int(a) for a in sys.argv[1:3]])
+    others = "--others" in sys.argv
+    main(*[int(a) for a in sys.argv[1:3] if not a.startswith("--")], others=others)
