@@ -35,8 +35,8 @@ INFO = 5
 #: far: a light mass in a long stretch of small forces (a contact's parabolic corner, 1-160 N beside 2.2 kN
 #: impacts) otherwise gathers the force error of the impacts' scale step after step. Measured on 80 random
 #: friction + backlash chains against IDAS rtol 1e-10: the geometric mean of modal's error over IDAS's at its
-#: default rtol 1e-6 went 0.29 -> 0.13 (1.0, the run's scale alone), runs worse than IDAS 19 -> 12, for 35 % more
-#: sub-steps; 0.01 gave the same errors.
+#: default rtol 1e-6 went 0.29 -> 0.15 (1.0: the run's scale alone), chains > 3x worse than IDAS 8 -> 3, for 25 %
+#: more wall time; 0.01 gave the same errors, 0.3 less (docs/nonlinear.md, "Accuracy on drives we did not build").
 FORCE_FLOOR = 0.1
 SKIPPED = 1e300   # the error a skipped step reports (never accepted)
 # a change of this file or of the laws' construction recompiles
@@ -279,7 +279,7 @@ class Kernel:
             names = [f"modal_chunk{k}_{_tag(it)}" for k, it in wanted]
             # the laws by their value and check Functions: the Newton one is the same expression and its Jacobian
             # (modal_laws.LawSpec._build, in the source key), the largest to serialize
-            key = "|".join([_SOURCE_KEY, repr((self.m, self.nu, self.r, self.rm, self.ne, self.thetas))]
+            key = "|".join([_SOURCE_KEY, repr((self.m, self.nu, self.r, self.rm, self.ne, self.thetas, FORCE_FLOOR))]
                            + [f.serialize() for f in (self.law_check, self.law_elements)])
             funcs = native_functions(lambda: [self.chunk(k, it) for k, it in wanted], key=key, names=names)
             self._native = dict(zip(wanted, funcs, strict=True))
