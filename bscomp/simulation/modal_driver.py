@@ -52,7 +52,11 @@ CALM = 1              # clean chunks before the next one tries the coarser level
 CHUNK_ITERATIONS = -3  # chunks and batches: three chord iterations (a step that needs more is redone finer)
 FINE_ITERATIONS = 3   # the finest level: three Newton iterations
 FINE_LEVELS = 3       # refinement levels below a failed chunk's level, then single sub-steps
-DEFECT_DAMPING = 1e-6  # damping slope given to a free mass in a defective regime, x the element's largest one
+#: Slope given to a free mass in a defective regime, x the element's largest (its correction carries it back).
+#: 1e-6 made the free table's mode nearly critically damped on random beds (eigenvector condition 2e9: each
+#: switch's projection moved a 1.9 um clearance's s by 2e-8 m); 1e-8: 50 random moving-nut beds' worst table.a
+#: 3.9e-2 -> 1.2e-3, none worse (benchmarks/fuzz_moving_nut.py, docs/nonlinear.md "Limits").
+DEFECT_DAMPING = 1e-8
 
 
 class ModalHistory:

@@ -1,6 +1,7 @@
-"""simulate(method="modal") on a drive not built for it: a 4-mass chain rattling in a smoothed clearance with
-Stribeck friction (one of 80 random friction + backlash chains of a differential fuzz against IDAS, the one
-where modal was least accurate; docs/nonlinear.md, "Accuracy on drives we did not build")."""
+"""simulate(method="modal") on drives not built for it, the worst cases of two differential fuzzes against IDAS
+(benchmarks/fuzz_modal.py, fuzz_moving_nut.py): a 4-mass chain rattling in a smoothed clearance with Stribeck
+friction, and the moving-nut test bed with a clearance and no friction (docs/nonlinear.md, "Accuracy on drives
+we did not build" and "Limits")."""
 
 import warnings
 
@@ -11,6 +12,7 @@ from bscomp import System
 from bscomp.components import Backlash, Damper, Fixed, Force, Mass, Spring, StribeckFriction
 from bscomp.kernel.flattening import flatten
 from bscomp.simulation import simulate
+from bscomp.systems import testbed
 
 OUTS = ["m3.v", "k3.f"]
 
@@ -79,3 +81,35 @@ def test_the_error_falls_with_the_tolerance(rattling):
     coarse, fine = (_modal(dae, t, tol) for tol in (1e-3, 1e-4))
     for o in OUTS:
         assert _nrmse(fine[o], ref[o]) < _nrmse(coarse[o], ref[o]) / 3, o
+
+
+def _clearance_bed():
+    """The moving-nut test bed (8 screw elements, nut at 0.486 m) with a 1.87 um nut-table clearance, no guideway
+    friction: the table is free whenever the clearance is open (seed 0 of benchmarks/fuzz_moving_nut.py)."""
+    s = testbed.testbed_axial_torsional(nut_joint="moving", n_elements=8, nut_position=0.48592701410419925)
+    s.insert("backlash", Backlash(b=1.874024340935909e-06, c=1142998595.469288, eps=1e-7),
+             between=("table_joint.flange", "table.flange_a"))
+    return flatten(s)
+
+
+def test_a_free_table_in_a_clearance_converges_with_the_tolerance():
+    """The open clearance leaves the table free (a Jordan block the linear part gets a small spring for, carried
+    back by the correction). With that spring at 1e-6 of the contact's, the free mode came out nearly critically
+    damped (eigenvector condition 2.1e9), each regime switch's projection moved the clearance's s by up to 2e-8 m,
+    and the error grew as ``tol`` fell: table.a 1.5e-2 at 1e-3, 8.0e-2 at 1e-5 (IDAS rtol 1e-6: 9.3e-5). At 1e-8:
+    3.3e-5 and 5.1e-6."""
+    dae = _clearance_bed()
+    t = np.arange(0.0, 0.05 + 1e-12, 1e-4)
+
+    def u(tt):
+        return 5.550181262834976 if (tt * 5.0726491034663415) % 1.0 < 0.5 else -5.550181262834976
+
+    ref = simulate(dae, t, inputs={"amp.u": u}, outputs=["table.a"], rtol=1e-9, atol=1e-12, max_num_steps=10**7)
+    err = {}
+    for tol in (1e-3, 1e-5):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            r = simulate(dae, t, inputs={"amp.u": u}, outputs=["table.a"], method="modal", modal_options={"tol": tol})
+        err[tol] = float(np.sqrt(np.mean((r["table.a"] - ref["table.a"]) ** 2) / np.mean(ref["table.a"] ** 2)))
+    assert err[1e-3] < 1e-3
+    assert err[1e-5] < err[1e-3] / 2
