@@ -124,10 +124,10 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         an input).
     modal_options : dict, optional
         ``method="modal"``: ``tol`` (interpolation error of the nonlinear forces inside a step, relative to the
-        step's largest, at least 0.1 x the run's largest so far; default 1e-3), ``f_keep`` (highest undamped
-        natural frequency kept dynamically [Hz], the others static; default 3e4, None keeps all), ``window``
-        (elements between the moving contact point and the reference position of the linear part before the
-        reference follows it; default 2).
+        largest of them so far; default 1e-3; a light mass beside much larger impacts wants 1e-4, see
+        ``docs/nonlinear.md``), ``f_keep`` (highest undamped natural frequency kept dynamically [Hz], the others
+        static; default 3e4, None keeps all), ``window`` (elements between the moving contact point and the
+        reference position of the linear part before the reference follows it; default 2).
 
     Returns
     -------

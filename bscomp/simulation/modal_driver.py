@@ -397,7 +397,7 @@ class ModalSimulator:
 
     def _ctl(self, tol):
         """The kernel's stop rule (the one of :meth:`_flags`): ``[tol, running force scale, Newton acceptance]``;
-        errors are judged against the step's largest force, at least ``FORCE_FLOOR`` x the running scale."""
+        errors are judged against the step's largest force, at least ``FORCE_FLOOR`` (1.0) x the running scale."""
         return np.array([tol, self.scale, NEWTON_ACCEPT * tol])
 
     def _flags(self, info, tol):

@@ -12,9 +12,9 @@ and the channel coordinates are rows of it, ``y(θ) = Re(C_ξ ξ(θτ)) + D_u u 
 (``θ = 1``) ``y_1 = c + H g_1``, so ``g_1 = law(y_1)`` is a Newton (or chord) solve in the few channel forces
 only. The linear structure is exact for any step; the force's linear interpolation (trapezoidal: second order,
 A-stable) is checked at ``θ = 1/4, 1/2, 3/4`` (the elements' rows at the quarter points, every channel at the
-midpoint): the error ``max_j |law(y(θ_j)) - g(θ_j τ)|`` must stay below the tolerance times the step's largest
-channel force (at least :data:`~bscomp.simulation.modal_kernels.FORCE_FLOOR` of the run's largest so far), or
-the driver redoes the step in four (:mod:`bscomp.simulation.modal_driver`). This module
+midpoint): the error ``max_j |law(y(θ_j)) - g(θ_j τ)|`` must stay below the tolerance times the largest
+channel force so far (:data:`~bscomp.simulation.modal_kernels.FORCE_FLOOR`), or the driver redoes the step in
+four (:mod:`bscomp.simulation.modal_driver`). This module
 computes the matrices of those formulas per sub-step length (:class:`StepData`); the compiled kernel
 (:mod:`bscomp.simulation.modal_kernels`) evaluates them.
 """

@@ -64,19 +64,20 @@ def _modal(dae, t, tol):
         return simulate(dae, t, inputs={"F.f": _force}, outputs=OUTS, method="modal", modal_options={"tol": tol})
 
 
-def test_small_forces_beside_large_impacts_are_resolved(rattling):
-    """The step's force error is judged against the step's own largest force (at least 0.1 x the run's largest):
-    judged against the run's largest alone (the impacts' 2.2 kN), the long stretches of 1-160 N in the contact's
-    corner each took an error of up to 2.2 N, and m3's velocity drifted to NRMSE 4.3e-3 (IDAS at its default
-    rtol 1e-6: 1.9e-4). Now 3.6e-4 (k3.f 4.8e-4)."""
+def test_small_forces_beside_large_impacts_need_a_tighter_tolerance(rattling):
+    """The step's force error is judged against the run's largest force (the impacts' 2.2 kN): the long stretches
+    of 1-160 N in the contact's corner each take up to 2.2 N of error of one sign, and at the default ``tol``
+    m3's velocity drifts to NRMSE 4.3e-3 (IDAS at its default rtol 1e-6: 1.9e-4). ``tol`` 1e-4, the advice for
+    such drives (docs/nonlinear.md): 5.3e-4 (k3.f 7.1e-4)."""
     dae, t, ref = rattling
-    r = _modal(dae, t, 1e-3)
+    r = _modal(dae, t, 1e-4)
     for o in OUTS:
         assert _nrmse(r[o], ref[o]) < 1e-3, o
 
 
 def test_the_error_falls_with_the_tolerance(rattling):
-    """Convergence: a 10x tighter ``tol`` gives a >= 3x smaller error against IDAS at rtol 1e-10."""
+    """Convergence: a 10x tighter ``tol`` gives a >= 3x smaller error against IDAS at rtol 1e-10 (measured 8x:
+    4.3e-3 -> 5.3e-4 on m3.v)."""
     dae, t, ref = rattling
     coarse, fine = (_modal(dae, t, tol) for tol in (1e-3, 1e-4))
     for o in OUTS:
