@@ -19,6 +19,7 @@ import time
 import warnings
 
 import numpy as np
+from moving_cases import nrmse  # the issue-16 benchmarks' NRMSE (RMS error / RMS reference)
 
 from bscomp import flatten
 from bscomp.components import Backlash, CoulombFriction, Fixed
@@ -26,10 +27,6 @@ from bscomp.simulation import simulate
 from bscomp.systems import testbed
 
 OUTS = ["table.a", "table.v", "rotor.phi", "sn.z"]
-
-
-def nrmse(a, b):
-    return float(np.sqrt(np.mean((np.asarray(a) - b) ** 2)) / np.sqrt(np.mean(np.asarray(b) ** 2)))
 
 
 def bed(seed):
