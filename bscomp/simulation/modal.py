@@ -18,7 +18,8 @@ import numpy as np
 
 from bscomp.errors import ArgumentTypeError, UsageError, check_number
 from bscomp.simulation.common import Progress, SampledLoop, evaluate_mapped
-from bscomp.simulation.modal_driver import ModalSimulator, block
+from bscomp.simulation.modal_driver import ModalSimulator
+from bscomp.simulation.modal_steps import block
 from bscomp.simulation.result import SimulationResult
 
 __all__ = ["simulate_modal", "check_modal_options", "ModalResult", "DEFAULTS"]
@@ -156,15 +157,17 @@ def _states(sim, XI, G, segs, Uh):
     return X + sim.ch.x_a, XD, Z
 
 
-def simulator(dae, p, options, jit=False):
+def simulator(dae, p, options, jit=False, f_band=False):
     """The cached :class:`~bscomp.simulation.modal_driver.ModalSimulator` of a Dae, parameter vector and
-    options (up to four per Dae: a repeated run skips the set-up)."""
-    key = ("modal", p.tobytes(), options["f_keep"], options["window"], bool(jit))
+    options (up to four per Dae: a repeated run skips the set-up). ``f_band``: ``f_keep`` is the default and may
+    be raised to keep the modes of the elements' stiff regimes."""
+    key = ("modal", p.tobytes(), options["f_keep"], options["window"], bool(jit), bool(f_band))
     cache = dae._cache.setdefault("modal_simulators", {})
     if key not in cache:
         if len(cache) >= 4:
             cache.pop(next(iter(cache)))
-        cache[key] = ModalSimulator(dae, p, f_keep=options["f_keep"], window=options["window"], jit=jit)
+        cache[key] = ModalSimulator(dae, p, f_keep=options["f_keep"], window=options["window"], jit=jit,
+                                    f_band=f_band)
     return cache[key]
 
 
@@ -216,7 +219,7 @@ def simulate_modal(problem, options):
         raise UsageError(f"substeps must be >= 1, got {substeps}")
     dae, t, U, xs, p = problem.dae, problem.t, problem.U, problem.x0, problem.p
     t_wall = time.perf_counter()
-    sim = simulator(dae, p, opts, options.jit)
+    sim = simulator(dae, p, opts, options.jit, f_band="f_keep" not in (options.modal or {}))
     out = sim.outputs.get(tuple(problem.outputs))
     if out is None:
         out = sim.outputs[tuple(problem.outputs)] = Outputs(sim, problem.outputs)

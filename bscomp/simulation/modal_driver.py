@@ -19,10 +19,12 @@ part). Every combination of regimes and references is built once and cached.
 from __future__ import annotations
 
 import time
+import warnings
 
 import casadi as ca
 import numpy as np
 
+from bscomp.errors import ModelLimitationWarning
 from bscomp.simulation.modal_channels import (
     Channels,
     DefectiveLinearPart,
@@ -32,10 +34,10 @@ from bscomp.simulation.modal_channels import (
 )
 from bscomp.simulation.modal_kernels import FORCE_FLOOR, SKIPPED, Kernel, NumpyCall
 from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec, coefficient_patterns, regime_eps
-from bscomp.simulation.modal_parts import ModalPart
-from bscomp.simulation.modal_steps import THETAS, Stepper
+from bscomp.simulation.modal_parts import ELEMENT_BAND, ModalPart, element_bands
+from bscomp.simulation.modal_steps import THETAS, ModalHistory, Stepper, block
 
-__all__ = ["ModalSimulator", "ModalHistory"]
+__all__ = ["ModalSimulator"]
 
 
 def _chunk_size(n):
@@ -59,43 +61,6 @@ FINE_LEVELS = 3       # refinement levels below a failed chunk's level, then sin
 DEFECT_DAMPING = 1e-8
 
 
-class ModalHistory:
-    """The modal coordinates at the grid points: one complex row per point, as wide as the largest modal part
-    stored so far (a point of a part with ``m`` coordinates uses the first ``m`` columns)."""
-
-    def __init__(self, nt, m):
-        self.a = np.zeros((nt, m), complex)
-
-    def __len__(self):
-        return self.a.shape[0]
-
-    def _fit(self, m):
-        if m > self.a.shape[1]:
-            self.a = np.hstack([self.a, np.zeros((self.a.shape[0], m - self.a.shape[1]), complex)])
-
-    def put(self, k, xi):
-        self._fit(xi.size)
-        self.a[k, :xi.size] = xi
-
-    def put_rows(self, k, xs):
-        self._fit(xs.shape[1])
-        self.a[k:k + len(xs), :xs.shape[1]] = xs
-
-    def block(self, k0, k1, m):
-        """Rows ``k0:k1`` in a part of ``m`` coordinates."""
-        return self.a[k0:k1, :m]
-
-    def thinned(self, keep):
-        out = ModalHistory(0, 0)
-        out.a = self.a[keep]
-        return out
-
-
-def block(XI, k0, k1, m):
-    """Rows ``k0:k1`` of a :class:`ModalHistory` or of a list of coordinate vectors (m coordinates each)."""
-    return XI.block(k0, k1, m) if isinstance(XI, ModalHistory) else np.array(XI[k0:k1])
-
-
 class ModalSimulator:
     """Set-up shared by the runs of one model and parameter vector (cached on the Dae).
 
@@ -109,9 +74,12 @@ class ModalSimulator:
         Elements between the contact point and the reference before the reference moves.
     jit : bool
         Compile the step kernels to C (once per shape, cached on disk).
+    f_band : bool
+        Raise ``f_keep`` to keep the modes the elements' stiff regimes make (:meth:`_element_band`; the default
+        ``f_keep`` does), else warn when it makes them static.
     """
 
-    def __init__(self, dae, p, f_keep=None, window=2, jit=False):
+    def __init__(self, dae, p, f_keep=None, window=2, jit=False, f_band=False):
         self.dae, self.p, self.f_keep, self.window, self.jit = dae, p, f_keep, int(window), bool(jit)
         t0 = time.perf_counter()
         self.ch = ch = Channels(dae, p)
@@ -124,7 +92,23 @@ class ModalSimulator:
         self._checked = set()
         self._csets = {}
         self.stats = {"setup_channels_s": time.perf_counter() - t0, "modal_parts": 0, "modal_part_s": 0.0}
+        self._element_band(f_band)
         self._rest_part()
+
+    def _element_band(self, auto):
+        """Every mode to an octave above those an element's stiffest regime makes stays dynamic in every regime
+        (:func:`~bscomp.simulation.modal_parts.element_bands`): with ``auto`` (the default ``f_keep``) ``f_keep``
+        is raised to that band, else a ModelLimitationWarning says what the given one makes static."""
+        for path, band in element_bands(self.ch, self.cands) if self.f_keep is not None else ():
+            if band > self.f_keep and auto:
+                self.f_keep = band
+            elif band > self.f_keep:
+                warnings.warn(f"'{self.dae.name}': modal_options f_keep={self.f_keep:g} Hz makes modes of '{path}' in "
+                              f"its stiffest regime static (up to {band / ELEMENT_BAND:.4g} Hz, the band to {band:.4g} "
+                              "Hz): every impact rings them, the static part does not -- leave f_keep at its default "
+                              "(which keeps that band) or set None to keep every mode",
+                              ModelLimitationWarning, stacklevel=5)
+        self.stats["f_keep_used"] = self.f_keep
 
     def _rest_part(self):
         """Build the rest regime's modal part; when it has a Jordan block that no element can take (an undamped
@@ -410,8 +394,8 @@ class ModalSimulator:
         The kernel applies the same rule and skips every step after the first bad or regime-changing one
         (:data:`~bscomp.simulation.modal_kernels.SKIPPED`), so only the last computed step is tested here."""
         n = len(info)
-        skipped = info[:, 0] >= SKIPPED
-        c = int(np.argmax(skipped)) if skipped[n - 1] else n
+        col = info[:, 0]
+        c = n if col[n - 1] < SKIPPED else int(np.count_nonzero(col < SKIPPED))   # skipped: a tail
         scale0 = self.scale
 
         def scale(i):
@@ -419,7 +403,7 @@ class ModalSimulator:
 
         if c == 0:
             return 0, False, scale
-        err, fmax, okr, oke, upd = info[c - 1]
+        err, fmax, okr, oke, upd = info[c - 1].tolist()
         sc = max(fmax, FORCE_FLOOR * scale(c - 1))
         bad = err > tol * sc or oke < 0.5 or not upd < NEWTON_ACCEPT * tol * sc
         if bad:

@@ -25,7 +25,7 @@ import numpy as np
 
 from bscomp.simulation.modal_kernels import NumpyCall, pack_step
 
-__all__ = ["phis", "StepData", "Stepper"]
+__all__ = ["phis", "StepData", "Stepper", "ModalHistory", "block"]
 
 THETAS = (0.25, 0.5, 0.75)
 NEWTON_TOL = 1e-9    # last Newton update relative to 1 + max |g| accepted as converged
@@ -159,3 +159,40 @@ class Stepper:
         sd, _ = self.data(tau)
         CE, Yu, Y0, H, yct = sd.end
         return (CE @ xi0).real + Yu @ u + Y0 @ g0 + H @ g1 + yct
+
+
+class ModalHistory:
+    """The modal coordinates at the grid points: one complex row per point, as wide as the largest modal part
+    stored so far (a point of a part with ``m`` coordinates uses the first ``m`` columns)."""
+
+    def __init__(self, nt, m):
+        self.a = np.zeros((nt, m), complex)
+
+    def __len__(self):
+        return self.a.shape[0]
+
+    def _fit(self, m):
+        if m > self.a.shape[1]:
+            self.a = np.hstack([self.a, np.zeros((self.a.shape[0], m - self.a.shape[1]), complex)])
+
+    def put(self, k, xi):
+        self._fit(xi.size)
+        self.a[k, :xi.size] = xi
+
+    def put_rows(self, k, xs):
+        self._fit(xs.shape[1])
+        self.a[k:k + len(xs), :xs.shape[1]] = xs
+
+    def block(self, k0, k1, m):
+        """Rows ``k0:k1`` in a part of ``m`` coordinates."""
+        return self.a[k0:k1, :m]
+
+    def thinned(self, keep):
+        out = ModalHistory(0, 0)
+        out.a = self.a[keep]
+        return out
+
+
+def block(XI, k0, k1, m):
+    """Rows ``k0:k1`` of a :class:`ModalHistory` or of a list of coordinate vectors (m coordinates each)."""
+    return XI.block(k0, k1, m) if isinstance(XI, ModalHistory) else np.array(XI[k0:k1])

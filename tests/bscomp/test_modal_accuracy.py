@@ -115,3 +115,66 @@ def test_a_free_table_in_a_clearance_converges_with_the_tolerance():
         err[tol] = float(np.sqrt(np.mean((r["table.a"] - ref["table.a"]) ** 2) / np.mean(ref["table.a"] ** 2)))
     assert err[1e-3] < 1e-3
     assert err[1e-5] < err[1e-3] / 2
+
+
+def _contact_on_a_wall(f_keep=None):
+    """1 kg on a soft spring (1e4 N/m) and a 1e10 N/m contact to a wall, 1 um clearance, pushed by 0.5 N."""
+    s = System("contact_on_a_wall")
+    s.add("wall", Fixed())
+    s.add("m", Mass(m=1.0))
+    s.add("k", Spring(c=1e4))
+    s.add("gap", Backlash(b=1e-6, c=1e10, eps=0.0))
+    s.add("push", Force())
+    s.connect("k.flange_a", "wall.flange")
+    s.connect("k.flange_b", "m.flange_a")
+    s.connect("gap.flange_a", "wall.flange")
+    s.connect("gap.flange_b", "m.flange_a")
+    s.connect("push.flange", "m.flange_b")
+    return flatten(s)
+
+
+def test_the_default_keeps_an_octave_above_a_stiff_contacts_own_mode():
+    """In contact the mass's mode is sqrt((c + k)/m)/2pi = 15.92 kHz and carries ~all of the contact's compliance
+    (share c/(c + k)): the default f_keep 30 kHz is raised to twice it, 31.83 kHz (``stats["f_keep_used"]``); a
+    given f_keep is kept, with a ModelLimitationWarning naming the element and the band."""
+    from bscomp.errors import ModelLimitationWarning
+
+    dae = _contact_on_a_wall()
+    t = np.linspace(0.0, 2e-3, 21)
+    r = simulate(dae, t, inputs={"push.f": 0.5}, outputs=["m.a"], method="modal")
+    f_e = np.sqrt((1e10 + 1e4) / 1.0) / (2 * np.pi)
+    assert abs(r.stats["f_keep_used"] / (2 * f_e) - 1) < 1e-9, r.stats["f_keep_used"]
+    with pytest.warns(ModelLimitationWarning, match=r"f_keep=30000 Hz makes modes of 'gap'.*1\.592e\+04 Hz"):
+        r = simulate(dae, t, inputs={"push.f": 0.5}, outputs=["m.a"], method="modal", modal_options={"f_keep": 3e4})
+    assert r.stats["f_keep_used"] == 3e4
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ModelLimitationWarning)       # keeping every mode: nothing to say
+        simulate(dae, t, inputs={"push.f": 0.5}, outputs=["m.a"], method="modal", modal_options={"f_keep": None})
+
+
+def test_a_stiff_contacts_modes_are_kept_dynamic():
+    """Seed 97 of benchmarks/fuzz_moving_nut.py: the moving-nut bed (14 elements, nut at 0.366 m) with a 3.2 um
+    clearance of 3.1e10 N/m (its contact modes at 23.5 and 24.6 kHz, 17x Table 5.2's), no friction, a 5.5 V
+    square wave at 18.7 Hz. With every mode above 30 kHz static, each impact rang modes the static part drops:
+    table.a NRMSE 4.0e-3 against IDAS over 0.05 s at any ``tol`` (1e-3..1e-5). The default now keeps the modes
+    to 49.1 kHz: over 0.02 s 2.7e-4 against IDAS rtol 1e-9, against 2.4e-3 with f_keep held at 30 kHz."""
+    s = testbed.testbed_axial_torsional(nut_joint="moving", n_elements=14, nut_position=0.3662941413512001)
+    s.insert("backlash", Backlash(b=3.2097779271554304e-06, c=31374007295.583412, eps=0.0),
+             between=("table_joint.flange", "table.flange_a"))
+    dae = flatten(s)
+    t = np.arange(0.0, 0.02 + 1e-12, 1e-4)
+
+    def u(tt):
+        return 5.484418906960989 if (tt * 18.74679008983348) % 1.0 < 0.5 else -5.484418906960989
+
+    ref = simulate(dae, t, inputs={"amp.u": u}, outputs=["table.a"], rtol=1e-9, atol=1e-12, max_num_steps=10**7)
+    err = {}
+    for fk in (None, 3e4):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            opts = {"window": 1} if fk is None else {"window": 1, "f_keep": fk}
+            r = simulate(dae, t, inputs={"amp.u": u}, outputs=["table.a"], method="modal", modal_options=opts)
+        err[fk] = float(np.sqrt(np.mean((r["table.a"] - ref["table.a"]) ** 2) / np.mean(ref["table.a"] ** 2)))
+        if fk is None:
+            assert 4.5e4 < r.stats["f_keep_used"] < 5.5e4, r.stats["f_keep_used"]
+    assert err[None] < 6e-4 and err[3e4] > 4 * err[None], err
