@@ -11,8 +11,9 @@ error over the reference's peak-to-peak) per case, then the summary docs/nonline
 
     python benchmarks/fuzz_modal.py [FIRST LAST] [--floor F] [--others]    # seeds FIRST..LAST-1 (default 0 80)
 
-``--floor 1`` is the baseline of before 2026-12-05: a step's force error judged against the run's largest force
-alone (:data:`bscomp.simulation.modal_kernels.FORCE_FLOOR`, now 0.1 with the step's own largest force).
+``--floor F`` judges a step's force error against its own largest force, at least F x the run's largest
+(:data:`bscomp.simulation.modal_kernels.FORCE_FLOOR`; the kept rule is 1: the run's largest alone; 0.1 was
+measured and not kept, docs/nonlinear.md).
 ``--others`` adds ``modal`` with ``jit=True``, ``split`` and ``fixed`` (their errors, walls and failures).
 """
 

@@ -318,20 +318,9 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         for r in rr:
             for attr in ("_after", "_problem", "_theta", "_jac"):
                 r.__dict__.pop(attr, None)
-    if accepted:
-        message = f"{len(accepted)} missing effect(s) found: " + ", ".join(_titles(a) for a in accepted)
-    elif unconfirmed:
-        u = unconfirmed[0]
-        message = (f"no missing effect confirmed: {u.candidate.title} would explain the FRFs (error "
-                   f"{u.error_before:.4g} -> {u.error_after:.4g}), but "
-                   f"{unconfirmed_why[1 if u.candidate.nonlinear else 0]}") + stuck_note(setup, u, unc_values)
-    elif max_effects == 0:
-        message = "no effect searched (max_effects=0): the uncertain parameters were only re-calibrated"
-    elif not message:
-        message = ("no missing effect found: no candidate explains the remaining error well enough (see why "
-                   "each was not accepted)")
-    if accepted or not unconfirmed or unconfirmed[0].candidate.nonlinear:   # else the linear reason said it
-        message += amplitude_note(amplitude, datasets)
+    message = _message(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effects, setup, unc_values) \
+        + (amplitude_note(amplitude, datasets)
+           if accepted or not unconfirmed or unconfirmed[0].candidate.nonlinear else "")  # else the linear reason
     return Diagnosis(system=ref, uncertain=list(unc),
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
                      ranked=ranked, accepted=accepted, rounds=rounds, staircase=staircase, message=message,
@@ -340,6 +329,33 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
                             "conditions": len(setup.systems)}, calibration=calibration, amplitude=amplitude,
                      unconfirmed=unconfirmed)
+
+
+def _message(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effects, setup, unc_values) -> str:
+    """The diagnosis's conclusion (``message`` already set: the model is within its noise). When nothing was
+    accepted and the best candidate is a friction or backlash fitted to FRFs at stated amplitudes, where its fitted
+    element stays at its slope at rest is said whatever its verdict (:func:`~bscomp.validate.amplitude.stuck_note`):
+    an FRF below breakaway measures the slope, not the level, and a fit there can land on either of two near-equal
+    minima (``docs/validation.md``)."""
+    if accepted:
+        return f"{len(accepted)} missing effect(s) found: " + ", ".join(_titles(a) for a in accepted)
+    if unconfirmed:
+        u = unconfirmed[0]
+        return (f"no missing effect confirmed: {u.candidate.title} would explain the FRFs (error "
+                f"{u.error_before:.4g} -> {u.error_after:.4g}), but "
+                f"{unconfirmed_why[1 if u.candidate.nonlinear else 0]}") + stuck_note(setup, u, unc_values)
+    if max_effects == 0:
+        return "no effect searched (max_effects=0): the uncertain parameters were only re-calibrated"
+    if message:
+        return message
+    message = "no missing effect found: no candidate explains the remaining error well enough (see why each was not " \
+        "accepted)"
+    best = ranked[0] if ranked else None
+    if best is not None and best.candidate.nonlinear and best.values:
+        note = stuck_note(setup, best, unc_values)
+        if note:
+            message += f". The best candidate, {best.candidate.title}, was fitted to FRFs at stated amplitudes" + note
+    return message
 
 
 def _titles(r) -> str:
