@@ -107,7 +107,7 @@ class ModalSimulator:
                               f"its stiffest regime static (up to {band / ELEMENT_BAND:.4g} Hz, the band to {band:.4g} "
                               "Hz): every impact rings them, the static part does not -- leave f_keep at its default "
                               "(which keeps that band) or set None to keep every mode",
-                              ModelLimitationWarning, stacklevel=5)
+                              ModelLimitationWarning, stacklevel=7)   # the caller of simulate
         self.stats["f_keep_used"] = self.f_keep
 
     def _rest_part(self):
