@@ -202,6 +202,14 @@ class CompiledModel(TimeSeriesMixin):
                 raise UnknownNameError(f"CompiledModel: '{name}' is not an input of '{dae.name}' (inputs: "
                                        f"{[u for u in dae.u_names if u not in self.w_inputs]})")
         self.nl_outputs = [f"{el.path}.{q}" for el in self.elements for q in ("s_rel", "v_rel")]
+        cut = [o for o in self.outputs for el in self.elements if o.startswith(el.path + ".")
+               and o not in self.nl_outputs]
+        if cut:        # after the cut "<path>" is the ForceBetween of the correction: its f is not the element's
+            raise UnknownNameError(
+                f"CompiledModel: {cut} are signals of the nonlinear elements "
+                f"{sorted({el.path for el in self.elements})}, which the compiled evaluator cuts out (their force "
+                "is carried as a correction, not as the element's force); request their s_rel / v_rel, or use "
+                "bscomp.simulate for the element's own signals")
         dae.require_signals(self.outputs, "CompiledModel")
         self._so_args = dict(inputs=self.inputs + self.w_inputs, outputs=self.outputs + self.nl_outputs)
         self.so0 = second_order(dae, refresh_damping=False, **self._so_args)

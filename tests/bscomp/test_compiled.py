@@ -105,6 +105,25 @@ def test_friction_and_backlash_agree_with_idas_at_tight_tolerance():
     assert _nrmse(Y2["table.s"], Y["table.s"]) > 1e-2
 
 
+def test_a_cut_elements_own_signals_are_refused_not_mislabelled():
+    """The compiled evaluator cuts friction and backlash out and carries their force as a correction: a request
+    for ``backlash.f`` would have returned that correction (in the clearance ``-c s``: 24.7 N where the element
+    carries 0, measured on a 1 kg mass against a 1e7 N/m contact), so it is refused with the elements named;
+    their ``s_rel`` / ``v_rel`` are served."""
+    from bscomp.errors import UnknownNameError
+
+    s = get("validation_drive")
+    s.add("friction", CoulombFriction(F_c=1500.0, v_reg=5e-4))
+    s.connect("friction.flange_a", "ground.flange")
+    s.connect("friction.flange_b", "table.flange_b")
+    with pytest.raises(UnknownNameError, match=r"\['friction.f'\] are signals of the nonlinear elements \['friction"):
+        CompiledModel(s, ["amp.u"], ["table.a", "friction.f"])
+    cm = CompiledModel(s, ["amp.u"], ["table.a"])
+    t = np.arange(0, 0.02, 2e-4)
+    Y = cm.simulate({}, t, {"amp.u": _square(t)}, outputs=["table.a", "friction.v_rel"])
+    assert np.all(np.isfinite(Y["friction.v_rel"])) and np.ptp(Y["friction.v_rel"]) > 0
+
+
 def test_friction_on_the_fe_test_bed_converges_with_substeps(testbed_model):
     s, _ = testbed_model
     s2 = s.copy()
