@@ -117,7 +117,7 @@ def test_a_free_table_in_a_clearance_converges_with_the_tolerance():
     assert err[1e-5] < err[1e-3] / 2
 
 
-def _contact_on_a_wall(f_keep=None):
+def _contact_on_a_wall():
     """1 kg on a soft spring (1e4 N/m) and a 1e10 N/m contact to a wall, 1 um clearance, pushed by 0.5 N."""
     s = System("contact_on_a_wall")
     s.add("wall", Fixed())
