@@ -93,14 +93,7 @@ class ModalPart:
     def _second_order(self, lin, f_keep, mb):
         dae = lin.ch.dae
         M, C, K, Kqi, Rb, Ri, Iq, Iv, Ii, Jxd_d, Jx_d = mb
-        key = (K.tobytes(), M.tobytes())           # regimes that change only damping share the undamped modes
-        cache = lin.ch.__dict__.setdefault("_eigh", {})
-        if key not in cache:
-            if len(cache) > 8:
-                cache.clear()
-            cache[key] = sla.eigh(K, M, check_finite=False, driver="gvd")
-        lam, phi = cache[key]
-        rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
+        lam, phi, rigid = _undamped_modes(lin, K, M)
         lam = np.where(rigid, 0.0, lam)
         w_keep = np.inf if f_keep is None else (2 * np.pi * f_keep) ** 2
         keep = np.flatnonzero((lam <= w_keep) | rigid)
@@ -272,6 +265,19 @@ def _inverse(V, name):
     return W
 
 
+def _undamped_modes(lin, K, M):
+    """``(λ, Φ, rigid)`` of ``K Φ = M Φ Λ`` (cached on the channels: regimes that change only damping, and
+    :func:`element_band` before the contact regime's part, share them)."""
+    key = (K.tobytes(), M.tobytes())
+    cache = lin.ch.__dict__.setdefault("_eigh", {})
+    if key not in cache:
+        if len(cache) > 8:
+            cache.clear()
+        cache[key] = sla.eigh(K, M, check_finite=False, driver="gvd")
+    lam, phi = cache[key]
+    return lam, phi, np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
+
+
 def element_band(lin) -> float:
     """``ELEMENT_BAND f_e`` [Hz], ``f_e`` the highest frequency of a mode an element's regime makes in the linear
     part ``lin``: ``k_i (φ_j^T b_i)^2 / λ_j >= ELEMENT_SHARE`` for an element ``i`` of stiffness slope ``k_i``
@@ -292,8 +298,7 @@ def element_band(lin) -> float:
     if mb is None:
         return 0.0
     M, _, K, _, Rb, *_ = mb
-    lam, phi = sla.eigh(K, M, check_finite=False, driver="gvd")
-    rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
+    lam, phi, rigid = _undamped_modes(lin, K, M)
     Gb = lin.G[Rb][:, :k.size]
     share = (phi.T @ Gb) ** 2 * k[None, :] / np.where(rigid, np.inf, lam)[:, None]
     own = (share >= ELEMENT_SHARE).any(axis=1) & ~rigid
