@@ -25,7 +25,10 @@ evaluates, per parameter vector, in modal coordinates:
    switching inside a step where it must), the element forces ``w`` first-order held between step ends
    and solved implicitly at each step end by Newton on the few element laws
    ``w = f_{law}(s, v) - f_{lin}(s, v)``. Each step is one CasADi MX function of the state and the
-   discretised matrices, so one compiled ``mapaccum`` serves every parameter vector.
+   discretised matrices, so one compiled ``mapaccum`` serves every parameter vector. A contact (an element whose
+   equivalent is a spring: backlash) is cut from the time series' linear part (its whole law the correction, the
+   clearance free), with sub-steps enough for stability and its own modes' band kept dynamic
+   (:meth:`~bscomp.simulation.compiled_time.TimeSeriesMixin.simulate`).
 
 Costs (2-core machine, axial+torsional test bed, 98 coordinates): one FRF evaluation a few ms; one
 0.6 s time series at 5 kHz in tens of ms when linear, a few hundred ms with friction and backlash.
@@ -41,7 +44,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.components.force_between import ForceBetween
-from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_names, check_number
+from bscomp.errors import ArgumentTypeError, UnknownNameError, check_names, check_number
 from bscomp.kernel.component import _Context
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.flattening import flatten
@@ -50,8 +53,9 @@ from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import dense, modal_frf
 from bscomp.linear.linearization import second_order
 from bscomp.model import ModelSpec, as_system
+from bscomp.simulation.compiled_checks import check_frf
 from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin
-from bscomp.simulation.harmonic_balance import HarmonicBalance, check_harmonics
+from bscomp.simulation.harmonic_balance import HarmonicBalance
 
 __all__ = ["CompiledModel", "ModalModel", "nonlinear_elements"]
 
@@ -358,7 +362,7 @@ class CompiledModel(TimeSeriesMixin):
                 leaf = el.path
                 for n, v in el.lin_values({**el.values, **mine}).items():
                     key = f"{leaf}__lin.{n}"
-                    if key in self.dae.p_names:
+                    if key in self.dae.p_names and key not in params:    # a given value wins
                         self._to_lin_or_struct(key, float(v), lin, struct)
         return lin, law, struct
 
@@ -432,20 +436,25 @@ class CompiledModel(TimeSeriesMixin):
         return np.array(out if out else [0.0], float)
 
     # ---- the linear part in modal coordinates --------------------------------------------------------
-    def modal(self, params: dict | None = None, extra_damping: float = 0.0, delay: float = 0.0) -> ModalModel:
+    def modal(self, params: dict | None = None, extra_damping: float = 0.0, delay: float = 0.0,
+              damping_of: ModalModel | None = None, f_keep: float | None = None) -> ModalModel:
         """Modes, modal damping and residual flexibility of the linear part at ``params`` (cached: a change
-        of a nonlinear element's parameter only re-runs the time integration)."""
+        of a nonlinear element's parameter only re-runs the time integration). ``damping_of``: the modal damping is
+        that model's, as a physical matrix ``M Phi diag(c) Phi^T M`` (the time series' linear part, whose contacts
+        are cut, keeps the damping of the drive linearised at rest, as a flattened model's is); ``f_keep``: instead
+        of the model's."""
         lin, _law, struct = self._split(dict(params or {}))
-        key = (tuple(sorted(lin.items())), tuple(sorted(struct.items())), float(extra_damping), float(delay))
+        key = (tuple(sorted(lin.items())), tuple(sorted(struct.items())), float(extra_damping), float(delay),
+               id(damping_of), f_keep)
         if key in self._modal_cache:
             return self._modal_cache[key]
-        mm = self._modal(lin, struct, extra_damping, delay)
+        mm = self._modal(lin, struct, extra_damping, delay, damping_of, f_keep or self.f_keep)
         if len(self._modal_cache) > 8:
             self._modal_cache.pop(next(iter(self._modal_cache)))
         self._modal_cache[key] = mm
         return mm
 
-    def _modal(self, lin, struct, extra_damping, delay):
+    def _modal(self, lin, struct, extra_damping, delay, damping_of, f_keep):
         refl = {k: v for k, v in struct.items() if k in self._reflatten}
         if refl:
             d = flatten(self.linear_system.with_parameters(refl))
@@ -468,19 +477,9 @@ class CompiledModel(TimeSeriesMixin):
         lam, phi = sla.eigh(Kd, Md, check_finite=False)
         rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
         lam = np.where(rigid, 0.0, lam)
-        csd = dense(Cs, float)
-        c = np.zeros(lam.size)
-        if self.damping is not None:
-            coords = list(self.dae.mech.coordinate_names)
-            if hasattr(self.damping, "modal_ratios"):
-                zeta = np.asarray(self.damping.modal_ratios(lam, phi, M, coords), float)
-            else:
-                csd = csd + dense(system_damping_matrix(self.damping, M, K, coords), float)
-                zeta = np.zeros(lam.size)
-            c = 2.0 * zeta * np.sqrt(lam)
-        if extra_damping:
-            c = c + np.where(rigid, 0.0, 2.0 * extra_damping * np.sqrt(lam))
-        w_keep = 2 * np.pi * self.f_keep
+        c, C_sys = self._damping(lam, phi, M, K, Md, rigid, extra_damping, damping_of)
+        csd = dense(Cs, float) + C_sys
+        w_keep = 2 * np.pi * f_keep
         # modes the inputs (measured and element forces) cannot excite or the outputs cannot see -- e.g.
         # the bending modes of the 6-DOF screw for an axial/torsional drive -- enter statically too
         om = np.sqrt(lam)
@@ -497,7 +496,26 @@ class CompiledModel(TimeSeriesMixin):
             raise CompiledModelError("a rigid-body mode is not excited by the inputs: check the model's inputs")
         Rt = (pt / lam[trunc]) @ pt.T if trunc.size else np.zeros_like(Md)
         self.stats["evaluations"] += 1
-        return ModalModel(lam, phi, Ckk, Rt, so, keep, delay, self.f_keep, c_modal=c, C_struct=csd)
+        mm = ModalModel(lam, phi, Ckk, Rt, so, keep, delay, f_keep, c_modal=c, C_struct=csd)
+        mm.C_system = C_sys
+        return mm
+
+    def _damping(self, lam, phi, M, K, Md, rigid, extra_damping, damping_of):
+        """``(c, C_sys)``: modal damping ``2 zeta omega`` per mode and the system damping's physical matrix (a
+        Rayleigh-type model; or, with ``damping_of``, that model's whole modal and system damping as a matrix)."""
+        c, C_sys = np.zeros(lam.size), np.zeros_like(Md)
+        if damping_of is not None:
+            mp = Md @ damping_of.phi
+            return c, (mp * damping_of.c_modal) @ mp.T + damping_of.C_system
+        if self.damping is not None:
+            coords = list(self.dae.mech.coordinate_names)
+            if hasattr(self.damping, "modal_ratios"):
+                c = 2.0 * np.asarray(self.damping.modal_ratios(lam, phi, M, coords), float) * np.sqrt(lam)
+            else:
+                C_sys = dense(system_damping_matrix(self.damping, M, K, coords), float)
+        if extra_damping:
+            c = c + np.where(rigid, 0.0, 2.0 * extra_damping * np.sqrt(lam))
+        return c, C_sys
 
     # ---- FRF ------------------------------------------------------------------------------------------
     def frf(self, params, freqs, pairs, extra_damping: float = 0.0, delay: float = 0.0, mm: ModalModel = None,
@@ -513,7 +531,7 @@ class CompiledModel(TimeSeriesMixin):
         ``freqs`` must be positive and finite [Hz], every pair an ``(input, output)`` of this model, every amplitude
         a positive finite number for one of its inputs: else a named :class:`~bscomp.errors.UsageError`,
         :class:`~bscomp.errors.ArgumentTypeError` or :class:`~bscomp.errors.UnknownNameError`."""
-        freqs, pairs, amp = self._check_frf(freqs, pairs, amplitude, extra_damping, delay, points, tol, harmonics)
+        freqs, pairs, amp = check_frf(self, freqs, pairs, amplitude, extra_damping, delay, points, tol, harmonics)
         mm = mm or self.modal(params, extra_damping, delay)
         amp = amp if self.elements else {}
         out = {}
@@ -528,44 +546,6 @@ class CompiledModel(TimeSeriesMixin):
             H = self._describing(mm, params, freqs, inp, outs, amp[inp], delay, points, tol, harmonics)
             out.update({(inp, o): H[:, k] for k, o in enumerate(outs)})
         return {pq: out[pq] for pq in pairs}
-
-    def _check_frf(self, freqs, pairs, amplitude, extra_damping, delay, points, tol, harmonics=1):
-        """``(freqs, pairs, {input: amplitude})`` of an :meth:`frf` request, every argument checked."""
-        try:
-            f = np.atleast_1d(np.asarray(freqs, float))
-        except (TypeError, ValueError):
-            raise UsageError(f"CompiledModel.frf: freqs must be an array of frequencies [Hz], got {freqs!r}"[:300]) \
-                from None
-        if f.ndim != 1 or not f.size or not np.all(np.isfinite(f)) or np.any(f <= 0):
-            raise UsageError(f"CompiledModel.frf: freqs must be a non-empty 1-D array of positive, finite frequencies "
-                             f"[Hz], got {f!r}"[:300])
-        if isinstance(pairs, (str, bytes)) or not hasattr(pairs, "__iter__"):
-            raise ArgumentTypeError(f"CompiledModel.frf: pairs must be a list of (input, output) tuples, got {pairs!r}")
-        pairs = [tuple(pq) if isinstance(pq, (tuple, list)) else pq for pq in pairs]
-        for pq in pairs:
-            if not (isinstance(pq, tuple) and len(pq) == 2 and all(isinstance(x, str) for x in pq)):
-                raise ArgumentTypeError(f"CompiledModel.frf: each pair must be (input, output) names, got {pq!r}")
-            if pq[0] not in self.inputs:
-                raise UnknownNameError(f"CompiledModel.frf: '{pq[0]}' is not an input of this compiled model; inputs: "
-                                       f"{self.inputs} (give it to CompiledModel(inputs=...))")
-            if pq[1] not in self.outputs:
-                raise UnknownNameError(f"CompiledModel.frf: '{pq[1]}' is not an output of this compiled model; "
-                                       f"outputs: {self.outputs} (give it to CompiledModel(outputs=...))")
-        amp = check_mapping("CompiledModel.frf: amplitude", amplitude, "excitation amplitudes")
-        for k, v in amp.items():
-            if k not in self.inputs:
-                raise UnknownNameError(f"CompiledModel.frf: amplitude given for '{k}', which is not an input of this "
-                                       f"compiled model; inputs: {self.inputs}")
-            amp[k] = check_number(f"CompiledModel.frf: amplitude['{k}']", v, positive=True)
-        check_number("CompiledModel.frf: extra_damping", extra_damping, nonnegative=True)
-        check_number("CompiledModel.frf: delay", delay, nonnegative=True)
-        if amp:
-            check_number("CompiledModel.frf: points", points, integer=True, minimum=16)
-            if points % 4:
-                raise UsageError(f"CompiledModel.frf: points must be a multiple of 4, got {points}")
-            check_number("CompiledModel.frf: tol", tol, positive=True)
-            check_harmonics("CompiledModel.frf", harmonics, points)
-        return f, pairs, amp
 
     @staticmethod
     def _modal_map(mm, freqs, inputs, outputs, delay=0.0):

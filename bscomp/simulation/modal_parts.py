@@ -23,15 +23,12 @@ import numpy as np
 import scipy.linalg as sla
 
 from bscomp.linear.frf_engine import dense
+from bscomp.simulation.compiled_time import ELEMENT_BAND, ELEMENT_SHARE
 from bscomp.simulation.modal_channels import DefectiveLinearPart, LinearPart
 
 __all__ = ["ModalPart", "element_band", "element_bands"]
 
 COND_MAX = 1e10
-#: The modes that carry this share of an element's compliance in its regime (a contact's own modes) ...
-ELEMENT_SHARE = 0.1
-#: ... are kept with every mode up to this multiple of their frequency, in every regime (:func:`element_band`)
-ELEMENT_BAND = 2.0
 
 
 class ModalPart:

@@ -84,20 +84,18 @@ def test_hidden_effect_found_on_the_axial_torsional_fe_bed(case, groups, min_dro
     assert all(a.evidence and "held-out" in a.evidence for a in diag.accepted)  # says why it is believed
 
 
-def test_backlash_truth_second_inertia_is_a_trade_off():
-    """Round 2 of the backlash truth: a motor inertia fitted beside the re-calibrated table mass re-distributes
-    the rigid-body inertia (the table mass goes down as J goes up) to bend the clearance's corner. It is
-    rejected because it trades off against table.m -- only ~0.06 % of what it does is its own, at 12 fit
-    evaluations and converged alike (variance inflation ~1,700) -- not because its fit stopped before it
-    removed half the excess error (it removed 44 % then, 54 % converged, under the former noise model)."""
-    _, diag = _case("axial_torsional", "backlash")
+def test_backlash_truth_is_explained_to_the_noise_floor():
+    """The soft-contact clearance truth (softplus corners, 1.12e9 N/m, centred) against the compliant backlash
+    (gaussian corners): the time series' evaluator cuts the contact out of its linear part and keeps the modes up to
+    the contact's band (10.8 kHz here) dynamic, so the fit reaches the noise floor with the truth's stiffness and a
+    centred start -- with the contact in the linear part and 6 kHz it stopped at 1.62, k -16 %, and round 2 fitted a
+    motor inertia that only traded off against table.m (docs/validation.md "Engine"). Nothing is left for a round 2."""
+    truth, diag = _case("axial_torsional", "backlash")
     assert [a.name for a in diag.accepted] == ["compliant_backlash"], diag.table()
-    inertia = next(r for r in diag.rounds[1] if r.name == "missing_inertia")
-    assert inertia.refined and not inertia.accepted
-    assert inertia.own_share < 0.01 and "table.m" in inertia.trades_with, (inertia.own_share, inertia.trades_with)
-    assert "trades off against table.m" in inertia.verdict, inertia.verdict
-    # the accepted effects do things of their own
-    assert all(a.own_share is None or a.own_share > 0.3 for a in diag.accepted)
+    v, hidden = diag.accepted[0].values, truth["hidden"]["backlash"]
+    assert abs(v["k"] / hidden["c"] - 1) < 0.1 and abs(v["x0"] - 1.0) < 0.05, (v, hidden)
+    assert diag.staircase[-1][1] < 1.5 and not diag.rounds[1:], diag.table()
+    assert all(a.own_share is None or a.own_share > 0.3 for a in diag.accepted)   # it does things of its own
 
 
 def test_control_claims_nothing_and_recalibrates():
