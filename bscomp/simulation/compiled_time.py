@@ -10,17 +10,12 @@ import casadi as ca
 import numpy as np
 import scipy.linalg as sla
 
-from bscomp.errors import (
-    ModelLimitationWarning,
-)
+from bscomp.errors import ModelLimitationWarning
 from bscomp.linear.frf_engine import dense
 from bscomp.linear.real_form import ModalError, modal_basis
 from bscomp.simulation.compiled_checks import CompiledModelError, check_run
 
 __all__ = ["CompiledModelError", "TimeSeriesMixin"]
-
-
-
 
 
 class TimeSeriesMixin:
@@ -101,13 +96,15 @@ class TimeSeriesMixin:
             dv, ds_, dvv = dfun(ss, vv, pl)
             R = w - dv
             J = eye - ca.mtimes(ca.diag(ds_), Gs) - ca.mtimes(ca.diag(dvv), Gv)
+            wn = w - ca.solve(J, R)
+            if not guard:
+                w = wn
+                continue
             above = R > 0
             hi, r_hi, has_hi = ca.if_else(above, w, hi), ca.if_else(above, R, r_hi), ca.fmax(has_hi, above)
             lo, r_lo, has_lo = ca.if_else(above, lo, w), ca.if_else(above, r_lo, R), ca.fmax(has_lo, 1 - above)
-            wn = w - ca.solve(J, R)
             out = has_lo * has_hi * ((wn <= lo) + (wn >= hi) > 0)
-            secant = lo - r_lo * (hi - lo) / ca.fmax(r_hi - r_lo, 1e-300)
-            w = ca.if_else(out, secant, wn) if guard else wn
+            w = ca.if_else(out, lo - r_lo * (hi - lo) / ca.fmax(r_hi - r_lo, 1e-300), wn)
         ss, vv = a_s + ca.mtimes(Gs, w), a_v + ca.mtimes(Gv, w)
         R = w - dfun(ss, vv, pl)[0]
         scale = 1.0 + ca.norm_inf(w)
@@ -353,7 +350,6 @@ class TimeSeriesMixin:
         return plaw
 
 
-
 #: The modes that carry this share of an element's compliance in its stiffest regime (a contact's own modes) ...
 ELEMENT_SHARE = 0.1
 #: ... are kept with every mode up to this multiple of their frequency (:meth:`TimeSeriesMixin._contact_band`, and
@@ -376,6 +372,8 @@ def _band_keep(band: float, f_keep: float) -> float:
     if band <= top:
         return max(f_keep, band)
     return max(f_keep, top - (band - top) * (top - f_keep) / top)
+
+
 NEWTON_TOL = 1e-8
 """Largest Newton residual (relative to the element forces) a time series is accepted with at a sub-step count."""
 MAX_SUB = 256
