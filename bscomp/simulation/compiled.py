@@ -36,6 +36,7 @@ Costs (2-core machine, axial+torsional test bed, 98 coordinates): one FRF evalua
 
 from __future__ import annotations
 
+import itertools
 from os import PathLike
 
 import casadi as ca
@@ -60,6 +61,7 @@ from bscomp.simulation.harmonic_balance import HarmonicBalance
 __all__ = ["CompiledModel", "ModalModel", "nonlinear_elements"]
 
 
+_SERIALS = itertools.count()
 _VERIFIED: dict = {}
 """(component class, parameter) -> whether its structural-block sensitivity matched a re-flattening."""
 
@@ -136,6 +138,7 @@ class ModalModel:
     """The linear part at one parameter vector, in modal coordinates (see the module docstring)."""
 
     def __init__(self, lam, phi, Ckk, Rt, so, keep, delay, f_keep, c_modal=None, C_struct=None):
+        self.serial = next(_SERIALS)      # a cache key that, unlike id(), is never reused
         self.lam, self.phi, self.Ckk, self.Rt, self.so, self.keep = lam, phi, Ckk, Rt, so, keep
         self.delay, self.f_keep = delay, f_keep
         # what Ckk was made of, for the FRF engine: diagonal modal damping + physical discrete dampers
@@ -445,7 +448,7 @@ class CompiledModel(TimeSeriesMixin):
         of the model's."""
         lin, _law, struct = self._split(dict(params or {}))
         key = (tuple(sorted(lin.items())), tuple(sorted(struct.items())), float(extra_damping), float(delay),
-               id(damping_of), f_keep)
+               getattr(damping_of, "serial", None), f_keep)
         if key in self._modal_cache:
             return self._modal_cache[key]
         mm = self._modal(lin, struct, extra_damping, delay, damping_of, f_keep or self.f_keep)
