@@ -306,11 +306,12 @@ class TimeSeriesMixin:
             if not is_cut:
                 continue
             el = self.elements[i]
-            s, v = ca.SX.sym("s"), ca.SX.sym("v")
-            pe = plaw[j - len(el.pnames):j]
-            f = el.law(s, v, pe)
-            tangent = ca.Function("tangent", [s, v], [ca.jacobian(f, s), ca.jacobian(f, v)])
-            ks, kv = tangent(*self._el_rest[2 * i:2 * i + 2])
+            tangents = self.__dict__.setdefault("_tangents", {})
+            if i not in tangents:                # built once per element: (s, v, law parameters) -> slopes
+                s, v, pe = ca.SX.sym("s"), ca.SX.sym("v"), ca.SX.sym("pe", len(el.pnames))
+                f = el.law(s, v, pe)
+                tangents[i] = ca.Function("tangent", [s, v, pe], [ca.jacobian(f, s), ca.jacobian(f, v)])
+            ks, kv = tangents[i](*self._el_rest[2 * i:2 * i + 2], plaw[j - len(el.pnames):j])
             for n, val in (("c", float(ks)), ("d", float(kv))):
                 if f"{el.path}__lin.{n}" in cut:
                     out[f"{el.path}__lin.{n}"] = val

@@ -241,3 +241,21 @@ def test_a_run_that_needed_more_substeps_takes_twice_the_first_that_converged():
     assert cm.stats["n_sub_used"] == 16, cm.stats
     err = np.sqrt(np.mean((y["m3.v"] - ref["m3.v"]) ** 2)) / np.ptp(ref["m3.v"])
     assert err < 1e-4, err
+
+
+@pytest.mark.parametrize("s_rel0, engaged", [(0.0, False), (-1.1e-5, True)])
+def test_the_time_series_damping_is_the_drives_linearised_at_rest(s_rel0, engaged):
+    """A clearance resting open gives the damping of the drive without its contact (as the flattened model
+    linearised at rest does); resting engaged (b/2 = 1e-5 m, centre 1.1e-5 m away), the engaged drive's: the slope
+    at rest is the law's own tangent there."""
+    s = get("validation_drive")
+    c = s.get("axial.c")
+    s.remove("axial")
+    s.remove("axial_loss")
+    s.add("axial", Backlash(b=2e-5, c=c, s_rel0=s_rel0))
+    s.connect("lead.flange_b", "axial.flange_a")
+    s.connect("axial.flange_b", "nut.flange_a")
+    cm = CompiledModel(s, ["amp.u"], ["table.s"])
+    cut = cm._contact_equivalents()
+    rest = cm._rest_equivalents(cm.law_values({}), cut)
+    assert rest == {"axial__lin.c": (c if engaged else 0.0)}, (rest, c)
