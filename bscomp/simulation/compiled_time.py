@@ -229,9 +229,10 @@ class TimeSeriesMixin:
             else:
                 n_sub, guard, halved = (n_sub, True, halved) if not guard else (2 * n_sub, False, True)
         if bad > NEWTON_TOL:
-            warnings.warn(f"CompiledModel.simulate: the element forces' Newton did not converge (residual {bad:.1e} "
-                          f"of the force) even at {n_sub} sub-steps per sample: the time series is not trustworthy; "
-                          "use bscomp.simulate(method='modal')", ModelLimitationWarning, stacklevel=2)
+            warnings.warn(f"CompiledModel.simulate: the Newton on the forces of {[el.path for el in self.elements]} "
+                          f"did not converge (residual {bad:.1e} of the force) even at {n_sub} sub-steps per sample: "
+                          "the time series is not trustworthy; use bscomp.simulate(method='modal')",
+                          ModelLimitationWarning, stacklevel=2)
         self.stats.update(n_sub_used=n_sub, newton_guarded=guard, last_newton_residual=bad)
         return {o: Y[i] for i, o in enumerate(outputs)}
 

@@ -259,3 +259,23 @@ def test_the_time_series_damping_is_the_drives_linearised_at_rest(s_rel0, engage
     cut = cm._contact_equivalents()
     rest = cm._rest_equivalents(cm.law_values({}), cut)
     assert rest == {"axial__lin.c": (c if engaged else 0.0)}, (rest, c)
+
+
+def test_a_newton_that_never_converges_warns_naming_the_elements(monkeypatch):
+    """One Newton iteration cannot solve a 1e11 N/m contact: the run is repeated guarded, then at twice the
+    sub-steps up to the cap, and then it says so (never a silent wrong time series)."""
+    import bscomp.simulation.compiled_time as ct
+    from bscomp.errors import ModelLimitationWarning
+
+    s = get("validation_drive")
+    s.remove("axial")
+    s.remove("axial_loss")
+    s.add("axial", Backlash(b=1.55e-5, c=1e11, d=1e3, s_rel0=-7.75e-6))
+    s.connect("lead.flange_b", "axial.flange_a")
+    s.connect("axial.flange_b", "nut.flange_a")
+    cm = CompiledModel(s, ["amp.u"], ["table.s"])
+    monkeypatch.setattr(ct, "MAX_SUB", 8)
+    t = np.arange(0, 0.05, 2e-4)
+    with pytest.warns(ModelLimitationWarning, match=r"forces of \['axial'\] did not converge .* at 8 sub-steps"):
+        cm.simulate({}, t, {"amp.u": _square(t, 2.0)}, n_newton=1)
+    assert cm.stats["n_sub_used"] == 8 and cm.stats["last_newton_residual"] > 1e-8
