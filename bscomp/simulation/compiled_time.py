@@ -298,62 +298,53 @@ class TimeSeriesMixin:
                         out[f"{el.path}__lin.{n}"] = 0.0
         return out
 
+    def _is_cut(self, cut) -> list:
+        """Per element: whether its small-signal equivalent is cut (:meth:`_contact_equivalents`)."""
+        return [f"{el.path}__lin.c" in cut for el in self.elements]
+
     def _rest_equivalents(self, plaw, cut) -> dict:
         """``{"<element>__lin.c": k, "<element>__lin.d": d}``: each cut contact's law tangent at rest (0 in its
         clearance; its stiffness where it rests engaged): the linearisation a flattened model's system damping is
         derived from (a modal damping by mode character is re-derived from those modes)."""
         out = {}
-        for i, (j, is_cut) in enumerate(self._lin_offsets(cut)):
+        tangents = self.__dict__.setdefault("_tangents", {})
+        for i, (el, (pe, *_), is_cut) in enumerate(zip(self.elements, self.law_slices(plaw), self._is_cut(cut),
+                                                        strict=True)):
             if not is_cut:
                 continue
-            el = self.elements[i]
-            tangents = self.__dict__.setdefault("_tangents", {})
             if i not in tangents:                # built once per element: (s, v, law parameters) -> slopes
-                s, v, pe = ca.SX.sym("s"), ca.SX.sym("v"), ca.SX.sym("pe", len(el.pnames))
-                f = el.law(s, v, pe)
-                tangents[i] = ca.Function("tangent", [s, v, pe], [ca.jacobian(f, s), ca.jacobian(f, v)])
-            ks, kv = tangents[i](*self._el_rest[2 * i:2 * i + 2], plaw[j - len(el.pnames):j])
+                s, v, p = ca.SX.sym("s"), ca.SX.sym("v"), ca.SX.sym("pe", len(el.pnames))
+                f = el.law(s, v, p)
+                tangents[i] = ca.Function("tangent", [s, v, p], [ca.jacobian(f, s), ca.jacobian(f, v)])
+            ks, kv = tangents[i](*self._el_rest[2 * i:2 * i + 2], pe)
             for n, val in (("c", float(ks)), ("d", float(kv))):
                 if f"{el.path}__lin.{n}" in cut:
                     out[f"{el.path}__lin.{n}"] = val
         return out
 
     def _contact_band(self, full, plaw, cut) -> float:
-        """``ELEMENT_BAND f_e`` [Hz] (:func:`bscomp.simulation.modal_parts.element_band`'s rule): ``f_e`` the highest
-        mode of the whole drive ``full`` (contacts engaged) in which a cut contact carries at least ``ELEMENT_SHARE``
-        of its compliance, ``k (phi^T b)^2 / lambda``; 0 without one. Modes up to it are kept dynamic in the time
-        series: with the contact force a correction, the modes just above its own answer an impact dynamically (the
-        FE backlash truth at 6 kHz: chi^2 37 where every mode kept gives 24, the band 10.8 kHz, docs/validation.md)."""
+        """:func:`contact_band` of the whole drive ``full`` (contacts engaged) for the cut contacts. Modes up to it
+        are kept dynamic in the time series: with the contact force a correction, the modes just above its own
+        answer an impact dynamically (the FE backlash truth at 6 kHz: chi^2 37 where every mode kept gives 24, the
+        band 10.8 kHz, docs/validation.md)."""
         k, _d = self._contact_slopes(plaw, cut)
         B = dense(full.so.B, float)[:, len(self.inputs):]
-        lam = full.lam
-        share = (full.phi.T @ B) ** 2 * k[None, :] / np.where(lam > 0, lam, np.inf)[:, None]
-        own = (share >= ELEMENT_SHARE).any(axis=1) & (lam > 0)
-        return float(ELEMENT_BAND * np.sqrt(lam[own].max()) / (2 * np.pi)) if own.any() else 0.0
-
-    def _lin_offsets(self, cut):
-        """Per element of :meth:`law_values`: the index of its ``k_lin`` (then ``s0_lin``, ``d_lin``) and whether
-        its equivalent is cut (:meth:`_contact_equivalents`)."""
-        out, off = [], 0
-        for el in self.elements:
-            out.append((off + len(el.pnames), f"{el.path}__lin.c" in cut))
-            off += len(el.pnames) + 3
-        return out
+        return contact_band(full.lam, full.phi, B, k, full.lam <= 0)
 
     def _contact_slopes(self, plaw, cut):
         """``(k, d)`` per element: the cut contacts' stiffness and damping (their laws' slopes in contact), 0 else."""
-        k, d = np.zeros(len(self.elements)), np.zeros(len(self.elements))
-        for i, (j, is_cut) in enumerate(self._lin_offsets(cut)):
-            if is_cut:
-                k[i], d[i] = plaw[j], plaw[j + 2]
-        return k, d
+        kd = [(k_lin, d_lin) if c else (0.0, 0.0)
+              for (_, k_lin, _, d_lin), c in zip(self.law_slices(plaw), self._is_cut(cut), strict=True)]
+        return np.array([float(k) for k, _ in kd]), np.array([float(d) for _, d in kd])
 
     def _cut_law_values(self, plaw, cut):
         """``plaw`` with the cut elements' small-signal equivalent zeroed (their whole law is the correction)."""
-        plaw = np.array(plaw, float)
-        for j, is_cut in self._lin_offsets(cut):
-            if is_cut:
-                plaw[j:j + 3] = 0.0
+        plaw, off = np.array(plaw, float), 0
+        for el, c in zip(self.elements, self._is_cut(cut), strict=True):
+            off += len(el.pnames)
+            if c:
+                plaw[off:off + 3] = 0.0      # k_lin, s0_lin, d_lin (:meth:`law_values`)
+            off += 3
         return plaw
 
 
@@ -365,6 +356,17 @@ ELEMENT_BAND = 2.0
 BAND_CAP = 2.0
 """The time series keeps modes up to a cut contact's band (:meth:`TimeSeriesMixin._contact_band`) up to this multiple
 of the model's ``f_keep`` (:func:`_band_keep`)."""
+
+
+def contact_band(lam, phi, B, k, rigid) -> float:
+    """``ELEMENT_BAND f_e`` [Hz], ``f_e`` the highest frequency of a mode (``lam``, mass-normalised ``phi``) in which
+    an element of stiffness slope ``k_i`` and force pattern ``B[:, i]`` carries at least ``ELEMENT_SHARE`` of its
+    compliance, ``k_i (phi_j^T b_i)^2 / lam_j`` (the shares of ``b_i^T K^{-1} b_i <= 1/k_i`` sum to at most 1);
+    0 without one. Shared by this evaluator and ``simulate(method="modal")``
+    (:func:`bscomp.simulation.modal_parts.element_band`)."""
+    share = (phi.T @ B) ** 2 * np.asarray(k, float)[None, :] / np.where(rigid, np.inf, lam)[:, None]
+    own = (share >= ELEMENT_SHARE).any(axis=1) & ~rigid
+    return float(ELEMENT_BAND * np.sqrt(lam[own].max()) / (2 * np.pi)) if own.any() else 0.0
 
 
 def _band_keep(band: float, f_keep: float) -> float:

@@ -25,6 +25,7 @@ import casadi as ca
 import numpy as np
 
 from bscomp.errors import ModelLimitationWarning
+from bscomp.simulation.compiled_time import ELEMENT_BAND
 from bscomp.simulation.modal_channels import (
     Channels,
     DefectiveLinearPart,
@@ -34,7 +35,7 @@ from bscomp.simulation.modal_channels import (
 )
 from bscomp.simulation.modal_kernels import FORCE_FLOOR, SKIPPED, Kernel, NumpyCall
 from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec, coefficient_patterns, regime_eps
-from bscomp.simulation.modal_parts import ELEMENT_BAND, ModalPart, element_bands
+from bscomp.simulation.modal_parts import ModalPart, element_bands
 from bscomp.simulation.modal_steps import THETAS, ModalHistory, Stepper, block
 
 __all__ = ["ModalSimulator"]

@@ -23,7 +23,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from bscomp.linear.frf_engine import dense
-from bscomp.simulation.compiled_time import ELEMENT_BAND, ELEMENT_SHARE
+from bscomp.simulation.compiled_time import contact_band
 from bscomp.simulation.modal_channels import DefectiveLinearPart, LinearPart
 
 __all__ = ["ModalPart", "element_band", "element_bands"]
@@ -276,10 +276,9 @@ def _undamped_modes(lin, K, M):
 
 
 def element_band(lin) -> float:
-    """``ELEMENT_BAND f_e`` [Hz], ``f_e`` the highest frequency of a mode an element's regime makes in the linear
-    part ``lin``: ``k_i (φ_j^T b_i)^2 / λ_j >= ELEMENT_SHARE`` for an element ``i`` of stiffness slope ``k_i``
-    and force pattern ``b_i`` (the shares of its compliance ``b_i^T K^{-1} b_i <= 1/k_i`` sum to at most 1);
-    0 without one, or for a model that is not mechanical.
+    """:func:`~bscomp.simulation.compiled_time.contact_band` of the elements' regime slopes in the linear part
+    ``lin`` (``ELEMENT_BAND`` x the highest mode carrying ``ELEMENT_SHARE`` of an element's compliance); 0 without a
+    stiff regime, or for a model that is not mechanical.
 
     The modes above ``f_keep`` are static (residual flexibility): exact for slow forces, but an impact on a stiff
     contact rings the contact's own mode, the modes just above it answer that ringing dynamically (at 0.76 of
@@ -296,10 +295,7 @@ def element_band(lin) -> float:
         return 0.0
     M, _, K, _, Rb, *_ = mb
     lam, phi, rigid = _undamped_modes(lin, K, M)
-    Gb = lin.G[Rb][:, :k.size]
-    share = (phi.T @ Gb) ** 2 * k[None, :] / np.where(rigid, np.inf, lam)[:, None]
-    own = (share >= ELEMENT_SHARE).any(axis=1) & ~rigid
-    return float(ELEMENT_BAND * np.sqrt(lam[own].max()) / (2 * np.pi)) if own.any() else 0.0
+    return contact_band(lam, phi, lin.G[Rb][:, :k.size], k, rigid)
 
 
 def element_bands(ch, cands):
