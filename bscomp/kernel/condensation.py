@@ -32,6 +32,9 @@ SYM_RTOL = 1e-9
 
 def is_asymmetric(A, rtol: float = SYM_RTOL) -> bool:
     """True when ``max|A - A^T| > rtol max|A|`` (dense or sparse; a zero matrix is symmetric)."""
+    if isinstance(A, np.ndarray) and A.ndim == 2:           # dense: no sparse copy (a diagnose fit asks per step)
+        scale = float(np.max(np.abs(A))) if A.size else 0.0
+        return bool(scale > 0 and np.max(np.abs(A - A.T)) > rtol * scale)
     A = sp.csr_matrix(A)
     scale = abs(A).max() if A.nnz else 0.0
     return bool(scale > 0 and abs(A - A.T).max() > rtol * scale)
@@ -46,6 +49,14 @@ def massless_split(M) -> tuple[np.ndarray, np.ndarray]:
     (a lumped mass) is massless only when its mass is exactly zero, so a light rotor next to a very heavy
     table (1e-3 kg m^2 and 1e12 kg) keeps its inertia. All coordinates are massless when ``M`` is zero.
     """
+    if isinstance(M, np.ndarray) and M.ndim == 2:           # dense: the same rule without sparse copies
+        A = np.abs(M)
+        col = A.sum(axis=0)
+        coupled = (A + A.T) != 0
+        np.fill_diagonal(coupled, False)
+        scale = np.max(np.where(coupled, col[:, None], 0.0), axis=0) if M.shape[0] else np.zeros(0)
+        massless = np.flatnonzero((col == 0) | (col <= 1e-14 * scale))
+        return massless, np.setdiff1d(np.arange(M.shape[0]), massless)
     M = sp.csr_matrix(M)
     n = M.shape[0]
     A = abs(M)

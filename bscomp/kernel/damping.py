@@ -38,6 +38,7 @@ from bscomp.kernel.condensation import real_general_eig
 
 __all__ = [
     "modal_damping_matrix",
+    "damping_from_modes",
     "rayleigh_damping_matrix",
     "rayleigh_coefficients",
     "damped_modal_properties",
@@ -149,10 +150,25 @@ def modal_damping_matrix(
     True
     """
     Md, Kd = _check_pair(M, K)
-    n = Md.shape[0]
+    _check_rigid_tol(rigid_tol)
+    lam, phi = _mass_normalised_modes(Md, Kd)
+    return damping_from_modes(Md, lam, phi, zeta, n_rigid, rigid_tol)
+
+
+def _check_rigid_tol(rigid_tol):
     if not (np.isscalar(rigid_tol) and np.isfinite(rigid_tol) and rigid_tol >= 0):
         raise ValueError(f"rigid_tol must be a finite non-negative number, got {rigid_tol!r}")
-    lam, phi = _mass_normalised_modes(Md, Kd)
+
+
+def damping_from_modes(Md: np.ndarray, lam: np.ndarray, phi: np.ndarray, zeta: float | Any,
+                       n_rigid: int | None = None, rigid_tol: float = 1e-9) -> np.ndarray:
+    r"""Eq A.14-A.15 from modes already solved: ``C = M chi diag(2 zeta omega) chi^T M`` with ``(lam, phi)``
+    the ascending, mass-normalised solution of ``K phi = M phi lam`` (``scipy.linalg.eigh(K, M)``) -- what
+    :func:`modal_damping_matrix` does after its own ``eigh``; for callers that need the modes anyway (the
+    ratios by mode character, :func:`matrix_from_ratios`), so the pair is decomposed once. ``zeta``,
+    ``n_rigid``, ``rigid_tol`` as in :func:`modal_damping_matrix`."""
+    _check_rigid_tol(rigid_tol)
+    n = Md.shape[0]
     lam_scale = max(float(np.max(np.abs(lam))), np.finfo(float).tiny)
     if n_rigid is None:
         rigid = np.abs(lam) <= rigid_tol * lam_scale
@@ -352,13 +368,13 @@ def damped_modal_properties(
 
 def matrix_from_ratios(option, M, K, coordinates=None) -> np.ndarray:
     """The damping matrix (Eq A.10-A.15) of an option that gives a ratio per mode (``modal_ratios(lam,
-    phi, M, coordinates)``): one ``eigh`` of (K, M), the ratios, :func:`modal_damping_matrix`."""
-    Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
-    Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
-    lam, phi = sla.eigh(Kd, Md)
+    phi, M, coordinates)``): one ``eigh`` of (K, M), the ratios, :func:`damping_from_modes` (the same modes:
+    the pair is decomposed once)."""
+    Md, Kd = _check_pair(M, K)
+    lam, phi = _mass_normalised_modes(Md, Kd)
     rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
     z = option.modal_ratios(lam, phi, Md, coordinates)
-    return modal_damping_matrix(Md, Kd, z, n_rigid=int(rigid.sum()))
+    return damping_from_modes(Md, lam, phi, z, n_rigid=int(rigid.sum()))
 
 
 def nonsymmetric_damping(option, M, K, coordinates=None) -> np.ndarray:

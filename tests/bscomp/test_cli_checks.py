@@ -7,6 +7,7 @@ import textwrap
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from bscomp import errors
 from bscomp.cli import main
@@ -240,6 +241,9 @@ def test_massless_split_cases():
     assert list(massless_split(np.zeros((2, 2)))[0]) == [0, 1]
     noise = np.array([[1.0, 1e-17], [1e-17, 1e-17]])            # round-off of a coupled projection
     assert list(massless_split(noise)[0]) == [1]
+    for M in (np.diag([1e12, 1e-3, 2.0]), np.diag([1.0, 0.0, 2.0]), np.zeros((2, 2)), noise, np.zeros((0, 0))):
+        dense, sparse = massless_split(M), massless_split(sp.csr_matrix(M))    # the dense path: the same rule
+        assert all(np.array_equal(a, b) for a, b in zip(dense, sparse, strict=True))
 
 
 def test_a_system_file_returning_no_system_is_named_by_the_library(tmp_path):

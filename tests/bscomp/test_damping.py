@@ -7,6 +7,8 @@ import scipy.sparse as sp
 
 from bscomp.kernel.damping import (
     damped_modal_properties,
+    damping_from_modes,
+    matrix_from_ratios,
     modal_damping_matrix,
     rayleigh_coefficients,
     rayleigh_damping_matrix,
@@ -65,6 +67,27 @@ def test_modal_damping_is_diagonal_in_modes(grounded4):
     C = modal_damping_matrix(M, K, zeta)
     lam, chi = sla.eigh(K, M)
     np.testing.assert_allclose(chi.T @ C @ chi, np.diag(2 * zeta * np.sqrt(lam)), atol=1e-8 * np.abs(C).max())
+
+
+def test_damping_from_modes_is_eq_a15_on_given_modes(free5):
+    """The modes solved once (matrix_from_ratios): the same C as modal_damping_matrix's own eigh, every elastic
+    mode at its ratio, the rigid one undamped."""
+    M, K = free5
+    lam, chi = sla.eigh(K, M)
+    zeta = np.array([0.0, 0.06, 0.10, 0.02, 0.02])
+    C = damping_from_modes(M, lam, chi, zeta)
+    np.testing.assert_array_equal(C, modal_damping_matrix(M, K, zeta))
+    om = np.sqrt(np.clip(lam, 0.0, None))
+    np.testing.assert_allclose(chi.T @ C @ chi, np.diag(2 * zeta * om), atol=1e-10 * np.abs(C).max())
+
+    class ByFrequency:                       # an option that gives ratios by mode, as DriveModalDamping does
+        def modal_ratios(self, lam, phi, M, coordinates=None):
+            return np.where(np.sqrt(np.clip(lam, 0.0, None)) > 1e3, 0.02, 0.06)
+
+    C2 = matrix_from_ratios(ByFrequency(), M, K)
+    z2 = np.diag(chi.T @ C2 @ chi)[1:] / (2 * om[1:])
+    np.testing.assert_allclose(z2, np.where(om[1:] > 1e3, 0.02, 0.06), rtol=1e-9)
+    np.testing.assert_allclose(C2 @ np.ones(5), 0.0, atol=1e-12 * np.abs(C2).max())   # the rigid mode
 
 
 def test_rigid_mode_undamped_free_free(free5):
