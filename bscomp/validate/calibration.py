@@ -43,6 +43,7 @@ from bscomp.validate.comparison import user_errors
 from bscomp.validate.datasets import AMPLITUDE_HARMONICS, FrfData, warn_amplitude_fit
 from bscomp.validate.evaluation import Problem, Structures, noise_levels, residual_blocks
 from bscomp.validate.residuals import build_for, data_label
+from bscomp.validate.uncertainty import STD_NOTE
 
 __all__ = ["calibrate", "Calibration", "FitSetup", "fit_uncertain", "parameter_bounds", "user_summary"]
 
@@ -252,7 +253,7 @@ class Calibration:
             flag = "  (at a bound)" if k in self.at_bound else ""
             lines.append(f"  {k:<24} {v0:12.6g} {v:12.6g} {self.std.get(k, float('nan')):10.2g} "
                          f"{100 * (v / v0 - 1):+7.2f} %  [{lo:.4g}, {hi:.4g}]{flag}")
-        lines += ["", "errors per channel (chi^2 over the whole dataset, before -> after):"]
+        lines += [f"  ({STD_NOTE})", "", "errors per channel (chi^2 over the whole dataset, before -> after):"]
         lines += [f"  {r['dataset'] + 1}. {r['channel']:<28} {r['before']:10.4g} -> {r['after']:.4g}"
                   for r in self.channels]
         return "\n".join(lines)

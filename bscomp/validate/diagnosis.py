@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from bscomp.files import atomic_write, json_default
 from bscomp.plotting.validate import plot_diagnosis
 from bscomp.validate.equivalence import Z_CRIT
+from bscomp.validate.uncertainty import STD_NOTE
 
 __all__ = ["EffectFit", "Diagnosis", "Skipped"]
 
@@ -225,6 +226,8 @@ class Diagnosis:
                              f"{r.error_after:.4g} ({100 * r.drop:.1f} % less)")
                 lines.append(f"     why: {r.evidence}")
                 lines += r.equivalence_lines()
+        if self.recalibrated or self.accepted:
+            lines += [f"  ({STD_NOTE})"]
         lines += ["", "error staircase: " + " -> ".join(f"{lbl} {e:.4g}" for lbl, e in self.staircase)]
         if self.user_errors:
             lines += ["", "errors as measured (magnitude: mean |log10 error| [decades], phase rms, fit %):"]

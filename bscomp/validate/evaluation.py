@@ -32,6 +32,7 @@ from bscomp.simulation.compiled import CompiledModel
 from bscomp.validate.datasets import FrfData, MeasurementFileError, TimeData
 from bscomp.validate.noise import noise_levels
 from bscomp.validate.residuals import frf_errors
+from bscomp.validate.uncertainty import parameter_std
 from bscomp.validate.units_check import check_units
 
 __all__ = ["Evaluator", "Structures", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]
@@ -214,6 +215,7 @@ class Problem:
             bb = [x[:cut] for x in b] if cut else b
             n = sum(x.size for x in bb)
             parts += [np.where(np.isfinite(x), x, 1e6) / math.sqrt(max(n, 1)) for x in bb]
+        self.block_sizes = [x.size for x in parts]          # the contiguous blocks (for uncertainty())
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def residual(self, theta):
@@ -237,15 +239,12 @@ class Problem:
         return sol.x, sol
 
     def uncertainty(self, theta, sol) -> dict:
-        """Standard deviations (``cov = (J^T J)^-1`` on whitened residuals, delta method from logs)."""
+        """Standard deviations of the fitted parameters: the sandwich covariance with each residual block's
+        correlation time (:func:`bscomp.validate.uncertainty.parameter_std`; never below the classical
+        ``sigma^2 (J^T J)^-1``), mapped from logs by the delta method."""
         if sol is None or sol.jac is None:
             return {}
-        J = np.asarray(sol.jac)
-        r = np.asarray(sol.fun)
-        dof = max(r.size - J.shape[1], 1)
-        s2 = float(r @ r) / dof * r.size           # residuals were scaled by 1/sqrt(n_d)
-        cov = s2 / r.size * np.linalg.pinv(J.T @ J)
-        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+        sd, _ = parameter_std(np.asarray(sol.jac), np.asarray(sol.fun), getattr(self, "block_sizes", []))
         return {f.label: float(math.exp(t) * s) for f, t, s in zip(self.free, theta, sd)}
 
     def summary(self, theta, k: int) -> dict:
