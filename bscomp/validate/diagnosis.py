@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 
 from bscomp.files import atomic_write, json_default
@@ -221,7 +222,8 @@ class Diagnosis:
         if self.accepted:
             lines += ["", "accepted effects:"]
             for r in self.accepted:
-                vals = ", ".join(f"{k} = {v:.4g} +- {r.std.get(k, float('nan')):.2g}" for k, v in r.values.items())
+                vals = ", ".join(f"{k} = {v:.4g} +- {r.std.get(k, float('nan')):.2g}{_bound_note(r, k, v)}"
+                                 for k, v in r.values.items())
                 lines.append(f"  {r.round}. {r.candidate.title}: {vals}; error {r.error_before:.4g} -> "
                              f"{r.error_after:.4g} ({100 * r.drop:.1f} % less)")
                 lines.append(f"     why: {r.evidence}")
@@ -288,3 +290,16 @@ class Diagnosis:
         """Write ``error_staircase.png`` and ``candidates.png`` to ``directory``; returns the paths."""
         return plot_diagnosis(self, directory)
 
+
+def _bound_note(fit, name, value, tol=0.02) -> str:
+    """`` (at its lower bound)`` when a fitted value ended within ``tol`` (in log) of its candidate parameter's
+    hard bound (the polish fit may end there after the rules passed): the data did not determine it there, and
+    its ``+-`` is the width of a flat valley, not a measurement."""
+    par = next((p for p in fit.candidate.parameters if p.name == name), None)
+    if par is None or not value > 0:
+        return ""
+    if abs(math.log(value / par.lower)) < tol:
+        return " (at its lower bound)"
+    if abs(math.log(par.upper / value)) < tol:
+        return " (at its upper bound)"
+    return ""

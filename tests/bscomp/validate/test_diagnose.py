@@ -169,3 +169,20 @@ def test_joint_case_does_not_turn_on_round_off(monkeypatch, eps, seed):
         r0 = next(q for q in ref.ranked if q.name == r.name)
         assert abs(r.error_after / r0.error_after - 1) < 1e-4, (r.name, r.error_after, r0.error_after)
         assert all(abs(r.values[p] / r0.values[p] - 1) < 1e-3 for p in r.values), (r.values, r0.values)
+
+
+def test_a_value_left_at_its_bound_is_marked_in_the_report():
+    """The demo's friction d ends at 1.011 N s/m on its lower bound 1 (F_c and d v trade at one sliding speed):
+    the report says so instead of printing a measurement."""
+    from types import SimpleNamespace
+
+    from bscomp.validate.candidates.base import CandidateParameter
+    from bscomp.validate.diagnosis import _bound_note
+
+    fit = SimpleNamespace(candidate=SimpleNamespace(parameters=[
+        CandidateParameter("F_c", "N", 10.0, 1e5, 1000.0, 1.5, "Coulomb level"),
+        CandidateParameter("d", "N.s/m", 1.0, 1e5, 1000.0, 1.5, "added viscous coefficient")]))
+    assert _bound_note(fit, "d", 1.011) == " (at its lower bound)"
+    assert _bound_note(fit, "d", 0.99e5) == " (at its upper bound)"
+    assert _bound_note(fit, "F_c", 2480.0) == ""
+    assert _bound_note(fit, "other", 1.0) == ""
