@@ -68,10 +68,27 @@ def stepped_frfs(model: str, case: str, conditions: dict) -> list:
     return out
 
 
-def run(model: str, case: str, stepped: bool = False) -> dict:
+def load_case(model: str, case: str) -> tuple:
+    """``(truth, [FRF data, time data])`` of a bundled truth case."""
     root = resources.files("bscomp.systems") / "data" / "truths" / model / case
     truth = json.loads((root / "truth.json").read_text())
-    data = load_all([str(root / "frf.csv"), str(root / "time.csv")])
+    return truth, load_all([str(root / "frf.csv"), str(root / "time.csv")])
+
+
+def hidden_pairs(d, truth) -> list:
+    """``(accepted fit, parameter name, hidden value)`` for each accepted effect's main parameters (:data:`MAIN`)."""
+    out = []
+    for a in d.accepted:
+        hidden, names = MAIN.get(a.name, (None, ()))
+        for n, tn in names:
+            t = truth["hidden"].get(hidden, {}).get(tn)
+            if t is not None and n in a.values:
+                out.append((a, n, t))
+    return out
+
+
+def run(model: str, case: str, stepped: bool = False) -> dict:
+    truth, data = load_case(model, case)
     if stepped:                     # the stepped sines at two amplitudes instead of the small-signal FRF
         data = stepped_frfs(model, case, data[1].conditions) + [data[1]]
     t0 = time.perf_counter()
@@ -79,13 +96,7 @@ def run(model: str, case: str, stepped: bool = False) -> dict:
     wall = time.perf_counter() - t0
     stairs = dict(d.staircase)
     recal, final = stairs["re-calibrated"], d.staircase[-1][1]
-    params = []
-    for a in d.accepted:
-        hidden, names = MAIN.get(a.name, (None, ()))
-        for n, tn in names:
-            t = truth["hidden"].get(hidden, {}).get(tn)
-            if t is not None and n in a.values:
-                params.append(f"{a.name}.{n} {a.values[n] / t - 1:+.1%}")
+    params = [f"{a.name}.{n} {a.values[n] / t - 1:+.1%}" for a, n, t in hidden_pairs(d, truth)]
     # named first: with the candidates the data cannot tell apart from it (bscomp.validate.equivalence)
     return {"model": model, "case": case, "first": " ~ ".join(d.ranked[0].group_names) if d.ranked else "-",
             "runner_up": _runner_up(d), "accepted": [a.name for a in d.accepted], "params": params,

@@ -21,14 +21,13 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import time  # noqa: E402
-from importlib import resources  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-from diagnose_table import CASES, MAIN, MODELS  # noqa: E402
+from diagnose_table import CASES, MODELS, hidden_pairs, load_case  # noqa: E402
 
 import bscomp.validate.evaluation as evaluation  # noqa: E402
 from bscomp.validate.diagnostics import diagnose  # noqa: E402
-from bscomp.validate.measurements import load_all  # noqa: E402
 from bscomp.validate.uncertainty import parameter_std  # noqa: E402
 
 _CALLS = []      # (reported std, classical std) per uncertainty() call, by parameter label
@@ -53,21 +52,15 @@ def _classical(label, std):
 
 
 def run(model: str, case: str) -> list:
-    root = resources.files("bscomp.systems") / "data" / "truths" / model / case
-    truth = json.loads((root / "truth.json").read_text())
-    data = load_all([str(root / "frf.csv"), str(root / "time.csv")])
+    truth, data = load_case(model, case)
     _CALLS.clear()
     t0 = time.perf_counter()
     d = diagnose(MODELS[model], data, max_effects=2)
     wall = time.perf_counter() - t0
     items = []
-    for a in d.accepted:
-        hidden, names = MAIN.get(a.name, (None, ()))
-        for n, tn in names:
-            t = truth["hidden"].get(hidden, {}).get(tn)
-            if t is not None and n in a.values:
-                s = a.std.get(n, float("nan"))
-                items.append((f"{a.name}.{n}", a.values[n], s, _classical(f"{a.name}.{n}", s), t))
+    for a, n, t in hidden_pairs(d, truth):
+        s = a.std.get(n, float("nan"))
+        items.append((f"{a.name}.{n}", a.values[n], s, _classical(f"{a.name}.{n}", s), t))
     joint = "joint" in truth["hidden"] and any(a.name == "table_subassembly" for a in d.accepted)
     for k, (v, s) in d.recalibrated.items():
         if k == "table.m" and joint:
@@ -101,8 +94,7 @@ def main(argv=None) -> int:
           f"std: {', '.join(f'{np.sum(z <= k)}' for k in (1, 2, 3))} (classical "
           f"{', '.join(f'{np.sum(zc <= k)}' for k in (1, 2, 3))})")
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(rows, f, indent=1)
+        Path(args.json).write_text(json.dumps(rows, indent=1))
     return 0
 
 
