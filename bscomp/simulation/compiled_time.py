@@ -339,12 +339,11 @@ class TimeSeriesMixin:
 
     def _cut_law_values(self, plaw, cut):
         """``plaw`` with the cut elements' small-signal equivalent zeroed (their whole law is the correction)."""
-        plaw, off = np.array(plaw, float), 0
-        for el, c in zip(self.elements, self._is_cut(cut), strict=True):
-            off += len(el.pnames)
+        plaw = np.array(plaw, float)
+        where = self.law_slices(np.arange(plaw.size))        # the packed layout's indices (one owner of it)
+        for (_, ik, is0, id_), c in zip(where, self._is_cut(cut), strict=True):
             if c:
-                plaw[off:off + 3] = 0.0      # k_lin, s0_lin, d_lin (:meth:`law_values`)
-            off += 3
+                plaw[[ik, is0, id_]] = 0.0
         return plaw
 
 

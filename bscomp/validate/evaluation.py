@@ -181,6 +181,7 @@ class Problem:
                 self.free += [Free(f"{cand.name}.{p.name}", p.lower, p.upper, values.get(p.name, p.median))
                               for p in cand.parameters]
         self.nfev = 0
+        self.block_sizes = []            # the residual's contiguous blocks (fit_vector; for uncertainty())
         self.only_frf = False          # True: fit the FRF datasets alone (linear evidence)
 
     def values(self, theta) -> dict:
@@ -215,7 +216,7 @@ class Problem:
             bb = [x[:cut] for x in b] if cut else b
             n = sum(x.size for x in bb)
             parts += [np.where(np.isfinite(x), x, 1e6) / math.sqrt(max(n, 1)) for x in bb]
-        self.block_sizes = [x.size for x in parts]          # the contiguous blocks (for uncertainty())
+        self.block_sizes = [x.size for x in parts]
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def residual(self, theta):
@@ -244,7 +245,7 @@ class Problem:
         ``sigma^2 (J^T J)^-1``), mapped from logs by the delta method."""
         if sol is None or sol.jac is None:
             return {}
-        sd, _ = parameter_std(np.asarray(sol.jac), np.asarray(sol.fun), getattr(self, "block_sizes", []))
+        sd, _ = parameter_std(np.asarray(sol.jac), np.asarray(sol.fun), self.block_sizes)
         return {f.label: float(math.exp(t) * s) for f, t, s in zip(self.free, theta, sd)}
 
     def summary(self, theta, k: int) -> dict:

@@ -10,11 +10,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.linalg as sla
 
 from bscomp.components import Damper, Spring, TorsionalDamper, TorsionalSpring
 from bscomp.components.pade_delay import PadeDelay
-from bscomp.kernel.damping import as_dense_symmetric, damping_from_modes, matrix_from_ratios
+from bscomp.kernel.damping import matrix_from_ratios, modal_damping_matrix
 from bscomp.kernel.interface import NotApplicable
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.validate.candidates._edits import insert_series
@@ -64,12 +63,11 @@ class AddedDampingOnMatrix:
         self.zeta = float(zeta)
 
     def matrix(self, M, K, coordinates=None):
-        Md, Kd = as_dense_symmetric(M, "M"), as_dense_symmetric(K, "K")
-        lam, phi = sla.eigh(Kd, Md)                   # once: the rigid modes and Eq A.15 from the same modes
-        rigid = np.abs(lam) <= 1e-9 * np.max(np.abs(lam))
-        z = np.where(rigid, 0.0, self.zeta)
+        Md = M.toarray() if hasattr(M, "toarray") else np.asarray(M)
+        Kd = K.toarray() if hasattr(K, "toarray") else np.asarray(K)
+        # modal_damping_matrix: one eigh, the rigid modes (undamped) found by the same rule as the other options
         return (np.asarray(system_damping_matrix(self.base, Md, Kd, coordinates), float)
-                + damping_from_modes(Md, lam, phi, z, n_rigid=int(rigid.sum())))
+                + modal_damping_matrix(Md, Kd, self.zeta))
 
     def __repr__(self):
         return f"AddedDampingOnMatrix({self.base!r}, zeta={self.zeta:g})"
