@@ -174,7 +174,7 @@ class TimeSeriesMixin:
         return n2, blocks, Phi, Ad, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs, Gv, Cy, Dyu, Dyw
 
     def simulate(self, params, t, inputs: dict, outputs=None, extra_damping: float = 0.0, delay: float = 0.0,
-                 n_sub: int | None = None, n_newton: int = 8, mm=None):
+                 n_sub: int | None = None, n_newton: int = 8, mm=None, max_sub: int | None = None):
         """Outputs ``{name: y(t)}`` for measured inputs held over each sample (module docstring).
 
         ``t`` must be uniform; the first sample is the model at rest with the first input value. ``inputs`` maps
@@ -186,7 +186,8 @@ class TimeSeriesMixin:
         least number of sub-steps per sample: it is doubled until a sub-step is stable with every such contact
         engaged (:func:`_stable`); where the Newton on the element forces leaves a residual above :data:`NEWTON_TOL`
         the run is repeated with the Newton guarded (:meth:`_newton`), then with twice the sub-steps, and so on (at
-        most :data:`MAX_SUB`; then a ModelLimitationWarning), and a run that needed more sub-steps to converge is
+        most ``max_sub``, default :data:`MAX_SUB`; then a ModelLimitationWarning and ``stats["newton_converged"]``
+        False), and a run that needed more sub-steps to converge is
         taken at twice the count that first converged (``benchmarks/fuzz_compiled.py`` seed 29, Stribeck friction
         with ``v_reg`` 1e-5 beside a clearance: the Newton fails at 4, converges at 8 with the velocity 52 % off,
         2e-6 at 16); ``stats["n_sub_used"]`` and ``stats["newton_guarded"]`` say what was used.
@@ -217,12 +218,13 @@ class TimeSeriesMixin:
         uc_seq = Ud[:, 1:nt + 1 - 0][:, :nt]
         up_seq = Ud[:, :nt]
         plaw_run = self._cut_law_values(plaw, cut)
+        cap = MAX_SUB if max_sub is None else int(max_sub)
         guard, halved, margin = False, False, False
         while True:       # a Newton that did not converge: guard it, then halve the sub-step (a kink crossed in it)
-            n_sub = self._stable_n_sub(mm, dt, n_sub, alpha, outputs, plaw, cut)
+            n_sub = self._stable_n_sub(mm, dt, n_sub, alpha, outputs, plaw, cut, cap)
             Y, bad = self._run(mm, (dt, n_sub, alpha, outputs), up_seq, uc_seq, plaw_run, n_newton, guard)
             bad = bad if np.all(np.isfinite(Y)) else np.inf
-            if n_sub >= MAX_SUB or (bad <= NEWTON_TOL and (margin or not halved)):
+            if n_sub >= cap or (bad <= NEWTON_TOL and (margin or not halved)):
                 break
             if bad <= NEWTON_TOL:       # first converged after halving: once more (docstring)
                 n_sub, guard, margin = 2 * n_sub, False, True
@@ -233,10 +235,11 @@ class TimeSeriesMixin:
                           f"did not converge (residual {bad:.1e} of the force) even at {n_sub} sub-steps per sample: "
                           "the time series is not trustworthy; use bscomp.simulate(method='modal')",
                           ModelLimitationWarning, stacklevel=2)
-        self.stats.update(n_sub_used=n_sub, newton_guarded=guard, last_newton_residual=bad)
+        self.stats.update(n_sub_used=n_sub, newton_guarded=guard, last_newton_residual=bad,
+                          newton_converged=bool(bad <= NEWTON_TOL))
         return {o: Y[i] for i, o in enumerate(outputs)}
 
-    def _stable_n_sub(self, mm, dt, n_sub, alpha, outputs, plaw, cut) -> int:
+    def _stable_n_sub(self, mm, dt, n_sub, alpha, outputs, plaw, cut, cap=None) -> int:
         """``n_sub`` doubled until a sub-step twice as long is stable too with the cut contacts engaged
         (:func:`_stable`). At the stability limit itself a kept mode above the contact's rings: the thesis bed with a
         1e11 N/m contact, modes to 12 kHz: stable from 16 sub-steps per 0.2 ms, table.a NRMSE 14 there, 2.1e-2 at
@@ -246,7 +249,8 @@ class TimeSeriesMixin:
         def stable(n):
             return _stable(self._disc(mm, (dt, n, alpha, outputs)), slopes)
 
-        while cut and n_sub < MAX_SUB and not (stable(n_sub) and (n_sub < 2 or stable(n_sub // 2))):
+        cap = MAX_SUB if cap is None else cap
+        while cut and n_sub < cap and not (stable(n_sub) and (n_sub < 2 or stable(n_sub // 2))):
             n_sub *= 2
         return n_sub
 

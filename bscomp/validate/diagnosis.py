@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from bscomp.files import atomic_write, json_default
 from bscomp.plotting.validate import plot_diagnosis
 from bscomp.validate.equivalence import Z_CRIT
+from bscomp.validate.evaluation import FIT_MAX_SUB
 from bscomp.validate.uncertainty import STD_NOTE
 
 __all__ = ["EffectFit", "Diagnosis", "Skipped"]
@@ -231,6 +232,10 @@ class Diagnosis:
         if self.recalibrated or self.accepted:
             lines += [f"  ({STD_NOTE})"]
         lines += ["", "error staircase: " + " -> ".join(f"{lbl} {e:.4g}" for lbl, e in self.staircase)]
+        if self.stats.get("unconverged"):
+            lines += ["", "time series not trustworthy (the Newton on the friction/backlash forces did not converge "
+                      f"at {FIT_MAX_SUB} sub-steps per sample; those evaluations' errors are off):"]
+            lines += [f"  {k}: {n} of {tot} evaluations" for k, (n, tot) in self.stats["unconverged"].items()]
         if self.user_errors:
             lines += ["", "errors as measured (magnitude: mean |log10 error| [decades], phase rms, fit %):"]
             lines += [f"  {lbl}: {_fmt_user(u)}" for lbl, u in self.user_errors]

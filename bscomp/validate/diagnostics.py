@@ -327,8 +327,16 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                      skipped=skipped, user_errors=user_errs,
                      noise=[[np.asarray(b, float).tolist() if np.ndim(b) else float(b) for b in s] for s in sigmas],
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
-                            "conditions": len(setup.systems)}, calibration=calibration, amplitude=amplitude,
+                            "conditions": len(setup.systems), "unconverged": _unconverged(structures)},
+                     calibration=calibration, amplitude=amplitude,
                      unconfirmed=unconfirmed)
+
+
+def _unconverged(structures) -> dict:
+    """``{"effect + effect": [evaluations whose time series' Newton did not converge, evaluations]}`` of the model
+    structures evaluated in this process (:data:`~bscomp.validate.evaluation.FIT_MAX_SUB`)."""
+    return {" + ".join(key): [ev.unconverged, ev.n_evaluations] for key, (ev, _) in structures.cache.items()
+            if ev.unconverged}
 
 
 def _message(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effects, setup, unc_values) -> str:

@@ -279,3 +279,8 @@ def test_a_newton_that_never_converges_warns_naming_the_elements(monkeypatch):
     with pytest.warns(ModelLimitationWarning, match=r"forces of \['axial'\] did not converge .* at 8 sub-steps"):
         cm.simulate({}, t, {"amp.u": _square(t, 2.0)}, n_newton=1)
     assert cm.stats["n_sub_used"] == 8 and cm.stats["last_newton_residual"] > 1e-8
+    assert cm.stats["newton_converged"] is False
+    monkeypatch.setattr(ct, "MAX_SUB", 256)            # a caller's own cap (diagnose's fits: 64) does the same
+    with pytest.warns(ModelLimitationWarning, match=r"at 4 sub-steps"):
+        cm.simulate({}, t, {"amp.u": _square(t, 2.0)}, n_newton=1, max_sub=4)
+    assert cm.stats["n_sub_used"] == 4 and not cm.stats["newton_converged"], cm.stats

@@ -186,3 +186,37 @@ def test_a_value_left_at_its_bound_is_marked_in_the_report():
     assert _bound_note(fit, "d", 0.99e5) == " (at its upper bound)"
     assert _bound_note(fit, "F_c", 2480.0) == ""
     assert _bound_note(fit, "other", 1.0) == ""
+
+
+def test_a_fit_time_series_whose_newton_did_not_converge_is_counted_and_reported(recwarn):
+    """A fit's time series whose Newton on the element forces did not converge at FIT_MAX_SUB sub-steps per sample
+    is counted on its evaluator instead of warning at every evaluation (two of 149 evaluations of the backlash
+    candidate in the demo's round 2); any other warning passes; the diagnosis lists the counts."""
+    import warnings
+    from types import SimpleNamespace
+
+    from bscomp.errors import ModelLimitationWarning
+    from bscomp.validate.evaluation import FIT_MAX_SUB, Evaluator
+
+    calls = []
+
+    def simulate(params, t, inputs, outputs, delay, mm, n_sub, max_sub):
+        calls.append(max_sub)
+        warnings.warn("CompiledModel.simulate: the Newton on the forces of ['b'] did not converge",
+                      ModelLimitationWarning, stacklevel=2)
+        warnings.warn("another limitation", ModelLimitationWarning, stacklevel=2)
+        cm.stats["newton_converged"] = params["ok"]
+        return {"y": np.zeros(3)}
+
+    cm = SimpleNamespace(simulate=simulate, stats={}, elements=[1])
+    ev = Evaluator.__new__(Evaluator)
+    ev.n_sub, ev.unconverged = 2, 0
+    for ok in (False, True, False):
+        ev._simulate(cm, {"ok": ok}, np.arange(3.0), {}, ["y"], 0.0, None)
+    assert ev.unconverged == 2 and calls == [FIT_MAX_SUB] * 3
+    msgs = [str(w.message) for w in recwarn.list]
+    assert msgs == ["another limitation"] * 3, msgs
+    d = Diagnosis(system=None, uncertain=[], recalibrated={}, ranked=[], accepted=[], rounds=[], staircase=[],
+                  message="m", stats={"unconverged": {"guideway_friction + screw_nut_backlash": [2, 149]}})
+    assert (f"did not converge at {FIT_MAX_SUB} sub-steps" in d.table()
+            and "guideway_friction + screw_nut_backlash: 2 of 149 evaluations" in d.table()), d.table()
