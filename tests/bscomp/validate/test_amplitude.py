@@ -210,15 +210,15 @@ def test_frfs_below_breakaway_pin_the_friction_slope_and_diagnose_says_so(measur
     """The friction truth's stepped sines, guideway friction alone as the candidate, five harmonics. At 0.2 V the
     motor pushes the table with ~389 N, below the truth's breakaway (1151 N): that file alone fits F_c to the law's
     slope at rest -- the candidate's ``F_c / v_reg + d`` within 35 % of the truth's ``(2/pi) F_c / v_s + d``
-    (measured 2.5e7 vs 3.3e7 N s/m, F_c 12,467 N). With the 2 V file too (whose own fit is F_c 1,813 N) one F_c
-    at a fixed ``v_reg`` cannot serve both: not accepted, F_c near 2,900 N, and the message says where the fitted
-    friction stays at its slope at rest (13 of 14 frequencies at 0.2 V, 5 at 2 V: measured).
+    (measured 2.6e7 vs 3.3e7 N s/m, F_c 2,583 N at v_reg 1e-4 m/s; 2.5e7 and 12,467 N at the 5e-4 of before). With
+    the 2 V file too one F_c at a fixed ``v_reg`` cannot serve both: not accepted, F_c off the truth by more than
+    the 15 % an accepted effect is held to (measured 1,458 N, +27 %, d at its prior's bound: rejected as a
+    stand-in; +150 % at v_reg 5e-4), and the message says where the fitted friction stays at its slope at rest
+    (11 of 14 frequencies at 0.2 V, 4 at 2 V: measured).
 
-    Which reason it is not accepted for is not pinned: the fit has two minima of near-equal error -- d at its
-    prior's bound (597.3, rejected as a stand-in) and d = 116 N s/m (600.8, unconfirmed: FRFs alone) -- and the
-    truth's stepped sines decide between them by changes 60x below their 1 % noise (a variant of the modal
-    integrator's refinement changed table.a by 1.7e-4 rms and flipped it; the stepped sines at ``tol`` 1e-5 land
-    on the bound, the default's on d = 116)."""
+    Which reason it is not accepted for is not pinned: at v_reg 5e-4 the fit had two minima of near-equal error --
+    d at its prior's bound (rejected as a stand-in) and d = 116 N s/m (unconfirmed: FRFs alone) -- which the
+    truth's stepped sines decided between by changes 60x below their 1 % noise."""
     from bscomp.validate.candidates.nonlinear import V_REG
 
     hidden = truth_system("friction", nut_joint="point")[1]["hidden"]["friction"]
@@ -233,7 +233,7 @@ def test_frfs_below_breakaway_pin_the_friction_slope_and_diagnose_says_so(measur
     assert abs((v["F_c"] / V_REG + v["d"]) / slope_truth - 1) < 0.35, (v, slope_truth)
     assert not both.accepted and both.ranked[0].name == "guideway_friction", both.table()
     assert both.unconfirmed in ([], [both.ranked[0]]), both.table()
-    assert both.ranked[0].values["F_c"] > 2 * hidden["F_c"]         # the level is not what the 0.2 V file pins
+    assert abs(both.ranked[0].values["F_c"] / hidden["F_c"] - 1) > 0.15, both.table()   # the level is not pinned
     assert "at 0.2 on amp.u the fitted friction stays at its slope at rest at 1" in both.message, both.message
     assert "not its level" in both.message
 

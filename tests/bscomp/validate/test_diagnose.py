@@ -172,8 +172,9 @@ def test_joint_case_does_not_turn_on_round_off(monkeypatch, eps, seed):
 
 
 def test_a_value_left_at_its_bound_is_marked_in_the_report():
-    """The demo's friction d ends at 1.011 N s/m on its lower bound 1 (F_c and d v trade at one sliding speed):
-    the report says so instead of printing a measurement."""
+    """The demo's friction d ended at 1.011 N s/m on its lower bound 1 (F_c and d v trade at one sliding speed;
+    with the friction candidates' v_reg 5e-4 m/s of before): the report says so instead of printing a
+    measurement."""
     from types import SimpleNamespace
 
     from bscomp.validate.candidates.base import CandidateParameter
