@@ -197,7 +197,7 @@ def test_demo_tells_the_story_on_the_fe_test_bed(tmp_path, capsys):
     recal = dict((lbl, e) for lbl, e in d["staircase"])["re-calibrated"]
     assert 1 - d["staircase"][-1][1] / recal >= 0.80
     # the table part's reported +- are of the order of the distance to the truth (bscomp.validate.uncertainty;
-    # measured |z| 1.6 / 1.5 for m, k). F_c's is not: -0.26 % from the truth is 14 of its +- 0.47 N -- the truth's
+    # measured |z| 1.6 / 1.5 for m, k). F_c's is not: -0.25 % from the truth is 13 of its +- 0.47 N -- the truth's
     # atan-smoothed friction against the candidate's tanh law, a model-form difference the residual cannot show
     # (docs/validation.md "Parameter uncertainty"), which the report says (below); F_c itself is pinned within 0.5 %
     for a in d["accepted"]:
