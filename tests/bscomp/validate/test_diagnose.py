@@ -191,8 +191,8 @@ def test_a_value_left_at_its_bound_is_marked_in_the_report():
 
 def test_a_fit_time_series_whose_newton_did_not_converge_is_counted_and_reported(recwarn):
     """A fit's time series whose Newton on the element forces did not converge at FIT_MAX_SUB sub-steps per sample
-    is counted on its evaluator instead of warning at every evaluation (two of 149 evaluations of the backlash
-    candidate in the demo's round 2); any other warning passes; the diagnosis lists the counts."""
+    is counted on its evaluator instead of warning at every evaluation (seen: two of 149 evaluations of the backlash
+    candidate beside friction at v_reg 1e-4 m/s); any other warning passes; the diagnosis lists the counts."""
     import warnings
     from types import SimpleNamespace
 
