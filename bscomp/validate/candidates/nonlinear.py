@@ -15,7 +15,8 @@ V_REG = 1e-4
 """Regularisation velocity [m/s] of the friction candidates: the ``CoulombFriction`` component's default and the
 thesis bed's (``systems/thesis_effects.py``); its rule, about 1e-3 of the slowest sliding speed of interest, gives
 ~4e-5 on the test bed. It was 5e-4 (no documented source) until 2026-12-05: the friction truths then ended at 5.9 /
-10.1 instead of 1.1 / 1.4, their friction's sticking slope 5x too shallow (docs/validation.md)."""
+10.1 instead of 1.1 / 1.4; the candidates' sticking slope F_c / v_reg was 7x / 13x below the truths' (2/pi) F_c / v_s
++ d on the axial+torsional friction / joint + friction truths (docs/validation.md)."""
 
 
 def _ground(e, point, vi) -> str:
