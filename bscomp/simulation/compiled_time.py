@@ -174,7 +174,8 @@ class TimeSeriesMixin:
         return n2, blocks, Phi, Ad, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs, Gv, Cy, Dyu, Dyw
 
     def simulate(self, params, t, inputs: dict, outputs=None, extra_damping: float = 0.0, delay: float = 0.0,
-                 n_sub: int | None = None, n_newton: int = 8, mm=None, max_sub: int | None = None):
+                 n_sub: int | None = None, n_newton: int = 8, mm=None, max_sub: int | None = None,
+                 warn: bool = True):
         """Outputs ``{name: y(t)}`` for measured inputs held over each sample (module docstring).
 
         ``t`` must be uniform; the first sample is the model at rest with the first input value. ``inputs`` maps
@@ -186,8 +187,8 @@ class TimeSeriesMixin:
         least number of sub-steps per sample: it is doubled until a sub-step is stable with every such contact
         engaged (:func:`_stable`); where the Newton on the element forces leaves a residual above :data:`NEWTON_TOL`
         the run is repeated with the Newton guarded (:meth:`_newton`), then with twice the sub-steps, and so on (at
-        most ``max_sub``, default :data:`MAX_SUB`; then a ModelLimitationWarning and ``stats["newton_converged"]``
-        False), and a run that needed more sub-steps to converge is
+        most ``max_sub``, default :data:`MAX_SUB`; then ``stats["newton_converged"]`` False and, with ``warn``, a
+        ModelLimitationWarning), and a run that needed more sub-steps to converge is
         taken at twice the count that first converged (``benchmarks/fuzz_compiled.py`` seed 29, Stribeck friction
         with ``v_reg`` 1e-5 beside a clearance: the Newton fails at 4, converges at 8 with the velocity 52 % off,
         2e-6 at 16); ``stats["n_sub_used"]`` and ``stats["newton_guarded"]`` say what was used.
@@ -230,7 +231,7 @@ class TimeSeriesMixin:
                 n_sub, guard, margin = 2 * n_sub, False, True
             else:
                 n_sub, guard, halved = (n_sub, True, halved) if not guard else (2 * n_sub, False, True)
-        if bad > NEWTON_TOL:
+        if bad > NEWTON_TOL and warn:
             warnings.warn(f"CompiledModel.simulate: the Newton on the forces of {[el.path for el in self.elements]} "
                           f"did not converge (residual {bad:.1e} of the force) even at {n_sub} sub-steps per sample: "
                           "the time series is not trustworthy; use bscomp.simulate(method='modal')",

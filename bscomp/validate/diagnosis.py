@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from bscomp.files import atomic_write, json_default
 from bscomp.plotting.validate import plot_diagnosis
 from bscomp.validate.equivalence import Z_CRIT
-from bscomp.validate.evaluation import FIT_MAX_SUB
+from bscomp.validate.evaluation import BOUND_TOL, FIT_MAX_SUB
 from bscomp.validate.uncertainty import STD_NOTE
 
 __all__ = ["EffectFit", "Diagnosis", "Skipped"]
@@ -296,7 +296,7 @@ class Diagnosis:
         return plot_diagnosis(self, directory)
 
 
-def _bound_note(fit, name, value, tol=0.02) -> str:
+def _bound_note(fit, name, value, tol=BOUND_TOL) -> str:
     """`` (at its lower bound)`` when a fitted value ended within ``tol`` (in log) of its candidate parameter's
     hard bound (the polish fit may end there after the rules passed): the data did not determine it there, and
     its ``+-`` is the width of a flat valley, not a measurement."""

@@ -24,7 +24,6 @@ describing function of its friction and backlash elements (:meth:`CompiledModel.
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -37,6 +36,10 @@ from bscomp.validate.uncertainty import parameter_std
 from bscomp.validate.units_check import check_units
 
 __all__ = ["Evaluator", "Structures", "noise_levels", "Problem", "Free", "block_stats", "residual_blocks"]
+
+BOUND_TOL = 0.02
+"""A fitted value within this distance (in log) of a hard bound of its prior is *at* that bound
+(:meth:`Problem.near_bounds`; the verdicts and the reports' "(at its lower bound)")."""
 
 FIT_MAX_SUB = 64
 """Most sub-steps per sample of a fit's time series (:meth:`CompiledModel.simulate` ``max_sub``; its own default
@@ -160,14 +163,9 @@ class Evaluator:
     def _simulate(self, cm, params, t, inputs, outputs, delay, mm):
         """One time series at most :data:`FIT_MAX_SUB` sub-steps per sample; one whose Newton did not converge there
         is counted in ``unconverged`` (the diagnosis reports it) instead of warning at every evaluation."""
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            y = cm.simulate(params, t, inputs, outputs=outputs, delay=delay, mm=mm,
-                            n_sub=self.n_sub if cm.elements else 1, max_sub=FIT_MAX_SUB)
+        y = cm.simulate(params, t, inputs, outputs=outputs, delay=delay, mm=mm,
+                        n_sub=self.n_sub if cm.elements else 1, max_sub=FIT_MAX_SUB, warn=False)
         self.unconverged += not cm.stats.get("newton_converged", True)
-        for w in caught:              # any other warning as it was raised
-            if "did not converge" not in str(w.message):
-                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         return y
 
     def blocks(self, overrides, hooks, sigmas, only_frf: bool = False, fitted_only: bool = False) -> list:
@@ -289,11 +287,16 @@ class Problem:
                 "heldout": float(np.mean(held_d)) if held_d else None, "heldout_per_dataset": held_d,
                 "bic": ss + k * math.log(max(n_fit, 2)), "outputs": outs}
 
-    def at_bound(self, theta, names, tol=0.02) -> list:
-        """Free parameters among ``names`` that ended within ``tol`` (in log) of a hard bound."""
+    def near_bounds(self, theta, tol=BOUND_TOL) -> np.ndarray:
+        """Which entries of ``theta`` (log space) are within ``tol`` of a hard bound of the free parameters."""
         lo, hi = self.bounds()
-        return [f.label for f, t, a, b in zip(self.free, theta, lo, hi)
-                if f.label in names and (t - a < tol or b - t < tol)]
+        theta = np.asarray(theta, float)
+        return (theta - lo < tol) | (hi - theta < tol)
+
+    def at_bound(self, theta, names, tol=BOUND_TOL) -> list:
+        """Free parameters among ``names`` that ended within ``tol`` (in log) of a hard bound."""
+        near = self.near_bounds(theta, tol) if len(self.free) else []
+        return [f.label for f, at in zip(self.free, near) if f.label in names and at]
 
 
 

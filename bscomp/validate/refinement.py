@@ -51,20 +51,13 @@ def refine_candidate(cand, effects, ev, st, sigmas, scores, pr, frf_only, rnd):
     # not depend on it (a joint damper of 1 N s/m), so the joint fit sees no gradient, and whether it leaves
     # within its budget is decided by round-off. Where the joint fit ended with it still at that bound, the
     # joint fit is also started from the parameter's screening value, and the better of the two ends kept.
-    moved = _to_bound(pr0, th0) & ~_to_bound(pr0, th_screen) & _to_bound(pr0, th[len(th_prev):])
+    moved = pr0.near_bounds(th0) & ~pr0.near_bounds(th_screen) & pr0.near_bounds(th[len(th_prev):])
     if np.any(moved):
         th_alt = np.where(moved, th_screen, th0)
         th2, sl2 = pr.fit(np.r_[th_prev, th_alt], max_nfev=budget)
         if sl is None or (sl2 is not None and sl2.cost < sl.cost):
             th, sl = th2, sl2
     return th, sl, pr.nfev + pr0.nfev
-
-
-def _to_bound(pr, th, tol: float = 0.02) -> np.ndarray:
-    """Which entries of ``th`` (log space) are within ``tol`` of a bound of ``pr``'s free parameters."""
-    lo, hi = pr.bounds()
-    th = np.asarray(th, float)
-    return (th - lo < tol) | (hi - th < tol)
 
 
 def _line_search(pr, th0, scores):

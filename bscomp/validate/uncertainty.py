@@ -6,7 +6,8 @@ time series and FRFs are sampled far more densely than the model's misfit change
 mesh that differs from the drive's leaves a residual that stays the same sign for hundreds of samples, and the
 formula then counts each of those samples as new evidence. On the bundled FE truths (``docs/validation.md``,
 "Parameter uncertainty") the reported ``+-`` were a median 6.3x (up to 390x) smaller than the distance to the
-hidden values; with the estimate below a median 2.1x -- the rest is the bias of the model's own form.
+hidden values; with the estimate below a median 2.1x (2.3x after the friction candidates' v_reg change) -- the rest
+is the bias of the model's own form.
 
 Here the covariance is the *sandwich* :math:`A^{-1} B A^{-1}` with :math:`A = J^T J` and :math:`B` the
 long-run covariance of the score :math:`s_t = J_t^T r_t`, estimated by **batch means** per residual block

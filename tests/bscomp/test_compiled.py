@@ -2,6 +2,8 @@
 own independent paths (bscomp.frf on a re-flattened system, IDAS at tight tolerance) and exact identities
 (a delay is e^{-jwT}; an integer-sample delay is a shift)."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -284,3 +286,7 @@ def test_a_newton_that_never_converges_warns_naming_the_elements(monkeypatch):
     with pytest.warns(ModelLimitationWarning, match=r"at 4 sub-steps"):
         cm.simulate({}, t, {"amp.u": _square(t, 2.0)}, n_newton=1, max_sub=4)
     assert cm.stats["n_sub_used"] == 4 and not cm.stats["newton_converged"], cm.stats
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                  # warn=False: said in stats only (diagnose counts it)
+        cm.simulate({}, t, {"amp.u": _square(t, 2.0)}, n_newton=1, max_sub=4, warn=False)
+    assert not cm.stats["newton_converged"], cm.stats
