@@ -1,15 +1,17 @@
 """Write the bundled truth data sets (issue 13, point 6): FE test-bed truths with hidden effects.
 
 For every case of :data:`bscomp.systems.truths.CASES` (control, joint, friction, backlash, delay,
-joint + friction) and both models (axial_torsional, full) this writes ``frf.csv``, ``time.csv`` and
-``truth.json`` into ``OUT_DIR/<model>/<case>/`` with the seed :func:`~bscomp.systems.truths.default_seed`
-(the files in ``systems/data/truths`` are this script's output; see the README there).
+joint + friction, and ripple: a motor torque ripple outside the candidates' library) and both models
+(axial_torsional, full) this writes ``frf.csv``, ``time.csv`` and ``truth.json`` into
+``OUT_DIR/<model>/<case>/`` with the seed :func:`~bscomp.systems.truths.default_seed` (the files in
+``systems/data/truths`` are this script's output; see the README there).
 
 Run: python examples/make_truth_data.py [OUT_DIR] [--models axial_torsional,full] [--cases joint,delay]
      [--no-time] [--full-nut-joint moving|point] [--summary]
 
 The FRFs take seconds. The time series (IDAS, rtol 1e-7, moving nut) took 40-130 s per case on the
-axial + torsional model and 3.4-6.8 min per case on the full 6-DOF model (2-core machine shared with
+axial + torsional model and 3.4-6.8 min per case on the full 6-DOF model (the full ripple: 17 min, its
+rotor turning through the ripple's periods; 2-core machine shared with
 other jobs; ~1 min with ``--full-nut-joint point``, the nut frozen at the file's position). Times are
 printed and stored in each truth.json.
 """
@@ -69,7 +71,7 @@ def summary(out_dir=DEFAULT_OUT) -> str:
 
 
 _MAIN = {"joint": ("k", "m", "zeta", "f_target"), "friction": ("F_c", "v_s", "d"), "backlash": ("b", "c"),
-         "delay": ("T",)}
+         "delay": ("T",), "ripple": ("A", "p", "phi_0")}
 
 
 def _fmt(v) -> str:

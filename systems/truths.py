@@ -26,6 +26,11 @@ the real drive would differ from the model a user has:
       shifted on the integration grid (8 points per sample) in the time series.
   ``joint_friction``
       ``joint`` and ``friction`` together.
+  ``ripple``
+      an effect **outside the candidates' library**: the motor's torque ripple (cogging),
+      ``tau = A sin(p phi + phi_0)`` on the rotor (:class:`TorqueRipple`; A 1-3 % of the square wave's
+      peak torque, p 6-12 periods per revolution, phi_0 uniform). A diagnosis should not name a
+      candidate for it: the honest answer is that the error stays, unexplained.
 
   ``control`` has none of them (mis-set parameters, mesh and moving nut only).
 
@@ -51,24 +56,23 @@ import time as _time
 from dataclasses import replace
 from pathlib import Path
 
-import casadi as ca
 import numpy as np
 import scipy.linalg as sla
 
-from bscomp.components import Damper, Fixed, Mass, Spring
-from bscomp.kernel.component import Parameter
-from bscomp.kernel.partials import PartialCompliant
+from bscomp.components import Damper, Fixed, FixedRotational, Mass, Spring
 
 from .parameters import DATA_DIR, get_value
 from .testbed import drive_fraction, testbed, thesis_parameters
+from .truth_effects import AtanFriction, RigidJointDamping, SoftBacklash, TorqueRipple
 
 __all__ = ["CASES", "MODELS", "AtanFriction", "SoftBacklash", "RigidJointDamping", "draw", "truth_system",
-           "make_frf", "make_time", "generate_case", "default_seed", "square_wave", "TIME_NOISE", "FRF_NOISE"]
+           "make_frf", "make_time", "generate_case", "default_seed", "square_wave", "TIME_NOISE", "FRF_NOISE",
+           "TorqueRipple"]
 
-CASES = ("control", "joint", "friction", "backlash", "delay", "joint_friction")
+CASES = ("control", "joint", "friction", "backlash", "delay", "joint_friction", "ripple")
 MODELS = ("axial_torsional", "full")
 HIDDEN = {"control": (), "joint": ("joint",), "friction": ("friction",), "backlash": ("backlash",),
-          "delay": ("delay",), "joint_friction": ("joint", "friction")}
+          "delay": ("delay",), "joint_friction": ("joint", "friction"), "ripple": ("ripple",)}
 
 #: Ranges of the random draws (uniform; ``log`` = log-uniform).
 RANGES = {
@@ -85,6 +89,8 @@ RANGES = {
     "backlash_b": (5.0e-6, 40.0e-6),       # m, total gap
     "backlash_c": (1.0e9, 3.0e9),          # N/m, log (screw-nut axial stiffness: 1.7e9)
     "delay_T": (1.0e-4, 1.0e-3),           # s
+    "ripple_fraction": (0.01, 0.03),       # torque ripple amplitude / the square wave's peak torque
+    "ripple_periods": (6, 12),             # ripple periods per motor revolution (integers, inclusive)
 }
 BACKLASH_WIDTH = 0.05                      # softplus width / b
 
@@ -93,116 +99,6 @@ TIME_NOISE = {"rotor.phi": 2.0e-4, "rotor.w": 0.01, "table.s": 3.0e-7, "table.a"
 OUTPUTS = ("rotor.phi", "rotor.w", "table.s", "table.a")
 DT, DURATION, FINE = 2.0e-4, 0.6, 8        # 5 kHz, 0.6 s, integration grid 8x finer (25 us)
 AMPLITUDE, FREQUENCY = 2.125, 5.0          # Sec 5.3.1: 4.25 V peak-to-peak, 5 Hz
-
-
-# ---- hidden-effect components --------------------------------------------------------------------------
-class AtanFriction(PartialCompliant):
-    """Guideway friction smoothed by an arc tangent: ``f = F_c (2/pi) atan(v_rel / v_s) + d v_rel``.
-
-    A truth's friction law, deliberately not the ``tanh`` regularisation of
-    :class:`~components.coulomb_friction.CoulombFriction`: the Coulomb part approaches ``F_c`` only as
-    ``1 - 2 v_s / (pi |v|)`` (an algebraic, not exponential, tail). The limit ``v_s -> 0`` is Eq (5.7).
-
-    # Parameters
-    - ``F_c`` [N]: Coulomb force magnitude (symmetric)
-    - ``v_s`` [m/s]: smoothing velocity (> 0)
-    - ``d`` [N.s/m]: viscous coefficient
-
-    # Connectors
-    - ``flange_a``, ``flange_b`` (``flange_a`` to a :class:`Fixed` for friction to ground)
-    """
-
-    F_c = Parameter(unit="N", min=0.0, doc="Coulomb force magnitude")
-    v_s = Parameter(unit="m/s", positive=True, doc="smoothing velocity of atan(v / v_s)")
-    d = Parameter(0.0, unit="N.s/m", min=0.0, doc="viscous coefficient")
-
-    def force_law(self, s_rel, v_rel):
-        """Friction force [N] at sliding velocity ``v_rel`` (CasADi expression or float)."""
-        return self.F_c * (2.0 / math.pi) * ca.atan(v_rel / self.v_s) + self.d * v_rel
-
-    def equations(self):
-        return [self.f - self.force_law(self.s_rel, self.v_rel)]
-
-    def linear_equivalent(self):
-        """For an FRF: the viscous part (the Coulomb part has no tangent while sliding)."""
-        return Damper(d=self.d) if self.d > 0 else None
-
-
-def softplus(x, w):
-    """``w log(1 + e^(x/w))``, written so that it does not overflow (CasADi or float)."""
-    return ca.fmax(x, 0) + w * ca.log1p(ca.exp(-ca.fabs(x) / w))
-
-
-class SoftBacklash(PartialCompliant):
-    """Clearance of total width ``b`` with a contact of stiffness ``c`` switched in over a width ``w``.
-
-    ``f = c [softplus(delta - b/2) - softplus(-delta - b/2)]``, ``delta = s_rel``, ``softplus(x) =
-    w log(1 + e^{x/w})``: C-infinity, zero force in the middle of the gap (``c w e^{-b/2w}``, 5e-9 of
-    ``c b`` for ``w = 0.05 b``), slope ``c`` in contact with the clearance shifted by ``w log 2`` at the edge.
-    Not the dead zone with bounded damping of :class:`~components.backlash.Backlash`: no contact damping
-    (the table is damped through the drive, :class:`RigidJointDamping`).
-
-    # Parameters
-    - ``b`` [m]: total clearance; ``c`` [N/m]: contact stiffness; ``w`` [m]: transition width
-    """
-
-    b = Parameter(unit="m", min=0.0, doc="total clearance")
-    c = Parameter(unit="N/m", positive=True, doc="contact stiffness")
-    w = Parameter(unit="m", positive=True, doc="width of the smooth contact transition")
-
-    def force_law(self, s_rel, v_rel):
-        return self.c * (softplus(s_rel - self.b / 2, self.w) - softplus(-s_rel - self.b / 2, self.w))
-
-    def equations(self):
-        return [self.f - self.force_law(self.s_rel, self.v_rel)]
-
-    def linear_equivalent(self):
-        """For an FRF (excitation large against the gap, contact engaged): the contact spring."""
-        return Spring(c=self.c)
-
-
-class RigidJointDamping:
-    """The drive's modal damping computed with a detached body joined rigidly to what it is attached to.
-
-    Modal damping (:class:`~bscomp.systems.testbed.DriveModalDamping`, Tables 4.1/4.2) describes the drive
-    as measured with the table bolted to the nut. A truth whose table part rides on its own spring
-    (``joint``) or whose table is separated from the nut by a clearance (``backlash``) keeps that damping
-    for the drive, evaluated with the body's mass lumped on the coordinate it is attached to and the joint
-    between them removed; the joint's own dashpot (or nothing, in the gap) is all that acts between them.
-    So no damping force crosses an open clearance, and an extra mode is damped by its own dashpot.
-    """
-
-    needs_coordinates = True
-
-    def __init__(self, base, body: str):
-        self.base, self.body = base, body
-
-    def matrix(self, M, K, coordinates=None):
-        M = M.toarray() if hasattr(M, "toarray") else np.array(M, float)
-        K = K.toarray() if hasattr(K, "toarray") else np.array(K, float)
-        names = list(coordinates)
-        i = names.index(self.body)
-        row = K[i].copy()
-        row[i] = 0.0
-        if np.any(np.delete(M[i], i) != 0.0):
-            raise ValueError(f"RigidJointDamping: {self.body} is inertially coupled to other coordinates")
-        nz = np.flatnonzero(row)
-        if nz.size != 1:
-            raise ValueError(f"RigidJointDamping: {self.body} must be joined to exactly one coordinate, found "
-                             f"{[names[n] for n in nz]}")
-        j = int(nz[0])
-        keep = [n for n in range(len(names)) if n != i]
-        M2, K2 = M[np.ix_(keep, keep)].copy(), K[np.ix_(keep, keep)].copy()
-        jj = keep.index(j)
-        M2[jj, jj] += M[i, i]                       # the body rides rigidly on coordinate j (direction +-1)
-        K2[jj, jj] -= abs(K[i, j])                  # ... and the joint between them is removed
-        C = np.zeros_like(M)
-        C[np.ix_(keep, keep)] = np.asarray(
-            self.base.matrix(M2, K2, coordinates=[names[n] for n in keep]), float)
-        return C
-
-    def __repr__(self):
-        return f"RigidJointDamping({self.base!r}, body={self.body!r})"
 
 
 # ---- random draws ------------------------------------------------------------------------------------
@@ -226,6 +122,10 @@ def draw(seed: int) -> dict:
     d["backlash"]["w"] = BACKLASH_WIDTH * d["backlash"]["b"]
     step = DT / FINE                             # the exact delay is a whole number of integration steps
     d["delay"] = {"T": round(u("delay_T") / step) * step}
+    # drawn last: the draws above (and so every truth generated before this case existed) are unchanged
+    lo, hi = R["ripple_periods"]
+    d["ripple"] = {"fraction": u("ripple_fraction"), "p": int(rng.integers(lo, hi + 1)),
+                   "phase": float(rng.uniform(0.0, 2.0 * math.pi))}
     return d
 
 
@@ -390,6 +290,15 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
         hidden["backlash"] = dict(bl)
     if "delay" in HIDDEN[case]:
         hidden["delay"] = dict(dr["delay"])
+    if "ripple" in HIDDEN[case]:
+        rp = dr["ripple"]
+        tau_peak = get_value(p, "electrical.K_a") * get_value(p, "electrical.K_t") * AMPLITUDE
+        A = rp["fraction"] * tau_peak
+        s.add("ripple_frame", FixedRotational())
+        s.add("ripple", TorqueRipple(A=A, p=float(rp["p"]), phi_0=rp["phase"]))
+        s.connect("ripple_frame.flange", "ripple.flange_a")
+        s.connect("ripple.flange_b", "rotor.flange_a")
+        hidden["ripple"] = {"A": A, "p": rp["p"], "phi_0": rp["phase"], "fraction_of_peak_torque": rp["fraction"]}
     s.name = f"truth_{case}_{model}"
     info = {"case": case, "model": model, "seed": seed, "nut_position": x, "nut_joint": nut_joint,
             "mesh": {"section_C_elements": dr["mesh_C"],

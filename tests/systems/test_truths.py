@@ -37,6 +37,7 @@ def test_draws_are_seeded_and_within_the_ranges():
         assert d["mesh_C"] != 39
         assert 800 <= d["friction"]["F_c"] <= 3000 and 5e-6 <= d["backlash"]["b"] <= 40e-6
         assert 1e9 <= d["backlash"]["c"] <= 3e9 and 20 <= d["joint"]["m"] <= 60
+        assert 0.01 <= d["ripple"]["fraction"] <= 0.03 and d["ripple"]["p"] in range(6, 13)
         T = d["delay"]["T"]
         assert 1e-4 - 2e-5 <= T <= 1e-3 + 2e-5
         assert abs(T / (truths.DT / truths.FINE) - round(T / (truths.DT / truths.FINE))) < 1e-9
@@ -45,10 +46,13 @@ def test_draws_are_seeded_and_within_the_ranges():
 def test_truths_do_not_use_the_candidates():
     import ast
 
-    tree = ast.parse(Path(truths.__file__).read_text())
-    names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
-    names += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
-    assert names and not [n for n in names if "validate.candidates" in n or "validate.generate" in n]
+    from bscomp.systems import truth_effects
+
+    for module in (truths, truth_effects):
+        tree = ast.parse(Path(module.__file__).read_text())
+        names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+        names += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+        assert names and not [n for n in names if "validate.candidates" in n or "validate.generate" in n]
 
 
 @pytest.mark.parametrize("model", truths.MODELS)
@@ -104,6 +108,23 @@ def test_delay_frf_is_the_control_frf_times_the_exact_delay():
     lag = np.exp(-2j * np.pi * d.freqs * T)
     for pair in d.H:
         assert np.allclose(d.H[pair], c.H[pair] * lag, rtol=1e-12, atol=0)
+
+
+def test_ripple_truth_is_a_torque_periodic_in_the_motor_angle_and_leaves_the_frf_alone():
+    """The out-of-library truth: A sin(p phi + phi_0) on the rotor with A the drawn fraction of the square wave's peak
+    torque (K_a K_t 2.125 V, Eq 4.1); its FRF is the control truth's of the same seed (the ripple has no linear
+    equivalent), to the last digit."""
+    seed = truths.default_seed("ripple")
+    s, info = truths.truth_system("ripple", AT, seed)
+    rp, dr = info["hidden"]["ripple"], truths.draw(seed)["ripple"]
+    comp = s.component("ripple")
+    assert float(comp.A) == pytest.approx(dr["fraction"] * 6.4898 * 0.4769 * 2.125, rel=1e-12) == rp["A"]
+    assert float(comp.p) == rp["p"] == dr["p"] and float(comp.phi_0) == rp["phi_0"]
+    assert float(comp.torque_law(0.3)) == pytest.approx(rp["A"] * math.sin(rp["p"] * 0.3 + rp["phi_0"]), rel=1e-12)
+    a, _ = truths.make_frf("ripple", AT, seed)
+    b, _ = truths.make_frf("control", AT, seed)
+    for pair in a.H:
+        assert np.array_equal(a.H[pair], b.H[pair])
 
 
 def test_frf_sign_convention_and_noise_level():
