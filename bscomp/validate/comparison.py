@@ -151,6 +151,7 @@ class Comparison:
             if ww and c.cost > 1e-12:
                 L.append("  error concentrated in " + ", ".join(
                     f"t = {w['t0']:.4g}-{w['t1']:.4g} s ({100 * w['share']:.0f} %, {w['activity']})" for w in ww))
+            L.extend(f"  {o.describe()}" for o in c.orders)
         corr = {k: v for k, v in self.signatures.items() if np.isfinite(v)}
         if corr and self.time and any(c.cost > 1e-12 for c in self.time):
             top = sorted(corr.items(), key=lambda kv: -abs(kv[1]))[:4]

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bscomp.components import IdealLeadScrew, Mass
+from bscomp.components import IdealLeadScrew, Inertia, Mass
 
 __all__ = ["SIGNATURES", "EVIDENCE", "signal_names", "physical_signals", "channel_signatures"]
 
@@ -41,17 +41,21 @@ EVIDENCE = {
 
 
 def signal_names(system) -> dict:
-    """Observables of the model used for signatures: the heaviest mass (the table) and the lead screw.
+    """Observables of the model used for signatures: the heaviest mass (the table), the lead screw and the
+    largest rotational inertia (the motor's rotor: its angle for :mod:`~bscomp.validate.periodicity`).
 
-    Returns ``{"s", "v", "a": "<table>.s|v|a", "nut": "<lead screw>.flange_b.s"}`` (empty without a mass).
+    Returns ``{"s", "v", "a": "<table>.s|v|a", "nut": "<lead screw>.flange_b.s", "phi": "<rotor>.phi"}`` (each
+    where the model has the part).
     """
-    masses, leads = [], []
+    masses, leads, inertias = [], [], []
     for name, comp in system.leaves():
         if isinstance(comp, Mass):
             masses.append((float(np.max(comp.m)), name))
         elif isinstance(comp, IdealLeadScrew):
             leads.append(name)
-    names = {}
+        elif isinstance(comp, Inertia):
+            inertias.append((float(np.max(comp.J)), name))
+    names = {"phi": f"{max(inertias)[1]}.phi"} if inertias else {}
     if masses:
         table = max(masses)[1]
         names.update({"s": f"{table}.s", "v": f"{table}.v", "a": f"{table}.a"})

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bscomp.validate.datasets import TimeData
+from bscomp.validate.periodicity import angle_channel, periodic_in_angle
 from bscomp.validate.residual_tests import resid
 from bscomp.validate.residuals import fit_percent, simulate_at
 from bscomp.validate.signatures import channel_signatures, physical_signals, signal_names
@@ -42,6 +43,9 @@ class TimeComparison:
         Equal time windows with their share of the squared (normalised) residual and what the model
         does there (``"velocity reversal"``, ``"acceleration"``, ``"constant velocity"``, ``"rest"``).
     cost : float
+    orders : list of AngleOrder
+        Residual components periodic in the motor angle (:mod:`~bscomp.validate.periodicity`: a torque
+        ripple, an eccentric, a lead error), most significant first; empty when none or no angle.
     """
 
     source: str
@@ -60,6 +64,7 @@ class TimeComparison:
     conditions: dict = field(default_factory=dict)
     delays: dict = field(default_factory=dict)
     index: int | None = None
+    orders: list = field(default_factory=list)
 
     def user_errors(self) -> dict:
         """``{"frf": [], "time": [{"channel", "fit_percent"}, ...]}``."""
@@ -81,7 +86,8 @@ class TimeComparison:
                 "measured": {k: v.tolist() for k, v in self.measured.items()},
                 "model": {k: v.tolist() for k, v in self.model.items()},
                 "resid": {k: v.to_dict() for k, v in self.resid.items()},
-                "signatures": self.signatures, "windows": self.windows}
+                "signatures": self.signatures, "windows": self.windows,
+                "orders": [o.to_dict() for o in self.orders]}
 
 
 
@@ -106,10 +112,12 @@ def compare_time(system, data: TimeData, n_windows: int = 20) -> TimeComparison:
     signatures, delays = {}, {}
     for n in e:
         signatures[n], delays[n] = channel_signatures(e[n], y_hat[n], t, sig)
+    angle = angle_channel(data.units) or names.get("phi")
+    orders = periodic_in_angle(e, res[angle], t, angle, data.units) if angle else []
     return TimeComparison(source=data.source, t=t, inputs=dict(data.inputs), measured=dict(data.outputs),
                           model=y_hat, residual=e, units=dict(data.units), fit=fit, resid=rt, signals=sig,
                           signatures=signatures, windows=_windows(t, en, sig, n_windows), cost=cst,
-                          conditions=dict(data.conditions), delays=delays)
+                          conditions=dict(data.conditions), delays=delays, orders=orders)
 
 
 def _windows(t, en, sig, n_windows) -> list:
