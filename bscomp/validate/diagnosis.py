@@ -167,6 +167,12 @@ class Diagnosis:
         FRF pairs measured at two stated amplitudes, compared with themselves
         (:func:`~bscomp.validate.amplitude.amplitude_dependence`): where they differ beyond noise a nonlinearity
         acts, which the small-signal FRF fit cannot see.
+    remainder : dict
+        What the final model leaves (:func:`~bscomp.validate.conclusion.remainder`): ``error`` (mean chi^2, 1 =
+        the noise floor), ``within_noise``, ``orders`` (time-series residual components periodic in a measured
+        angle, :class:`~bscomp.validate.periodicity.AngleOrder`: an effect no candidate has), ``frf_values`` (the
+        uncertain parameters fitted to the FRFs alone, when the error left is above
+        :data:`~bscomp.validate.conclusion.UNEXPLAINED`).
     message : str
     """
 
@@ -186,6 +192,7 @@ class Diagnosis:
     calibration: object = None
     amplitude: list = field(default_factory=list)
     unconfirmed: list = field(default_factory=list)
+    remainder: dict = field(default_factory=dict)
 
     @property
     def found(self) -> bool:
@@ -220,6 +227,9 @@ class Diagnosis:
             lines += ["", "not tried:"] + [f"  {s.name:<26} {s.reason}" for s in self.skipped]
         if self.recalibrated:
             lines += ["", "re-calibrated:"] + [f"  {k} = {v:.6g} +- {s:.2g}" for k, (v, s) in self.recalibrated.items()]
+        if self.remainder.get("frf_values"):
+            lines += ["", "fitted to the FRFs alone (an effect the FRFs do not see bends the fit to every dataset):"]
+            lines += [f"  {k} = {v:.6g}" for k, v in self.remainder["frf_values"].items()]
         if self.accepted:
             lines += ["", "accepted effects:"]
             for r in self.accepted:
@@ -232,6 +242,9 @@ class Diagnosis:
         if self.recalibrated or self.accepted:
             lines += [f"  ({STD_NOTE})"]
         lines += ["", "error staircase: " + " -> ".join(f"{lbl} {e:.4g}" for lbl, e in self.staircase)]
+        if self.remainder.get("orders"):
+            lines += ["", "left in the residual, periodic in the motor angle (no candidate has such an effect):"]
+            lines += [f"  {o.describe()}" for o in self.remainder["orders"]]
         if self.stats.get("unconverged"):
             lines += ["", "time series not trustworthy (the Newton on the friction/backlash forces did not converge "
                       f"at {FIT_MAX_SUB} sub-steps per sample; those evaluations' errors are off):"]
@@ -282,7 +295,8 @@ class Diagnosis:
                 "staircase": [[lbl, e] for lbl, e in self.staircase],
                 "user_errors": [[lbl, u] for lbl, u in self.user_errors], "noise": self.noise,
                 "amplitude": [a.to_dict() for a in self.amplitude],
-                "unconfirmed": [r.to_dict() for r in self.unconfirmed], "code": self.code(), "stats": self.stats}
+                "unconfirmed": [r.to_dict() for r in self.unconfirmed], "code": self.code(), "stats": self.stats,
+                "remainder": {**self.remainder, "orders": [o.to_dict() for o in self.remainder.get("orders", [])]}}
 
     def to_json(self, path=None) -> str:
         text = json.dumps(self.to_dict(), indent=2, default=json_default)

@@ -56,11 +56,12 @@ from scipy.optimize import minimize_scalar
 from threadpoolctl import threadpool_limits
 
 from bscomp.kernel.interface import NotApplicable
-from bscomp.validate.amplitude import amplitude_dependence, amplitude_note, frf_confirmation, stuck_note
+from bscomp.validate.amplitude import amplitude_dependence, amplitude_note, frf_confirmation
 from bscomp.validate.arguments import check_diagnose, load_datasets, resolve_candidates
 from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
 from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
+from bscomp.validate.conclusion import UNEXPLAINED, conclusion, remainder
 from bscomp.validate.datasets import FrfData, warn_amplitude_fit
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
 from bscomp.validate.equivalence import mark_equivalent
@@ -320,8 +321,12 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         for r in rr:
             for attr in ("_after", "_problem", "_theta", "_jac"):
                 r.__dict__.pop(attr, None)
-    message = _message(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effects, setup, unc_values) \
-        + (amplitude_note(amplitude, datasets)
+    within = within_noise(current)
+    view = _frf_view(system_or_build, setup, uncertain, overrides, default_spread, harmonics) \
+        if not within and max_effects and current["error"] > UNEXPLAINED else None
+    rest = remainder(current, setup.datasets, within, view)
+    message = conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effects, setup, unc_values,
+                         rest) + (amplitude_note(amplitude, datasets)
            if accepted or not unconfirmed or unconfirmed[0].candidate.nonlinear else "")  # else the linear reason
     return Diagnosis(system=ref, uncertain=list(unc),
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
@@ -331,7 +336,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
                             "conditions": len(setup.systems), "unconverged": _unconverged(structures)},
                      calibration=calibration, amplitude=amplitude,
-                     unconfirmed=unconfirmed)
+                     unconfirmed=unconfirmed, remainder=rest)
 
 
 def _unconverged(structures) -> dict:
@@ -341,38 +346,15 @@ def _unconverged(structures) -> dict:
             if ev.unconverged}
 
 
-def _message(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effects, setup, unc_values) -> str:
-    """The diagnosis's conclusion (``message`` already set: the model is within its noise). When nothing was
-    accepted and the best candidate is a friction or backlash fitted to FRFs at stated amplitudes, where its fitted
-    element stays at its slope at rest is said whatever its verdict (:func:`~bscomp.validate.amplitude.stuck_note`):
-    an FRF below breakaway measures the slope, not the level, and a fit there can land on either of two near-equal
-    minima (``docs/validation.md``)."""
-    if accepted:
-        return f"{len(accepted)} missing effect(s) found: " + ", ".join(_titles(a) for a in accepted)
-    if unconfirmed:
-        u = unconfirmed[0]
-        return (f"no missing effect confirmed: {u.candidate.title} would explain the FRFs (error "
-                f"{u.error_before:.4g} -> {u.error_after:.4g}), but "
-                f"{unconfirmed_why[1 if u.candidate.nonlinear else 0]}") + stuck_note(setup, u, unc_values)
-    if max_effects == 0:
-        return "no effect searched (max_effects=0): the uncertain parameters were only re-calibrated"
-    if message:
-        return message
-    message = "no missing effect found: no candidate explains the remaining error well enough (see why each was not " \
-        "accepted)"
-    best = ranked[0] if ranked else None
-    if best is not None and best.candidate.nonlinear and best.values:
-        note = stuck_note(setup, best, unc_values)
-        if note:
-            message += f". The best candidate, {best.candidate.title}, was fitted to FRFs at stated amplitudes" + note
-    return message
-
-
-def _titles(r) -> str:
-    """An accepted effect's title, with those the data cannot tell apart from it (one group)."""
-    if not r.equivalent:
-        return r.candidate.title
-    return f"{r.candidate.title} (~ {' ~ '.join(r.equivalent)}: indistinguishable on this model, see the table)"
+def _frf_view(system_or_build, setup, uncertain, overrides, default_spread, harmonics):
+    """``(values, outputs)``: the uncertain parameters fitted to the FRFs alone and the no-effect model's outputs on
+    every dataset there (:func:`~bscomp.validate.conclusion.remainder`); None without both FRFs and time series."""
+    frfs = [d for d in setup.datasets if isinstance(d, FrfData)]
+    if not frfs or len(frfs) == len(setup.datasets) or not setup.uncertain:
+        return None
+    cal = fit_uncertain(FitSetup.build(system_or_build, frfs, uncertain, overrides, default_spread, harmonics))
+    ev0, _ = setup.structures.get([])
+    return dict(cal.values), ev0.outputs(dict(cal.values), {})
 
 
 def _applicable(candidates, ref, unc):

@@ -244,14 +244,14 @@ def test_a_rejected_friction_fitted_to_frfs_still_says_where_it_stays_at_its_slo
     at its prior's bound); a linear best candidate or one without fitted values gets none."""
     from types import SimpleNamespace
 
-    from bscomp.validate import diagnostics
+    from bscomp.validate import conclusion
 
-    monkeypatch.setattr(diagnostics, "stuck_note", lambda setup, r, values: "; at 0.2 on amp.u the fitted friction ...")
+    monkeypatch.setattr(conclusion, "stuck_note", lambda setup, r, values: "; at 0.2 on amp.u the fitted friction ...")
     friction = SimpleNamespace(candidate=SimpleNamespace(nonlinear=True, title="Coulomb friction"), values={"F_c": 1})
-    msg = diagnostics._message("", [], [], ("", ""), [friction], 1, None, {})
+    msg = conclusion.conclusion("", [], [], ("", ""), [friction], 1, None, {})
     assert msg.startswith("no missing effect found") and msg.endswith(
         ". The best candidate, Coulomb friction, was fitted to FRFs at stated amplitudes; at 0.2 on amp.u the "
         "fitted friction ..."), msg
     linear = SimpleNamespace(candidate=SimpleNamespace(nonlinear=False, title="a bearing housing"), values={"k": 1})
-    assert "best candidate" not in diagnostics._message("", [], [], ("", ""), [linear], 1, None, {})
-    assert diagnostics._message("within noise", [], [], ("", ""), [friction], 1, None, {}) == "within noise"
+    assert "best candidate" not in conclusion.conclusion("", [], [], ("", ""), [linear], 1, None, {})
+    assert conclusion.conclusion("within noise", [], [], ("", ""), [friction], 1, None, {}) == "within noise"

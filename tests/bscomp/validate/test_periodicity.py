@@ -61,7 +61,7 @@ def test_a_periodic_component_is_found_with_its_order_and_amplitude(seed):
 
 
 def test_noise_smooth_errors_lines_and_ringing_are_not_called_periodic():
-    """20 seeds of five residuals with no angle-periodic part: none reported (at p < 1e-2 per channel, Bonferroni
+    """20 seeds of five residuals with no angle-periodic part: none reported (at p < 1e-3 per channel, Bonferroni
     over the orders; a line in time -- a resonance, the input's harmonics -- is removed before the test)."""
     phi = _angle("ramp")
     ring = sum(np.exp(-(T - t0) / 0.02) * (T >= t0) * np.sin(2 * np.pi * 150 * (T - t0))
@@ -118,7 +118,7 @@ RIPPLE = resources.files("bscomp.systems") / "data" / "truths" / "axial_torsiona
 def test_compare_at_the_truths_values_finds_the_ripples_order():
     """The ripple truth (2.9 % torque ripple, 12 per revolution) compared at its own mis-set values: the residual
     of table.a is periodic in rotor.phi at order 12; at the model's nominal values (a 7.7 % lighter table, whose
-    error dominates the residual) still found, less surely; the control truth (no ripple): nothing."""
+    error dominates the residual: p 2e-3) and on the control truth (no ripple): nothing claimed."""
     from bscomp.validate.comparison import compare
 
     truth = json.loads((RIPPLE / "truth.json").read_text())
@@ -128,8 +128,7 @@ def test_compare_at_the_truths_values_finds_the_ripples_order():
     (o,) = c.time[0].orders
     assert (o.channel, o.order) == ("table.a", truth["hidden"]["ripple"]["p"]) and o.p_value < 1e-4
     assert "periodic in rotor.phi: 12 periods per revolution" in c.summary()
-    (o,) = compare("testbed_axial_torsional", files).time[0].orders
-    assert (o.channel, o.order) == ("table.a", 12) and o.p_value < 1e-2
+    assert compare("testbed_axial_torsional", files).time[0].orders == []
     control = RIPPLE.parent / "control"
     files = [str(control / "frf.csv"), str(control / "time.csv")]
     assert compare("testbed_axial_torsional", files).time[0].orders == []

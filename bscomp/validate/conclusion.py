@@ -1,0 +1,120 @@
+r"""The conclusion of :func:`~bscomp.validate.diagnose` in words, and what is left when it ends.
+
+A diagnosis ends in one of four states, and its message says which: the model explains every dataset within its
+noise (nothing is missing); effects were found (named, with those the data cannot tell apart); a candidate would
+explain FRFs that nothing confirms (:func:`~bscomp.validate.amplitude.frf_confirmation`); or no candidate explains
+the error. In the last two, and after effects were found, the error left is stated against the noise floor: a
+library of candidates cannot name what it does not hold, but it can say that something is still missing.
+Above :data:`UNEXPLAINED` x the noise floor the message says so outright -- with the candidates' effects found, the
+12 bundled FE truths end at most 2.9x above it (the truths' own law shapes and FE mesh,
+``docs/validation.md``); the ``ripple`` truths (a motor torque ripple, which no candidate has) stay at 273x and
+1010x. Then the uncertain parameters are fitted to the FRFs alone too: an effect the FRFs do not see (a
+nonlinear one) bends the fit to every dataset -- on the ripple truths the table mass 11 % and 9.5 % light, the FRFs
+alone within 0.1 % of the truth -- and both values are given; and the time series' residuals, at the final values
+and at the FRFs' values, are searched for a component periodic in the motor angle
+(:mod:`~bscomp.validate.periodicity`), the one pattern of an effect outside the library that the data alone can
+point at.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bscomp.validate.amplitude import stuck_note
+from bscomp.validate.measurements import TimeData
+from bscomp.validate.periodicity import angle_channel, periodic_in_angle
+
+__all__ = ["conclusion", "titles", "remainder", "UNEXPLAINED"]
+
+#: Error left (mean chi^2, 1 = the noise floor) above which an effect outside the candidates is called missing.
+UNEXPLAINED = 5.0
+
+
+def remainder(summary, datasets, within_noise: bool, frf_view=None) -> dict:
+    """What the final model leaves: ``{"error": mean chi^2 of the fitted parts, "within_noise": bool, "orders":
+    [AngleOrder], "frf_values": {...} or None}`` -- the orders of the time series' residuals periodic in a
+    measured angle channel (none when the model is within its noise), most significant first. ``frf_view``
+    ``(values, outputs)``: the uncertain parameters fitted to the FRFs alone and the model's outputs there
+    (an effect the FRFs do not see bends the re-calibration on every dataset; the residual at the FRFs' values
+    shows it undistorted), searched too; per channel the more significant order is kept."""
+    found = {} if within_noise else _orders(summary["outputs"], datasets, "")
+    if frf_view is not None and not within_noise:
+        for ch, o in _orders(frf_view[1], datasets, "with the parameters the FRFs alone give").items():
+            if ch not in found or o.p_value < found[ch].p_value:
+                found[ch] = o
+    return {"error": float(summary["error"]), "within_noise": bool(within_noise),
+            "orders": sorted(found.values(), key=lambda o: o.p_value),
+            "frf_values": None if frf_view is None else dict(frf_view[0])}
+
+
+def _orders(outputs, datasets, note) -> dict:
+    """``{(dataset, channel): AngleOrder}`` of the time series' residuals (:func:`periodic_in_angle`)."""
+    out = {}
+    for i, (y, d) in enumerate(zip(outputs, datasets)):
+        angle = angle_channel(d.units) if isinstance(d, TimeData) else None
+        if angle is None or y is None or angle not in y:
+            continue
+        n = np.asarray(y[angle]).size
+        e = {ch: np.asarray(v, float)[:n] - np.asarray(y[ch], float) for ch, v in d.outputs.items() if ch in y}
+        for o in periodic_in_angle(e, np.asarray(y[angle], float), np.asarray(d.t, float)[:n], angle, d.units):
+            o.note = note
+            out[(i, o.channel)] = o
+    return out
+
+
+def conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effects, setup, unc_values,
+               rest=None) -> str:
+    """The diagnosis's conclusion (``message`` already set: the model is within its noise; ``rest``:
+    :func:`remainder`). When nothing was accepted and the best candidate is a friction or backlash fitted to FRFs
+    at stated amplitudes, where its fitted element stays at its slope at rest is said whatever its verdict
+    (:func:`~bscomp.validate.amplitude.stuck_note`): an FRF below breakaway measures the slope, not the level,
+    and a fit there can land on either of two near-equal minima (``docs/validation.md``)."""
+    left = "" if rest is None or rest["within_noise"] or max_effects == 0 else _left(rest, bool(accepted), unc_values)
+    if accepted:
+        return f"{len(accepted)} missing effect(s) found: " + ", ".join(titles(a) for a in accepted) + left
+    if unconfirmed:
+        u = unconfirmed[0]
+        return (f"no missing effect confirmed: {u.candidate.title} would explain the FRFs (error "
+                f"{u.error_before:.4g} -> {u.error_after:.4g}), but "
+                f"{unconfirmed_why[1 if u.candidate.nonlinear else 0]}") + stuck_note(setup, u, unc_values) + left
+    if max_effects == 0:
+        return "no effect searched (max_effects=0): the uncertain parameters were only re-calibrated"
+    if message:
+        return message
+    if rest is not None and not rest["within_noise"] and rest["error"] > UNEXPLAINED:
+        message = ("an effect outside the candidates is missing: none of them explains the remaining error (see why "
+                   "each was not accepted)")
+    else:
+        message = ("no missing effect found: no candidate explains the remaining error well enough (see why each "
+                   "was not accepted)")
+    best = ranked[0] if ranked else None
+    if best is not None and best.candidate.nonlinear and best.values:
+        note = stuck_note(setup, best, unc_values)
+        if note:
+            message += f". The best candidate, {best.candidate.title}, was fitted to FRFs at stated amplitudes" + note
+    return message + left
+
+
+def _left(rest, found, values) -> str:
+    """The sentence on the error left (module docstring)."""
+    e = rest["error"]
+    text = f". The error left is {e:.3g}x the noise floor"
+    if e > UNEXPLAINED:
+        text += (f" (above {UNEXPLAINED:g}x: more than the candidates' law shapes leave, so "
+                 + ("something else is missing too" if found else "the re-calibrated values absorb part of what is "
+                    "missing: do not trust them before it is modelled") + ")")
+    frf = rest.get("frf_values") or {}
+    if frf and values:
+        text += "; the FRFs alone give " + ", ".join(f"{k} = {v:.4g} (the fit to every dataset: "
+                                                     f"{100 * (values[k] / v - 1):+.1f} %)" for k, v in frf.items()
+                                                     if k in values)
+    for o in rest["orders"]:
+        text += f"; {o.describe()}"
+    return text
+
+
+def titles(r) -> str:
+    """An accepted effect's title, with those the data cannot tell apart from it (one group)."""
+    if not r.equivalent:
+        return r.candidate.title
+    return f"{r.candidate.title} (~ {' ~ '.join(r.equivalent)}: indistinguishable on this model, see the table)"
