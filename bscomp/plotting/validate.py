@@ -18,7 +18,7 @@ import numpy as np
 from bscomp.plotting.base import _finish, _plt, figure_folder, save_figure
 
 __all__ = ["comparison_plots", "frf_comparison_plot", "band_error_plot", "time_comparison_plot",
-           "resid_plot", "signature_plot", "plot_diagnosis", "calibration_plot", "amplitude_plot"]
+           "resid_plot", "signature_plot", "plot_diagnosis", "calibration_plot", "amplitude_plot", "order_plot"]
 
 
 def _slug(text):
@@ -208,11 +208,42 @@ def comparison_plots(comparison, out_dir, signature_names=None) -> list:
         p = out / "signatures.png"
         signature_plot(comparison.signatures, p, names=signature_names)
         paths.append(p)
+    for k, tc in enumerate(comparison.time):
+        if getattr(tc, "orders", None):
+            p = out / f"time{k + 1}_{_slug(tc.source)}_orders.png"
+            order_plot(tc.orders, p)
+            paths.append(p)
     if getattr(comparison, "amplitude", None):
         p = out / "amplitude_dependence.png"
         amplitude_plot(comparison.amplitude, p)
         paths.append(p)
     return paths
+
+
+def order_plot(orders, path=None, title=None):
+    """Residual components periodic in the motor angle (:class:`~bscomp.validate.periodicity.AngleOrder`), one row
+    each: the share of the residual per order (the one found in red) and the residual folded over one period of that
+    order -- bin means against ``k phi mod 2 pi`` -- with the fitted ``amplitude cos(k phi + phase)``."""
+    plt = _plt()
+    fig, axes = plt.subplots(len(orders), 2, figsize=(12, 3.2 * len(orders)), squeeze=False)
+    for (a1, a2), o in zip(axes, orders):
+        R2 = np.asarray(o.spectrum, float)
+        k = np.arange(1, R2.size + 1)
+        a1.bar(k, 100 * R2, color=["tab:red" if kk == o.order else "0.6" for kk in k], width=0.8)
+        a1.set_xlabel(f"order [periods per revolution of {o.angle}]")
+        a1.set_ylabel("share of the residual [%]")
+        a1.set_title(f"{o.channel}{' ' + o.note if o.note else ''}: order {o.order}, p {o.p_value:.1g}", fontsize=9)
+        a1.grid(True, axis="y", alpha=0.3)
+        f = np.asarray(o.folded, float).reshape(-1, 2)
+        th = np.linspace(0.0, 2.0 * np.pi, 200)
+        a2.plot(f[:, 0], f[:, 1], "ko", ms=4, label="residual, bin means")
+        a2.plot(th, o.amplitude * np.cos(th + o.phase), "C3-", label=f"fit, amplitude {o.amplitude:.3g} {o.unit}")
+        a2.set_xlabel(f"{o.order} {o.angle} mod 2 pi [rad]")
+        a2.set_ylabel(f"{o.channel} residual [{o.unit}]" if o.unit else f"{o.channel} residual")
+        a2.grid(True, alpha=0.3)
+        a2.legend(fontsize=8)
+    fig.suptitle(title or "what the model misses, periodic in the motor angle")
+    return _finish(fig, plt, path)
 
 
 def plot_diagnosis(diag, directory):
@@ -247,6 +278,11 @@ def plot_diagnosis(diag, directory):
     p2 = d / "candidates.png"
     save_figure(fig, p2, dpi=110)
     plt.close(fig)
+    orders = (getattr(diag, "remainder", None) or {}).get("orders")
+    if orders:
+        p3 = d / "orders.png"
+        order_plot(orders, p3, title="left by the diagnosis, periodic in the motor angle (no candidate has it)")
+        return [p1, p2, p3]
     return [p1, p2]
 
 

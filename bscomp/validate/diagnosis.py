@@ -306,7 +306,8 @@ class Diagnosis:
         return text
 
     def plot(self, directory):
-        """Write ``error_staircase.png`` and ``candidates.png`` to ``directory``; returns the paths."""
+        """Write ``error_staircase.png``, ``candidates.png`` (and ``orders.png`` when the remainder holds a component
+        periodic in the motor angle) to ``directory``; returns the paths."""
         return plot_diagnosis(self, directory)
 
 

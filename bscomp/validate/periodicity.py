@@ -31,7 +31,7 @@ in ``table.s``, p 0.009).
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -44,6 +44,7 @@ MIN_PERIODS = 3      # periods of the lowest order tested over the angle the rec
 ALPHA = 1e-3         # p-value below which a component is reported (1e-2 called an order 31 on the demo truth)
 LINES = 5            # strongest sinusoids in time removed from a residual before its orders are tested
 STEADY = 0.5         # largest fraction of the moving samples within 10 % of the median speed (else no claim)
+BINS = 24            # bins of the residual folded over one period of the order (the figure)
 MIN_OWN = 0.75       # least share of the order's component a sinusoid in time must leave (:func:`_tone_share`)
 
 
@@ -53,7 +54,10 @@ class AngleOrder:
 
     ``share``: fraction of the channel's trend-free residual sum of squares it explains; ``amplitude`` in the
     channel's unit; ``p_value``: :mod:`module docstring <bscomp.validate.periodicity>`; ``note``: which model's
-    residual (e.g. ``"with the parameters the FRFs alone give"``)."""
+    residual (e.g. ``"with the parameters the FRFs alone give"``). For the figure
+    (:func:`bscomp.plotting.validate.order_plot`): ``spectrum``, the share of every order ``1..k_max``; ``phase``
+    [rad] of the fitted ``amplitude cos(k phi + phase)``; ``folded``, ``[[k phi mod 2 pi, mean residual less its
+    nuisance part], ...]`` in :data:`BINS` bins."""
 
     channel: str
     angle: str
@@ -63,6 +67,9 @@ class AngleOrder:
     amplitude: float
     unit: str = ""
     note: str = ""
+    spectrum: list = field(default_factory=list, repr=False)
+    phase: float = 0.0
+    folded: list = field(default_factory=list, repr=False)
 
     def describe(self) -> str:
         unit = f" {self.unit}" if self.unit else ""
@@ -227,9 +234,20 @@ def periodic_in_angle(residuals: dict, phi, t, angle: str, units: dict | None = 
         R2, coef = order_spectrum(e, phi, t, rng[1], Ql)
         k, p = _best_order(R2, *rng)
         if p < alpha and _tone_share(e, phi, t, k, Ql) >= MIN_OWN:
-            out.append(AngleOrder(ch, angle, k, float(R2[k - 1]), p, float(abs(coef[k - 1])),
-                                  (units or {}).get(ch, "")))
+            c = coef[k - 1]
+            out.append(AngleOrder(ch, angle, k, float(R2[k - 1]), p, float(abs(c)), (units or {}).get(ch, ""),
+                                  spectrum=R2.tolist(), phase=float(np.angle(c)), folded=_folded(e, phi, k, Ql)))
     return sorted(out, key=lambda a: a.p_value)
+
+
+def _folded(e, phi, k, Q) -> list:
+    """``[[bin centre, mean], ...]`` of the residual less its nuisance part over ``k phi mod 2 pi``."""
+    r = e - Q @ (Q.T @ e)
+    th = np.mod(k * phi, 2.0 * np.pi)
+    idx = np.minimum((th / (2.0 * np.pi) * BINS).astype(int), BINS - 1)
+    n = np.bincount(idx, minlength=BINS)
+    mean = np.bincount(idx, weights=r, minlength=BINS) / np.maximum(n, 1)
+    return [[(i + 0.5) * 2.0 * np.pi / BINS, float(mean[i])] for i in range(BINS) if n[i]]
 
 
 def angle_channel(units: dict) -> str | None:

@@ -121,7 +121,7 @@ def _check_report_carries_user_errors_and_skips(diag):
     assert "not tried" in diag.table()
 
 
-def test_an_effect_outside_the_candidates_is_called_missing_with_its_order():
+def test_an_effect_outside_the_candidates_is_called_missing_with_its_order(tmp_path):
     """The ripple truth (a 2.9 % motor torque ripple, 12 per revolution; bscomp.systems.truths): nothing accepted,
     the error left far above the noise floor (273x), the message says an effect outside the candidates is missing
     and names the order (bscomp.validate.periodicity); the re-calibrated table mass absorbed part of it (-11 %),
@@ -140,3 +140,4 @@ def test_an_effect_outside_the_candidates_is_called_missing_with_its_order():
     for k in ("table.m", "coupling.k_T"):
         assert d.remainder["frf_values"][k] == pytest.approx(truth["misset"][k]["truth"], rel=5e-3)
     assert d.recalibrated["table.m"][0] < 0.92 * truth["misset"]["table.m"]["truth"]
+    assert [p.name for p in d.plot(tmp_path)] == ["error_staircase.png", "candidates.png", "orders.png"]

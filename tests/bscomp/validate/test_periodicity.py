@@ -115,7 +115,7 @@ def test_the_conclusion_states_the_error_left():
 RIPPLE = resources.files("bscomp.systems") / "data" / "truths" / "axial_torsional" / "ripple"
 
 
-def test_compare_at_the_truths_values_finds_the_ripples_order():
+def test_compare_at_the_truths_values_finds_the_ripples_order(tmp_path):
     """The ripple truth (2.9 % torque ripple, 12 per revolution) compared at its own mis-set values: the residual
     of table.a is periodic in rotor.phi at order 12; at the model's nominal values (a 7.7 % lighter table, whose
     error dominates the residual: p 2e-3) and on the control truth (no ripple): nothing claimed."""
@@ -128,6 +128,11 @@ def test_compare_at_the_truths_values_finds_the_ripples_order():
     (o,) = c.time[0].orders
     assert (o.channel, o.order) == ("table.a", truth["hidden"]["ripple"]["p"]) and o.p_value < 1e-4
     assert "periodic in rotor.phi: 12 periods per revolution" in c.summary()
+    # the figure's numbers: the spectrum peaks at the order, the folded bin means follow the fitted cosine
+    assert int(np.argmax(o.spectrum)) + 1 == 12 and len(o.spectrum) >= 60
+    th, m = np.asarray(o.folded).T
+    assert np.corrcoef(m, o.amplitude * np.cos(th + o.phase))[0, 1] > 0.9
+    assert any(p.name.endswith("_orders.png") and p.stat().st_size > 10_000 for p in c.plot(tmp_path))
     assert compare("testbed_axial_torsional", files).time[0].orders == []
     control = RIPPLE.parent / "control"
     files = [str(control / "frf.csv"), str(control / "time.csv")]
