@@ -82,6 +82,11 @@ class AngleOrder:
         return asdict(self)
 
 
+def _off(Q, X):
+    """``X`` less its projection on the orthonormal columns ``Q`` (the nuisance part)."""
+    return X - Q @ (Q.T @ X)
+
+
 def _trend(t, degree):
     span = float(np.ptp(t)) or 1.0
     x = 2.0 * (np.asarray(t, float) - float(np.min(t))) / span - 1.0
@@ -95,14 +100,14 @@ def order_spectrum(e, phi, t, max_order: int = MAX_ORDER, basis=None):
     e = np.asarray(e, float)
     phi = np.asarray(phi, float)
     Q = np.linalg.qr(_trend(t, TREND_DEGREE))[0] if basis is None else basis
-    r0 = e - Q @ (Q.T @ e)                          # the residual less its nuisance part
+    r0 = _off(Q, e)                                 # the residual less its nuisance part
     ss0 = float(r0 @ r0)
     R2, coef = np.zeros(max_order), np.zeros(max_order, complex)
     if ss0 <= 0.0:
         return R2, coef
     for k in range(1, max_order + 1):
         C = np.column_stack([np.cos(k * phi), np.sin(k * phi)])
-        C = C - Q @ (Q.T @ C)                       # the two columns, nuisance removed (Frisch-Waugh)
+        C = _off(Q, C)                              # the two columns, nuisance removed (Frisch-Waugh)
         c, *_ = np.linalg.lstsq(C, r0, rcond=None)
         fit = C @ c
         R2[k - 1] = float(fit @ fit) / ss0
@@ -163,7 +168,7 @@ def with_lines(e, t, Q, n_lines: int = LINES):
     span, dt = float(np.ptp(t)), float(np.median(np.diff(t)))
     n_fft = 1 << int(np.ceil(np.log2(4 * e.size)))
     for _ in range(n_lines):
-        r = e - Q @ (Q.T @ e)
+        r = _off(Q, e)
         P = np.abs(np.fft.rfft(r, n_fft))
         P[0] = 0.0
         f = np.fft.rfftfreq(n_fft, dt)[int(np.argmax(P))]
@@ -178,11 +183,11 @@ def _tone_share(e, phi, t, k, Q):
     :math:`R^2` beside the time frequency closest to its fitted component, over its own :math:`R^2` (near 0
     when the speed hardly varies: a resonance ringing at constant speed is then indistinguishable from an
     order, and none is claimed)."""
-    r0 = e - Q @ (Q.T @ e)
+    r0 = _off(Q, e)
 
     def cols(*c):
         C = np.column_stack(c)
-        return C - Q @ (Q.T @ C)
+        return _off(Q, C)
 
     def rss(C):
         c, *_ = np.linalg.lstsq(C, r0, rcond=None)
@@ -200,7 +205,7 @@ def _tone_share(e, phi, t, k, Q):
     for i in range(0, fs.size, 256):                  # the time frequency that best carries the order's component
         arg = 2.0 * np.pi * np.outer(t, fs[i:i + 256])
         C, S = np.cos(arg), np.sin(arg)
-        C, S = C - Q @ (Q.T @ C), S - Q @ (Q.T @ S)
+        C, S = _off(Q, C), _off(Q, S)
         cc, ss, cs = (np.einsum("ij,ij->j", a, b) for a, b in ((C, C), (S, S), (C, S)))
         ce, se = C.T @ yk, S.T @ yk
         fit = (ss * ce * ce - 2.0 * cs * ce * se + cc * se * se) / np.maximum(cc * ss - cs * cs, 1e-300)
@@ -242,7 +247,7 @@ def periodic_in_angle(residuals: dict, phi, t, angle: str, units: dict | None = 
 
 def _folded(e, phi, k, Q) -> list:
     """``[[bin centre, mean], ...]`` of the residual less its nuisance part over ``k phi mod 2 pi``."""
-    r = e - Q @ (Q.T @ e)
+    r = _off(Q, e)
     th = np.mod(k * phi, 2.0 * np.pi)
     idx = np.minimum((th / (2.0 * np.pi) * BINS).astype(int), BINS - 1)
     n = np.bincount(idx, minlength=BINS)
