@@ -149,6 +149,15 @@ class FitSetup:
                    sigmas=[noise_levels(d) for d in datasets],
                    structures=Structures(systems, datasets, keys, list(unc), harmonics))
 
+    def only(self, keep) -> FitSetup:
+        """The same fit on the datasets at indices ``keep``: their built systems, noise floors and the uncertain
+        parameters reused (not built again), evaluators made anew when first asked for."""
+        datasets, keys = [self.datasets[i] for i in keep], [self.keys[i] for i in keep]
+        systems = {k: self.systems[k] for k in keys}
+        return FitSetup(datasets=datasets, systems=systems, keys=keys, reference=systems[keys[0]],
+                        uncertain=self.uncertain, sigmas=[self.sigmas[i] for i in keep],
+                        structures=Structures(systems, datasets, keys, list(self.uncertain), self.structures.harmonics))
+
     def bounds(self, values: dict | None = None) -> list:
         """:func:`parameter_bounds` of the uncertain parameters around the reference values."""
         return parameter_bounds(self.reference, self.uncertain, values or {})

@@ -322,8 +322,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
             for attr in ("_after", "_problem", "_theta", "_jac"):
                 r.__dict__.pop(attr, None)
     within = within_noise(current)
-    view = _frf_view(system_or_build, setup, uncertain, overrides, default_spread, harmonics) \
-        if not within and max_effects and current["error"] > UNEXPLAINED else None
+    view = _frf_view(setup) if not within and max_effects and current["error"] > UNEXPLAINED else None
     rest = remainder(current, setup.datasets, within, view)
     message = conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effects, setup, unc_values,
                          rest) + (amplitude_note(amplitude, datasets)
@@ -346,13 +345,13 @@ def _unconverged(structures) -> dict:
             if ev.unconverged}
 
 
-def _frf_view(system_or_build, setup, uncertain, overrides, default_spread, harmonics):
+def _frf_view(setup):
     """``(values, outputs)``: the uncertain parameters fitted to the FRFs alone and the no-effect model's outputs on
     every dataset there (:func:`~bscomp.validate.conclusion.remainder`); None without both FRFs and time series."""
-    frfs = [d for d in setup.datasets if isinstance(d, FrfData)]
+    frfs = [i for i, d in enumerate(setup.datasets) if isinstance(d, FrfData)]
     if not frfs or len(frfs) == len(setup.datasets) or not setup.uncertain:
         return None
-    cal = fit_uncertain(FitSetup.build(system_or_build, frfs, uncertain, overrides, default_spread, harmonics))
+    cal = fit_uncertain(setup.only(frfs))
     ev0, _ = setup.structures.get([])
     return dict(cal.values), ev0.outputs(dict(cal.values), {})
 
