@@ -107,6 +107,34 @@ def test_friction_and_backlash_agree_with_idas_at_tight_tolerance():
     assert _nrmse(Y2["table.s"], Y["table.s"]) > 1e-2
 
 
+def test_samples_run_in_blocks_equal_one_sample_per_call(monkeypatch):
+    """The time series runs several samples per mapaccum call (compiled_time._blocked); a grid of 1004 samples is
+    not a multiple of the block, so the last block is padded: the outputs and the Newton residual equal the
+    one-sample-per-call run to round-off, the padded tail dropped."""
+    import bscomp.simulation.compiled_time as ct
+
+    s = get("validation_drive")
+    s.add("friction", CoulombFriction(F_c=1500.0, v_reg=5e-4))
+    s.connect("friction.flange_a", "ground.flange")
+    s.connect("friction.flange_b", "table.flange_b")
+    t = np.arange(1004) * 2e-4
+    u = _square(t)
+    cm = CompiledModel(s, ["amp.u"], OUTS)
+    Y = cm.simulate({}, t, {"amp.u": u}, n_sub=4)
+    steps = [v for k, v in cm._steps.items() if k[0] == "blocked"]
+    assert steps and all(per > 1 for _, per in steps)       # blocks were used
+    assert (len(t) - 1) % steps[0][1] != 0                    # and the last one was padded
+    res = cm.stats["last_newton_residual"]
+    monkeypatch.setattr(ct, "BLOCK_INSTRUCTIONS", 0)          # one sample per call
+    cm1 = CompiledModel(s, ["amp.u"], OUTS)
+    Y1 = cm1.simulate({}, t, {"amp.u": u}, n_sub=4)
+    assert all(v[1] == 1 for k, v in cm1._steps.items() if k[0] == "blocked")
+    for o in OUTS:
+        assert Y[o].shape == t.shape
+        np.testing.assert_allclose(Y[o], Y1[o], rtol=1e-12, atol=1e-12 * np.abs(Y1[o]).max())
+    assert cm1.stats["last_newton_residual"] == pytest.approx(res, rel=1e-9, abs=1e-15)
+
+
 def test_a_cut_elements_own_signals_are_refused_not_mislabelled():
     """The compiled evaluator cuts friction and backlash out and carries their force as a correction: a request
     for ``backlash.f`` would have returned that correction (in the clearance ``-c s``: 24.7 N where the element
