@@ -162,6 +162,10 @@ class HarmonicBalance:
         Phases per first harmonic (a multiple of 4).
     """
 
+    #: The Newton's Jacobian from the laws' tangents (:meth:`jacobian`); False: forward differences, 1 + 2 x
+    #: (orders x elements) residuals a step (``benchmarks/bench_diagnose.py`` times both).
+    exact = True
+
     def __init__(self, laws, pvecs, s0, v0, k0, d0, points=256, harmonics=1):
         self.laws, self.pvecs = list(laws), [np.asarray(p, float) for p in pvecs]
         self.s0, self.v0, self.k0, self.d0 = (np.asarray(a, float).ravel() for a in (s0, v0, k0, d0))
@@ -241,7 +245,7 @@ class HarmonicBalance:
             if np.abs(r).max() <= tol * scale:
                 break
             x = real(g)
-            exact = self.jacobian(g, Ts, U)
+            exact = self.jacobian(g, Ts, U) if self.exact else None
             if exact is not None:
                 J = exact[2]
             else:                                          # a law without an SX tangent: forward differences
