@@ -68,16 +68,22 @@ def bench_diagnose(cases):
         print(f"  {'':<24} {'':<15} truth: {hidden}")
 
 
-def bench_evaluation(t_old: float = 0.02):
-    from _old_evaluate import FrfEvaluator, TimeSimulator
-
-    from bscomp.simulation.dispatch import simulate
-
+def _friction_bed():
+    """The FE test bed (axial + torsional) with Table 5.2's guideway friction (2066 N) between table and ground."""
     s = get("testbed_axial_torsional")
     s.add("friction", CoulombFriction(F_c=2066.0, v_reg=5e-4))
     s.add("gnd", Fixed())
     s.connect("friction.flange_a", "gnd.flange")
     s.connect("friction.flange_b", "table.flange_b")
+    return s
+
+
+def bench_evaluation(t_old: float = 0.02):
+    from _old_evaluate import FrfEvaluator, TimeSimulator
+
+    from bscomp.simulation.dispatch import simulate
+
+    s = _friction_bed()
     dt = 2e-4
     t = np.arange(0, 0.6, dt)
     u = 2.125 * np.sign(np.sin(2 * np.pi * 5 * t) + 1e-12)
@@ -132,11 +138,7 @@ def bench_inner_calls(repeat: int = 5):
     import bscomp.simulation.compiled_time as ct
     from bscomp.simulation.harmonic_balance import HarmonicBalance
 
-    s = get("testbed_axial_torsional")
-    s.add("friction", CoulombFriction(F_c=2066.0, v_reg=5e-4))
-    s.add("gnd", Fixed())
-    s.connect("friction.flange_a", "gnd.flange")
-    s.connect("friction.flange_b", "table.flange_b")
+    s = _friction_bed()
     t = np.arange(0, 0.3, 2e-4)
     u = 2.125 * np.sign(np.sin(2 * np.pi * 5 * t) + 1e-12)
 
