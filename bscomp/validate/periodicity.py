@@ -138,12 +138,17 @@ def steady_fraction(phi, t) -> float:
     component periodic in the angle chirps with the speed; at one speed it is a sinusoid in time -- a resonance
     ringing after each reversal of a periodic motion looks the same -- so above :data:`STEADY` no order is
     claimed."""
-    w = np.abs(np.gradient(np.asarray(phi, float), np.asarray(t, float)))
-    moving = w[w > 0.05 * w.max()] if w.size and w.max() > 0 else w[:0]
+    moving = _moving_speeds(phi, t)
     if not moving.size:
         return 1.0
     med = float(np.median(moving))
     return float(np.mean(np.abs(moving - med) < 0.1 * med))
+
+
+def _moving_speeds(phi, t):
+    """The angle's speeds |dphi/dt| where it moves (above 5 % of the largest)."""
+    w = np.abs(np.gradient(np.asarray(phi, float), np.asarray(t, float)))
+    return w[w > 0.05 * w.max()] if w.size and w.max() > 0 else w[:0]
 
 
 def _best_order(R2, k_min, k_max):
@@ -198,8 +203,7 @@ def _tone_share(e, phi, t, k, Q):
     c, *_ = np.linalg.lstsq(Ck, r0, rcond=None)
     yk = Ck @ c
     span = float(np.ptp(t))
-    w_abs = np.abs(np.gradient(phi, t))
-    moving = w_abs[w_abs > 0.05 * w_abs.max()]
+    moving = _moving_speeds(phi, t)
     fs = np.arange(max(k * moving.min() / (2.0 * np.pi), 0.5 / span), k * moving.max() / (2.0 * np.pi), 0.5 / span)
     best, f_best = -1.0, fs[0]
     for i in range(0, fs.size, 256):                  # the time frequency that best carries the order's component
