@@ -92,6 +92,7 @@ class ModalSimulator:
         self.outputs = {}     # names -> modal.Outputs (rows per modal part)
         self._checked = set()
         self._csets = {}
+        self._ctl_buf = np.zeros(3)             # the stop rule handed to every kernel call (copied by the call)
         self.stats = {"setup_channels_s": time.perf_counter() - t0, "modal_parts": 0, "modal_part_s": 0.0}
         self._element_band(f_band)
         self._rest_part()
@@ -383,33 +384,32 @@ class ModalSimulator:
     def _ctl(self, tol):
         """The kernel's stop rule (the one of :meth:`_flags`): ``[tol, running force scale, Newton acceptance]``;
         errors are judged against the step's largest force, at least ``FORCE_FLOOR`` (1.0) x the running scale."""
-        return np.array([tol, self.scale, NEWTON_ACCEPT * tol])
+        ctl = self._ctl_buf
+        ctl[0], ctl[1], ctl[2] = tol, self.scale, NEWTON_ACCEPT * tol
+        return ctl
 
     def _flags(self, info, tol):
-        """``(j, switch, scale)`` of a block of step infos: the first ``j`` steps are accepted; ``switch``: the
-        last of them ended in another regime (the linear part is switched there); ``scale(i)`` the running force
-        scale after step i. A step is bad if its interpolation error or last Newton update exceeds the tolerance
-        times its largest force (at least ``FORCE_FLOOR`` x the running scale) or its contact point left the
-        element.
+        """``(j, switch, scale_j, scale_c)`` of a block of step infos: the first ``j`` steps are accepted; ``switch``:
+        the last of them ended in another regime (the linear part is switched there); ``scale_j`` the running force
+        scale after the ``j`` accepted steps, ``scale_c`` after every computed one (``c``: ``j`` or ``j + 1``, what a
+        forced acceptance takes). A step is bad if its interpolation error or last Newton update exceeds the
+        tolerance times its largest force (at least ``FORCE_FLOOR`` x the running scale) or its contact point left
+        the element.
 
         The kernel applies the same rule and skips every step after the first bad or regime-changing one
         (:data:`~bscomp.simulation.modal_kernels.SKIPPED`), so only the last computed step is tested here."""
         n = len(info)
-        col = info[:, 0]
-        c = n if col[n - 1] < SKIPPED else int(np.count_nonzero(col < SKIPPED))   # skipped: a tail
+        c = n if info[n - 1, 0] < SKIPPED else int(np.count_nonzero(info[:, 0] < SKIPPED))   # skipped: a tail
         scale0 = self.scale
-
-        def scale(i):
-            return max(scale0, float(info[:i + 1, 1].max())) if i >= 0 else scale0
-
         if c == 0:
-            return 0, False, scale
+            return 0, False, scale0, scale0
+        fm = info[:c, 1]
+        top = max(scale0, float(fm.max()))            # the running scale after step c - 1
         err, fmax, okr, oke, upd = info[c - 1].tolist()
-        sc = max(fmax, FORCE_FLOOR * scale(c - 1))
-        bad = err > tol * sc or oke < 0.5 or not upd < NEWTON_ACCEPT * tol * sc
-        if bad:
-            return c - 1, False, scale
-        return c, bool(okr < 0.5), scale
+        sc = max(fmax, FORCE_FLOOR * top)
+        if err > tol * sc or oke < 0.5 or not upd < NEWTON_ACCEPT * tol * sc:
+            return c - 1, False, (max(scale0, float(fm[:c - 1].max())) if c > 1 else scale0), top
+        return c, bool(okr < 0.5), top, top
 
     def _chunk(self, st, U, k, n, h, tol, XI, G, level):
         """Up to ``n`` grid steps (``4^level`` sub-steps each) in one compiled call: ``(done, part)``, the grid
@@ -426,12 +426,12 @@ class ModalSimulator:
             Uc = np.vstack([Uc, np.repeat(Uc[-1:], N - len(Uc), axis=0)])
         x0 = stp.pack_state(st.xi, st.g[stp.gsel])
         X, info = run(x0, Uc, mats, stp.theta, self._ctl(tol))
-        b, switch, scale = self._flags(info[:n * per], tol)
+        b, switch, scale, _ = self._flags(info[:n * per], tol)
         done, part = divmod(b, per)
         self.counts["chunks"] += 1
         if not b:
             return 0, 0
-        self.scale = scale(b - 1)
+        self.scale = scale
         m, mp_ = stp.m, stp.m_part
         if done:
             Xa = X[per - 1:done * per:per]
@@ -465,13 +465,13 @@ class ModalSimulator:
             x0 = stp.pack_state(st.xi, st.g[stp.gsel])
             run = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS if deepest else CHUNK_ITERATIONS)
             X, info = run(x0, u, mats, stp.theta, self._ctl(tol))
-            j, switch, scale = self._flags(info[:left], tol)
+            j, switch, scale, scale_c = self._flags(info[:left], tol)
             self.counts["batches"] += 1
             forced = deepest and j < left and not switch
             if forced:
-                j += 1                                # the finest level: accept the flagged one, follow it
+                j, scale = j + 1, scale_c             # the finest level: accept the flagged one, follow it
             if j:
-                self.scale = scale(j - 1)
+                self.scale = scale
                 self._accept(st, stp, X, j, u, tau, x0 if j == 1 else X[j - 2], switch or forced)
                 i += j
             if i < n and not (deepest or switch):

@@ -102,6 +102,7 @@ class Stepper:
         self.m_part = mp.lam.size
         self._data = {}
         self._last_tau = self._last_data = None
+        self._packed = np.zeros(2 * self.m + self.r)
 
     def data(self, tau):
         """``(StepData, packed vector)`` for a sub-step length (cached)."""
@@ -147,8 +148,13 @@ class Stepper:
         return g, y_free + H @ g, upd
 
     def pack_state(self, xi, g):
-        pad = np.zeros(self.m - self.m_part)
-        return np.concatenate([xi.real, pad, xi.imag, pad, g])
+        """The kernel's state ``[Re ξ; 0; Im ξ; 0; g]`` in this stepper's buffer (valid until the next call; a
+        kernel call copies it)."""
+        x, m, n = self._packed, self.m, self.m_part
+        x[:n] = xi.real
+        x[m:m + n] = xi.imag
+        x[2 * m:] = g
+        return x
 
     def unpack_state(self, x):
         m, n = self.m, self.m_part
