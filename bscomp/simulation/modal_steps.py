@@ -32,7 +32,8 @@ NEWTON_TOL = 1e-9    # last Newton update relative to 1 + max |g| accepted as co
 
 
 def phis(lam, tau):
-    """``(e^{λτ}, φ_1, φ_2)`` per mode (series near ``λτ = 0``: rigid-body modes)."""
+    """``(e^{λτ}, φ_1, φ_2)`` per mode (series near ``λτ = 0``: rigid-body modes, a zero length). ``lam`` and
+    ``tau`` broadcast (a row of modes against a column of lengths gives every length at once)."""
     x = lam * tau
     E = np.exp(x)
     small = np.abs(x) < 1e-4
@@ -60,20 +61,25 @@ class StepData:
         self.E = E
         self.Qu, self.qc = p1[:, None] * mp.Bu, p1 * mp.bc
         self.Q0, self.Q1 = (p1 - p2)[:, None] * Bg, p2[:, None] * Bg
-        self.end = self._at(1.0, lam, tau, Cxi, Du, Dg, yc, mp, Bg)
-        self.samples = [self._at(th, lam, tau, Cxi, Du, Dg, yc, mp, Bg) for th in thetas]
-        self.start = self._at(0.0, lam, tau, Cxi, Du, Dg, yc, mp, Bg)     # the channels at the step's start
+        pts = at_points(np.r_[1.0, thetas, 0.0], lam, tau, Cxi, Du, Dg, yc, mp.Bu, Bg, mp.bc)
+        self.end = pts[0]
+        self.samples = pts[1:-1]
+        self.start = pts[-1]                   # the channels at the step's start
         self.thetas = tuple(thetas)
 
-    @staticmethod
-    def _at(theta, lam, tau, Cxi, Du, Dg, yc, mp, Bg):
-        E, p1, p2 = phis(lam, theta * tau)
-        CE = Cxi * E[None, :]
-        Yu = (Cxi @ (p1[:, None] * mp.Bu)).real + Du
-        Y0 = (Cxi @ ((p1 - theta * p2)[:, None] * Bg)).real + (1 - theta) * Dg
-        Y1 = (Cxi @ ((theta * p2)[:, None] * Bg)).real + theta * Dg
-        yct = (Cxi @ (p1 * mp.bc)).real + yc
-        return CE, Yu, Y0, Y1, yct
+
+def at_points(theta, lam, tau, Cxi, Du, Dg, yc, Bu, Bg, bc):
+    """``[(C_E, Y_u, Y_0, Y_1, y_c)]`` at each fraction ``θ`` of a step of length ``τ`` (rows ``Cxi`` of the channel
+    coordinates): the step's formula evaluated at all points at once (one ``phis`` and batched products)."""
+    theta = np.asarray(theta, float)
+    E, p1, p2 = phis(lam[None, :], theta[:, None] * tau)          # (points, m)
+    CE = Cxi[None, :, :] * E[:, None, :]
+    A1 = Cxi[None, :, :] * p1[:, None, :]
+    Yu = (A1 @ Bu).real + Du
+    yct = (A1 @ bc).real + yc
+    Y0 = (Cxi[None, :, :] * (p1 - theta[:, None] * p2)[:, None, :] @ Bg).real + (1 - theta)[:, None, None] * Dg
+    Y1 = (Cxi[None, :, :] * (theta[:, None] * p2)[:, None, :] @ Bg).real + theta[:, None, None] * Dg
+    return [(CE[k], Yu[k], Y0[k], Y1[k], yct[k]) for k in range(theta.size)]
 
 
 class Stepper:
