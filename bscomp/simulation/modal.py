@@ -64,28 +64,39 @@ class Outputs:
 
     def __init__(self, sim, names):
         self.sim, self.names = sim, list(names)
-        dae = sim.dae
-        e = dae.output_expr(self.names) if self.names else ca.SX(0, 1)
+        self._rows = {}
+        key = ("modal_outputs", tuple(self.names))    # the model's expressions: built once per Dae and names
+        built = sim.dae._cache.get(key)
+        if built is None:
+            built = sim.dae._cache[key] = self._build(sim.dae, self.names)
+        self.affine, self.other, self._jac, self.cols, self._fo = built
+        self._fo_key = ("modal_other", tuple(self.other))
+
+    @staticmethod
+    def _build(dae, names):
+        """``(affine names, other names, Jacobian Function of the affine ones, columns the others read, their
+        Function)``."""
+        e = dae.output_expr(names) if names else ca.SX(0, 1)
         v = ca.vertcat(dae.xds, dae.xs, dae.zs, dae.us)
         J = ca.jacobian(e, v)
-        affine = [not ca.depends_on(J[i, :], v) for i in range(len(self.names))]
-        self.affine = [n for n, a in zip(self.names, affine, strict=True) if a]
-        self.other = [n for n, a in zip(self.names, affine, strict=True) if not a]
-        self._rows = {}
-        if self.affine:
-            ea = dae.output_expr(self.affine)
-            self._jac = ca.Function("yj", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
-                                    [ea, ca.jacobian(ea, dae.xds), ca.jacobian(ea, dae.xs), ca.jacobian(ea, dae.zs),
-                                     ca.jacobian(ea, dae.us)])
-        if self.other:           # evaluated on the few state columns they read (every symbol of the expression)
-            eo = dae.output_expr(self.other)
+        affine = [not ca.depends_on(J[i, :], v) for i in range(len(names))]
+        aff = [n for n, a in zip(names, affine, strict=True) if a]
+        other = [n for n, a in zip(names, affine, strict=True) if not a]
+        jac = cols = fo = None
+        if aff:
+            ea = dae.output_expr(aff)
+            jac = ca.Function("yj", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
+                              [ea, ca.jacobian(ea, dae.xds), ca.jacobian(ea, dae.xs), ca.jacobian(ea, dae.zs),
+                               ca.jacobian(ea, dae.us)])
+        if other:                # evaluated on the few state columns they read (every symbol of the expression)
+            eo = dae.output_expr(other)
             used = {v.name() for v in ca.symvar(eo)}
             vecs = (dae.xds, dae.xs, dae.zs)
-            self.cols = [np.array([i for i in range(v.numel()) if v[i].name() in used], int) for v in vecs]
-            sub = [ca.vertcat(*[v[int(i)] for i in c]) if c.size else ca.SX(0, 1) for v, c in zip(vecs, self.cols,
+            cols = [np.array([i for i in range(v.numel()) if v[i].name() in used], int) for v in vecs]
+            sub = [ca.vertcat(*[v[int(i)] for i in c]) if c.size else ca.SX(0, 1) for v, c in zip(vecs, cols,
                                                                                                 strict=True)]
-            self._fo = ca.Function("y_other", [*sub, dae.us, dae.ps], [eo])
-            self._fo_key = ("modal_other", tuple(self.other), id(self))
+            fo = ca.Function("y_other", [*sub, dae.us, dae.ps], [eo])
+        return aff, other, jac, cols, fo
 
     def rows(self, mp):
         """Modal rows of the affine outputs in one modal part."""
