@@ -227,14 +227,14 @@ def moving(reference_again=False, parts=("table", "steps", "mesh", "six", "reduc
 
         with tempfile.TemporaryDirectory() as fresh:          # the one-time compilation of this shape
             os.environ["BSCOMP_CACHE_DIR"] = fresh
-            dae._cache.pop("modal_simulators", None)
+            mc.forget(dae)
             (_, _), w_first, _ = mc.timed(run)
             del os.environ["BSCOMP_CACHE_DIR"]
-        dae._cache.pop("modal_simulators", None)
+        mc.forget(dae)
         run()                                                  # fills the default on-disk cache
         cold = []
         for _ in range(3):
-            dae._cache.pop("modal_simulators", None)
+            mc.forget(dae)
             cold.append(mc.timed(run))
         (y, stats), w, c = min(cold, key=lambda x: x[1])
         row(case, f"{label} cold (compiled once: {w_first:.1f} s)", y, w, c, ref)
@@ -284,7 +284,7 @@ def moving(reference_again=False, parts=("table", "steps", "mesh", "six", "reduc
                 return simulate(dae, t, inputs={"amp.u": mc.square}, outputs=mc.OUTS, method="modal", jit=True)
 
             run()
-            dae._cache.pop("modal_simulators", None)
+            mc.forget(dae)
             _, w_cold, _ = mc.timed(run)
             _, w_warm, _ = mc.timed(run, repeat=2)
             walls.append((n, dae.nx, w_cold / T, w_warm / T))
@@ -329,7 +329,7 @@ def moving(reference_again=False, parts=("table", "steps", "mesh", "six", "reduc
             run()
             cold = []
             for _ in range(3):
-                dae._cache.pop("modal_simulators", None)
+                mc.forget(dae)
                 cold.append(mc.timed(run)[1])
             _, ww, _ = mc.timed(run, repeat=5)
             wc = min(cold)

@@ -127,6 +127,14 @@ def sundae(dae, t, rtol=1e-6, atol=1e-9):
     return y, time.perf_counter() - t0
 
 
+def forget(dae):
+    """Drop what a modal run leaves on the Dae (its simulators, the output expressions' Functions), so the next run
+    is timed as a first run on the flattened model (the compiled kernels still load from the disk cache)."""
+    for key in [k for k in dae._cache if k == "modal_simulators"
+                or (isinstance(k, tuple) and k and k[0] in ("modal_outputs", "modal_other"))]:
+        del dae._cache[key]
+
+
 def timed(fn, repeat=1):
     """``(result, best wall [s], best process CPU [s])`` of ``fn()`` over ``repeat`` calls."""
     best_w = best_c = np.inf
