@@ -64,10 +64,7 @@ def odd_harmonics_tangent(law, pvec, s0, v0, S, V, orders, points=256):
     St, Vt = S * rot, V * rot
     f, fs, fv = (np.asarray(a).ravel() for a in tan(s0 + (St @ E0).real, v0 + (Vt @ E0).real, pvec))
     F = (2.0 / points) * np.conj(rot) * (E0c @ f)
-    # the directions: unit Re S_l, Im S_l, Re V_l, Im V_l
-    eye = np.eye(nh)
-    dS = np.vstack([eye, 1j * eye, 0 * eye, 0 * eye])              # (4 nh, nh)
-    dV = np.vstack([0 * eye, 0 * eye, eye, 1j * eye])
+    dS, dV = _directions(nh)
     dphi = np.zeros(4 * nh)
     if ref != 0:
         dphi[ref_col] = (1.0 / ref).imag                          # Im(1 / P)
@@ -80,6 +77,17 @@ def odd_harmonics_tangent(law, pvec, s0, v0, S, V, orders, points=256):
 
 
 _TABLES = {}
+_DIRECTIONS = {}
+
+
+def _directions(nh):
+    """``(dS, dV)`` (4 nh, nh) complex: the unit changes of ``Re S_l, Im S_l, Re V_l, Im V_l`` (cached per orders)."""
+    d = _DIRECTIONS.get(nh)
+    if d is None:
+        eye = np.eye(nh)
+        d = _DIRECTIONS[nh] = (np.vstack([eye, 1j * eye, 0 * eye, 0 * eye]),
+                               np.vstack([0 * eye, 0 * eye, eye, 1j * eye]))
+    return d
 
 
 def _frame(S, V, orders, points):
