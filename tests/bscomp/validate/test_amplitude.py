@@ -20,7 +20,15 @@ from bscomp.errors import ModelLimitationWarning
 from bscomp.systems.truths import truth_system
 from bscomp.validate import FrfData, amplitude_dependence, compare, diagnose, load, write_report
 from bscomp.validate.amplitude import CHI2_LIMIT, H0_Q99, frf_confirmation
-from bscomp.validate.candidates import BearingHousing, GuidewayFriction, NutTableJoint, TableSubassembly
+from bscomp.validate.candidates import (
+    AmplifierDelay,
+    BearingHousing,
+    GuidewayFriction,
+    NutTableJoint,
+    ScrewNutBacklash,
+    StribeckGuidewayFriction,
+    TableSubassembly,
+)
 from bscomp.validate.noise import robust_sigma
 
 FREQS = np.geomspace(10.0, 200.0, 14)
@@ -180,9 +188,13 @@ def test_a_time_series_with_an_frf_at_an_amplitude_names_friction(measured):
     record = load(str(root / "time.csv"))
     frf = measured["friction"][1]
     assert frf.conditions["nut_position"] == record.conditions["nut_position"]
+    # the rivals friction has on these data: linear stand-ins for it (a table part, a joint, a housing), the
+    # Stribeck law, a clearance with a rigid contact; every candidate on the bundled FRF + record: test_diagnose_fe
+    rivals = [TableSubassembly(), NutTableJoint(), BearingHousing(), GuidewayFriction(), StribeckGuidewayFriction(),
+              ScrewNutBacklash(), AmplifierDelay()]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ModelLimitationWarning)
-        dg = diagnose("testbed_axial_torsional", [frf, record], max_effects=1)
+        dg = diagnose("testbed_axial_torsional", [frf, record], max_effects=1, candidates=rivals)
     assert [a.name for a in dg.accepted] in (["guideway_friction"], ["guideway_stribeck"]), dg.table()
     F_c = truth_system("friction", nut_joint="point")[1]["hidden"]["friction"]["F_c"]
     assert abs(dg.accepted[0].values["F_c"] / F_c - 1) < 0.05, dg.accepted[0].values
