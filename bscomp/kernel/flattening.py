@@ -153,7 +153,8 @@ def flatten(system: System, *, check: bool = True) -> Dae:
     if getattr(system, "damping", None) is not None:
         apply_system_damping(dae, system.damping)
     dae.stats["flatten_s"] = time.perf_counter() - t_start
-    dae.stats["templates"] = sum(len(v) for v in asm.templates.values())   # symbolic passes (shared by instances)
+    dae.stats["templates"] = sum(len(v) for v in asm.templates.values())   # templates (shared by instances)
+    dae.stats["templates_built"] = asm.templates_built      # symbolic passes (the rest kept from an earlier flatten)
     if check:
         dae.check_index1()
     return dae

@@ -15,7 +15,7 @@ import casadi as ca
 import numpy as np
 
 from bscomp.errors import ModelDefinitionError, PortConnectionError
-from bscomp.kernel.templates import Template, parameter_symbol, template_key, vc
+from bscomp.kernel.templates import parameter_symbol, shared_template, template_key, vc
 
 __all__ = ["Assembly"]
 
@@ -71,6 +71,7 @@ class Assembly:
         self.blocks = []                           # (coord indices, M, C, K)
         self.structural = set()
         self.templates = {}                        # template_key -> [Template] (see bscomp.kernel.sharing)
+        self.templates_built = 0                   # of those, built here (the others kept from an earlier flatten)
         self.nonlinear = []                        # "path (Class)" of the components with nonlinear equations
 
     def add(self, lf):
@@ -80,10 +81,12 @@ class Assembly:
         params = comp.parameters()
         variables = comp.variables()
         # one template per class layout and per value of the instance attributes its equations read
-        variants = self.templates.setdefault(template_key(comp, ports, params, variables), [])
+        key = template_key(comp, ports, params, variables)
+        variants = self.templates.setdefault(key, [])
         tpl = next((t for t in variants if t.matches(comp)), None)
         if tpl is None:
-            tpl = Template(comp, path, ports, params, variables)
+            tpl, built = shared_template(key, comp, path, ports, params, variables)
+            self.templates_built += built
             variants.append(tpl)
         # numeric/structural parts are per instance
         comp.__dict__["_read_params"] = set()

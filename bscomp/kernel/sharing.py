@@ -9,21 +9,29 @@ the template only if those attributes hold equal values (:func:`fingerprint`); o
 Identical elements (a chain of masses, bearings, FE elements) still share one template; a configuration
 attribute that differs (``self.k``, ``self.hand``, a list of dofs) gets one template per distinct value.
 
+Templates are also kept across flattenings in one process (:func:`bscomp.kernel.templates.shared_template`:
+a diagnose's candidate structures and a design sweep's variants flatten the same drive again), keyed by the
+template key and the parameter values, reused only when the attributes read hold the same values *and* what the
+names read resolve to on the class is unchanged (:func:`class_fingerprint`: a class attribute or method patched in
+between gets a new template). A template whose fingerprint holds an object identity is not kept (ids are reused).
+
 Equality is by value for numbers, strings, arrays (a digest of their bytes), lists, tuples, dicts, sets
 and dataclasses; by identity for any other object (conservative: equal but distinct objects get their
 own templates, never a wrong shared one). Reads that bypass attribute access (``vars(self)``,
-``self.__dict__[...]``, module globals) are not seen.
+``self.__dict__[...]``, module globals) are not seen: a module constant an ``equations()`` reads, changed between two
+flattenings in one process, is not noticed (call :func:`bscomp.kernel.templates.clear_shared`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
+import inspect
 from contextlib import contextmanager
 
 import numpy as np
 
-__all__ = ["tracking_reads", "fingerprint"]
+__all__ = ["tracking_reads", "fingerprint", "by_value", "class_fingerprint"]
 
 _PRIVATE = frozenset({"_ctx", "_name", "_parent", "_read_params", "_extra_ports"})
 """Kernel bookkeeping on a component, never part of its physics (names, context, added ports)."""
@@ -85,3 +93,52 @@ def _fp(v, depth):
     if dataclasses.is_dataclass(v) and not isinstance(v, type):
         return (type(v), tuple((f.name, _fp(getattr(v, f.name), depth + 1)) for f in dataclasses.fields(v)))
     return ("id", id(v))
+
+
+def by_value(fp) -> bool:
+    """True if a :func:`fingerprint` holds values only, no object identity (``("id", ...)``): only such a
+    fingerprint may be compared with one taken in another flattening (an ``id`` is reused after its object is
+    freed)."""
+    if isinstance(fp, tuple):
+        if len(fp) == 2 and fp[0] == "id":
+            return False
+        return all(by_value(x) for x in fp)
+    if isinstance(fp, frozenset):
+        return all(by_value(x) for x in fp)
+    return True
+
+
+def class_fingerprint(comp, names) -> tuple:
+    """Hashable value of what the read names ``names`` absent from the instance resolve to on its class: a data
+    attribute by value, a function by its code (bytes, constants, defaults), a kernel declaration (port,
+    parameter, variable: already in the template key) by its kind. Within one flattening every instance sees the
+    same class, so :func:`fingerprint` leaves these out; across flattenings a class attribute may have been
+    changed (``Damp.mode = "param"``, a monkeypatched method). Anything else is taken by identity (then
+    :func:`by_value` is False and the template is not shared across flattenings)."""
+    d, cls = comp.__dict__, type(comp)
+    out = []
+    for n in sorted(names):
+        if n in d:
+            continue
+        try:
+            v = inspect.getattr_static(cls, n)
+        except AttributeError:
+            out.append((n, ("<absent>",)))
+            continue
+        out.append((n, _class_fp(v)))
+    return tuple(out)
+
+
+def _class_fp(v):
+    if isinstance(v, (staticmethod, classmethod)):
+        v = v.__func__
+    if isinstance(v, property):
+        return ("property", _class_fp(v.fget))
+    code = getattr(v, "__code__", None)
+    if code is not None:
+        closure = tuple(_fp(c.cell_contents, 1) for c in (v.__closure__ or ()))
+        return ("fn", v.__qualname__, hashlib.sha1(code.co_code).hexdigest(), repr(code.co_consts),
+                _fp(v.__defaults__, 1), closure)
+    if type(v).__module__.startswith("bscomp.kernel"):
+        return ("kernel", type(v).__qualname__)
+    return _fp(v, 0)

@@ -144,6 +144,31 @@ def test_der_of_parameter_is_zero(monkeypatch):
     assert modes(_damped("param", monkeypatch)).damping[0] == pytest.approx(0.0, abs=1e-12)
 
 
+def test_a_template_is_shared_across_flattenings_only_while_what_its_equations_read_is_unchanged(monkeypatch):
+    """A second flattening of the same component (same parameter values, the same values of the attributes its
+    equations read) reuses the first one's template; a class attribute changed in between (``Damp.mode``) or another
+    parameter value gets a new one, with its own equations."""
+    from bscomp.kernel import templates
+
+    monkeypatch.setattr(templates, "_SHARED", {})                   # this test's flattenings only
+
+    def damp_keys():
+        return [k for k in templates._SHARED if k[0][0] is Damp]
+
+    zeta = modes(_damped("ok", monkeypatch)).damping[0]
+    n = len(damp_keys())
+    assert n == 1 and modes(_damped("ok", monkeypatch)).damping[0] == zeta       # reused: the same model
+    d = flatten(_damped("ok", monkeypatch))
+    assert d.stats["templates_built"] == 0 and d.stats["templates"] >= 2          # no symbolic pass at all
+    assert len(damp_keys()) == n and len(templates._SHARED[damp_keys()[-1]]) == 1
+    assert modes(_damped("param", monkeypatch)).damping[0] == pytest.approx(0.0, abs=1e-12)   # re-built
+    assert len(templates._SHARED[damp_keys()[-1]]) == 2
+    s = _damped("ok", monkeypatch)
+    s.set("u.d", 20.0)
+    assert modes(s).damping[0] == pytest.approx(2 * zeta, rel=1e-9)
+    assert len(damp_keys()) == n + 1                                              # keyed by the values too
+
+
 # ---- what equations() returns ---------------------------------------------------------------------
 @pytest.mark.parametrize("mode, msg", [
     ("foreign", r"'u' \(Damp\) uses symbol\(s\) \['m.flange_a.s'\] that are not its own"),
