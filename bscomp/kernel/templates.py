@@ -16,6 +16,8 @@ leaves undefined must be reactions of its ideal constraints (:mod:`bscomp.kernel
 
 from __future__ import annotations
 
+import threading
+
 import casadi as ca
 import numpy as np
 
@@ -51,6 +53,7 @@ def template_key(comp, ports, params, variables):
 #: :data:`SHARED_MAX` keys, the least recently used dropped first.
 _SHARED: dict = {}
 SHARED_MAX = 512
+_LOCK = threading.Lock()
 
 
 def shared_template(key, comp, path, ports, params, variables):
@@ -64,17 +67,21 @@ def shared_template(key, comp, path, ports, params, variables):
     bed: 0.33 -> 0.18 s)."""
     pv = tuple((n, np.asarray(comp._values[n], float).tobytes()) for n in params)
     skey = (key, pv)
-    variants = _SHARED.get(skey, ())
+    with _LOCK:                                     # flattenings on threads (a thread-pool executor)
+        variants = list(_SHARED.get(skey, ()))
     tpl = next((t for t in variants if t.matches(comp) and class_fingerprint(comp, t.reads) == t.class_fp), None)
     if tpl is not None:
-        _SHARED[skey] = _SHARED.pop(skey)           # the most recently used last
+        with _LOCK:
+            if skey in _SHARED:
+                _SHARED[skey] = _SHARED.pop(skey)   # the most recently used last
         return tpl, False
     tpl = Template(comp, path, ports, params, variables)
     tpl.class_fp = class_fingerprint(comp, tpl.reads)
     if by_value(tpl.read_fp) and by_value(tpl.class_fp):
-        _SHARED.setdefault(skey, []).append(tpl)
-        while len(_SHARED) > SHARED_MAX:
-            _SHARED.pop(next(iter(_SHARED)))
+        with _LOCK:
+            _SHARED.setdefault(skey, []).append(tpl)
+            while len(_SHARED) > SHARED_MAX:
+                _SHARED.pop(next(iter(_SHARED)))
     return tpl, True
 
 
@@ -82,7 +89,8 @@ def clear_shared() -> None:
     """Forget the templates kept across flattenings (:func:`shared_template`): after changing a module-level constant
     that a component's ``equations()`` read (attribute reads on the instance and its class are tracked; module
     globals are not)."""
-    _SHARED.clear()
+    with _LOCK:
+        _SHARED.clear()
 
 
 def _batch_single_occurrence(remaining, usyms, U, deps):
