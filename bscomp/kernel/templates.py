@@ -49,7 +49,7 @@ def template_key(comp, ports, params, variables):
             getattr(comp, "template_key", lambda: None)())
 
 
-#: Templates kept across flattenings in this process: (template key, parameter values) -> [Template]; at most
+#: Templates kept across flattenings in this process: (template key, parameter values or None) -> [Template]; at most
 #: :data:`SHARED_MAX` keys, the least recently used dropped first.
 _SHARED: dict = {}
 SHARED_MAX = 512
@@ -58,28 +58,29 @@ _LOCK = threading.Lock()
 
 def shared_template(key, comp, path, ports, params, variables):
     """``(template, built)``: the :class:`Template` of ``comp`` -- one built by an earlier flattening in this
-    process for an instance of the same :func:`template_key`, the same parameter values and the same values of
-    what its equations read (instance attributes, :func:`~bscomp.kernel.sharing.fingerprint`; class attributes
-    and methods, :func:`~bscomp.kernel.sharing.class_fingerprint`), which is what a build from ``comp`` would
-    give (the explicit-equation solving looks at the parameter values, :func:`eliminate_explicit`); else a new
-    one, kept for later flattenings when those fingerprints hold values only. A repeated flattening of a drive
-    -- a diagnose's candidate structures, a design sweep's variants -- then skips the symbolic pass (the FE test
-    bed: 0.33 -> 0.18 s)."""
+    process for an instance of the same :func:`template_key` and the same values of what its equations read
+    (instance attributes, :func:`~bscomp.kernel.sharing.fingerprint`; class attributes and methods,
+    :func:`~bscomp.kernel.sharing.class_fingerprint`) -- and the same parameter values where the explicit-equation
+    solving judged a coefficient at them (:func:`eliminate_explicit`), which is what a build from ``comp`` would
+    give; else a new one, kept for later flattenings when those fingerprints hold values only. A repeated
+    flattening of a drive -- a diagnose's candidate structures, a design sweep's variants -- then skips the
+    symbolic pass (the FE test bed: 0.33 -> 0.13 s with :class:`ScrewNut`'s cached ``K_SN``)."""
     pv = tuple((n, np.asarray(comp._values[n], float).tobytes()) for n in params)
-    skey = (key, pv)
-    with _LOCK:                                     # flattenings on threads (a thread-pool executor)
-        variants = list(_SHARED.get(skey, ()))
-    tpl = next((t for t in variants if t.matches(comp) and class_fingerprint(comp, t.reads) == t.class_fp), None)
-    if tpl is not None:
-        with _LOCK:
-            if skey in _SHARED:
-                _SHARED[skey] = _SHARED.pop(skey)   # the most recently used last
-        return tpl, False
+    for skey in ((key, None), (key, pv)):           # templates for any values, then those for these values
+        with _LOCK:                                 # flattenings on threads (a thread-pool executor)
+            variants = list(_SHARED.get(skey, ()))
+        tpl = next((t for t in variants if t.matches(comp) and class_fingerprint(comp, t.reads) == t.class_fp),
+                   None)
+        if tpl is not None:
+            with _LOCK:
+                if skey in _SHARED:
+                    _SHARED[skey] = _SHARED.pop(skey)   # the most recently used last
+            return tpl, False
     tpl = Template(comp, path, ports, params, variables)
     tpl.class_fp = class_fingerprint(comp, tpl.reads)
     if by_value(tpl.read_fp) and by_value(tpl.class_fp):
         with _LOCK:
-            _SHARED.setdefault(skey, []).append(tpl)
+            _SHARED.setdefault((key, pv if tpl.uses_values else None), []).append(tpl)
             while len(_SHARED) > SHARED_MAX:
                 _SHARED.pop(next(iter(_SHARED)))
     return tpl, True
@@ -118,10 +119,12 @@ def _batch_single_occurrence(remaining, usyms, U, deps):
     return batch, J
 
 
-def eliminate_explicit(eqs, unknowns, pvals):
+def eliminate_explicit(eqs, unknowns, pvals, values_read=None):
     """Solve equations that are affine in one unknown with a constant (or parameter) coefficient.
 
-    Returns (solutions {index: expr}, remaining equations, indices of equations used). Which equation
+    Returns (solutions {index: expr}, remaining equations, indices of equations used). A coefficient that depends on
+    parameters is judged (non-zero, finite) at their values ``pvals[1]``; each time, ``True`` is appended to
+    ``values_read`` (a list, if given): the result then depends on those values. Which equation
     depends on which unknown is tracked structurally (Jacobian sparsity, updated on substitution), so a
     solution is substituted only where it occurs: a component with hundreds of port flows over one big
     expression graph costs one pass per solved flow, not one per (flow, equation) pair.
@@ -162,6 +165,8 @@ def eliminate_explicit(eqs, unknowns, pvals):
                 if ca.depends_on(coef, U) or ca.depends_on(coef, pvals[2]):
                     continue
                 cnum = coef if coef.is_constant() else ca.substitute(coef, pvals[0], pvals[1])
+                if values_read is not None and not coef.is_constant():
+                    values_read.append(True)
                 if not cnum.is_constant():   # depends on potentials or signals: not explicit
                     continue
                 c = float(ca.evalf(cnum))
@@ -280,7 +285,9 @@ class Template:
         alg = [n for n in self.var_names if n not in self.diff_vars]
         unknowns = flows + [sig[k] for k in out_sig] + [ctx.vars[n] for n in alg]
         forbid = vc([ctx.dvars[n] for n in self.var_names])
-        solved, remaining, used = eliminate_explicit(ceqs, unknowns, (p_loc, pv, forbid))
+        values_read = []
+        solved, remaining, used = eliminate_explicit(ceqs, unknowns, (p_loc, pv, forbid), values_read)
+        self.uses_values = bool(values_read)      # the template holds for these parameter values only
         sub_from = [unknowns[i] for i in solved]
         sub_to = [solved[i] for i in solved]
 

@@ -165,8 +165,23 @@ def test_a_template_is_shared_across_flattenings_only_while_what_its_equations_r
     assert len(templates._SHARED[damp_keys()[-1]]) == 2
     s = _damped("ok", monkeypatch)
     s.set("u.d", 20.0)
-    assert modes(s).damping[0] == pytest.approx(2 * zeta, rel=1e-9)
-    assert len(damp_keys()) == n + 1                                              # keyed by the values too
+    d = flatten(s)                          # another value of d: the same template (no coefficient judged at d)
+    assert d.stats["templates_built"] == 0 and modes(d).damping[0] == pytest.approx(2 * zeta, rel=1e-9)
+
+
+def test_explicit_solving_says_when_it_judged_a_coefficient_at_the_parameter_values():
+    """``k y - x = 0`` is solved for ``y`` only because ``k`` is not 0 at its value: such a template is kept for
+    those values only (``shared_template``); ``y - k x = 0`` holds for every ``k``."""
+    from bscomp.kernel.templates import eliminate_explicit
+
+    k, x, y = ca.SX.sym("k"), ca.SX.sym("x"), ca.SX.sym("y")
+    for eq, read in ((k * y - x, [True]), (y - k * x, [])):
+        values_read = []
+        solved, _, used = eliminate_explicit([eq], [y], (k, np.array([2.0]), ca.SX(0, 1)), values_read)
+        assert list(solved) == [0] and used == {0} and values_read == read
+    values_read = []
+    solved, _, _ = eliminate_explicit([k * y - x], [y], (k, np.array([0.0]), ca.SX(0, 1)), values_read)
+    assert not solved and values_read == [True]                       # k = 0 there: not explicit
 
 
 # ---- what equations() returns ---------------------------------------------------------------------
