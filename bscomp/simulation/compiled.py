@@ -119,6 +119,12 @@ def _affine(A0, A1, A2, rtol) -> bool:
     return not (mid.nnz and abs(mid).max() > rtol * max(abs(sp.csr_matrix(A0)).max(), 1e-300))
 
 
+def _dense_sens(sens):
+    """``(v0, dM, dK, dC)`` with the matrices dense: :meth:`CompiledModel._modal` sums them densely."""
+    v0, dM, dK, dC = sens
+    return v0, dense(dM, float), dense(dK, float), dense(dC, float)
+
+
 def _cut_nonlinear(system, elements):
     """The linear system: each nonlinear element -> small-signal equivalent + ForceBetween ``<path>``."""
     lin = system.copy()
@@ -272,7 +278,7 @@ class CompiledModel(TimeSeriesMixin):
         if sens is None:
             self._reflatten.add(name)
         else:
-            self._sens[name] = sens
+            self._sens[name] = _dense_sens(sens)
 
     def _block_sensitivity(self, name, v0):
         """``(v0, dM, dK, dC)`` on the reduced coordinates from the component's ``structure()`` block."""
@@ -404,7 +410,8 @@ class CompiledModel(TimeSeriesMixin):
                     affine &= not (diff.nnz and abs(diff).max() > 1e-12 * max(abs(getattr(so0, attr)).max(), 1e-300))
             if affine:
                 dv = 0.2 * v0
-                out = (v0, *(sp.csr_matrix((getattr(so1, a) - getattr(so2, a)) / dv) for a in ("M", "K", "C")))
+                out = _dense_sens((v0, *(sp.csr_matrix((getattr(so1, a) - getattr(so2, a)) / dv)
+                                         for a in ("M", "K", "C"))))
         self._lin_sens[name] = out
         return out
 
@@ -473,7 +480,7 @@ class CompiledModel(TimeSeriesMixin):
         changed = False
         for k, v in struct.items():
             if k in self._sens:
-                v0, dM, dK, dC = self._dense_sens(k)
+                v0, dM, dK, dC = self._sens[k]
                 Md, Kd, Csd = Md + (v - v0) * dM, Kd + (v - v0) * dK, Csd + (v - v0) * dC
                 changed = True
         M, K = (sp.csr_matrix(Md), sp.csr_matrix(Kd)) if changed else (sp.csr_matrix(so.M), sp.csr_matrix(so.K))
@@ -506,14 +513,6 @@ class CompiledModel(TimeSeriesMixin):
         mm = ModalModel(lam, phi, Ckk, Rt, so, keep, delay, f_keep, c_modal=c, C_struct=csd)
         mm.C_system = C_sys
         return mm
-
-    def _dense_sens(self, name):
-        """``(v0, dM, dK, dC)`` of a structural parameter as dense arrays (cached beside ``_sens``)."""
-        cache = self.__dict__.setdefault("_sens_dense", {})
-        if cache.get(name, (None,))[0] is not self._sens[name]:
-            v0, dM, dK, dC = self._sens[name]
-            cache[name] = (self._sens[name], (v0, dense(dM, float), dense(dK, float), dense(dC, float)))
-        return cache[name][1]
 
     def _damping(self, lam, phi, M, K, Md, rigid, extra_damping, damping_of):
         """``(c, C_sys)``: modal damping ``2 zeta omega`` per mode and the system damping's physical matrix (a
