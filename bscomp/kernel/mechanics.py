@@ -24,7 +24,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from bscomp.errors import NotLinearError, SingularSystemError, UnknownNameError, check_mapping, check_number
-from bscomp.kernel.dae import Dae, _sp
+from bscomp.kernel.dae import Dae
 
 __all__ = ["OperatingPoint", "operating_point", "sparse_jacobians", "require_second_order", "SecondOrderBlocks",
            "second_order_blocks", "start_matrices"]
@@ -60,8 +60,7 @@ def operating_point(dae: Dae, at: dict | None = None, params: dict | None = None
 
 def sparse_jacobians(dae: Dae, op: OperatingPoint):
     """``(dF/dx', dF/dx, dF/dz, dF/du)`` at ``op``, scipy sparse."""
-    _, Jxd, Jx, Jz, Ju = dae.jacobians(op.xd, op.x, op.z, op.u, op.p)
-    return _sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju)
+    return dae.jacobians_at(op.xd, op.x, op.z, op.u, op.p)[1:]
 
 
 def require_second_order(dae: Dae):

@@ -36,7 +36,6 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from bscomp.kernel.dae import _sp
 from bscomp.simulation.common import HUGE, Progress, SampledLoop, finish
 from bscomp.simulation.native import quiet_native_stderr
 from bscomp.simulation.result import SimulationError
@@ -154,7 +153,7 @@ def algebraic_atol(dae, x, w, z, u, p, span):
     """
     if dae.nx + dae.nz == 0:
         return np.zeros(0)
-    _, Jxd, Jx, Jz, Ju = (_sp(m) for m in dae.jacobians(w, x, z, u, p))
+    _, Jxd, Jx, Jz, Ju = dae.jacobians_at(w, x, z, u, p)
     T = abs(Jxd) @ np.abs(w) + abs(Jx) @ (np.abs(x) + span * np.abs(w))
     if dae.nz:
         T = T + abs(Jz) @ np.abs(z)

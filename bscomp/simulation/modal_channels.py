@@ -39,7 +39,6 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.errors import BscompError
-from bscomp.kernel.dae import _sp
 from bscomp.linear.frf_engine import dense
 from bscomp.linear.linearization import explicit_form
 from bscomp.simulation.compiled import _Element, nonlinear_elements
@@ -207,9 +206,17 @@ class Channels:
         key = p.tobytes()
         if key not in self._rest:
             dae = self.dae
-            F, Jxd, Jx, Jz, Ju = dae.jacobians(np.zeros(dae.nx), self.x_a, self.z_a, np.zeros(dae.nu), p)
-            self._rest[key] = (np.asarray(ca_dense(F)).ravel(),
-                               *(sp.csr_matrix(_sp_of(J)) for J in (Jxd, Jx, Jz, Ju)))
+            F, Jxd, Jx, Jz, Ju = dae.jacobians_at(np.zeros(dae.nx), self.x_a, self.z_a, np.zeros(dae.nu), p)
+            self._rest[key] = (F, *(sp.csr_matrix(J) for J in (Jxd, Jx, Jz, Ju)))
+        return self._rest[key]
+
+    def rest_dense(self, p):
+        """``(dF/dxd, dF/dx)`` of :meth:`rest_jacobians` as dense arrays (cached: every regime's modal part slices
+        its mass, damping and stiffness blocks from them)."""
+        key = ("dense", p.tobytes())
+        if key not in self._rest:
+            _, Jxd, Jx, _, _ = self.rest_jacobians(p)
+            self._rest[key] = (Jxd.toarray(), Jx.toarray())
         return self._rest[key]
 
     def slopes(self, i, s, v):
@@ -257,20 +264,18 @@ class LinearPart:
         self.p_ref = p
         F, Jxd, Jx, Jz, Ju = ch.rest_jacobians(p)
         cols, F_L = [], F.copy()
+        self._rest_J, self._upd, self._sparse = (Jxd, Jx, Jz), {}, {}
         if ch.elements:
             _, Rxd, Rx, Rz, _ = ch.el_rows
             Gel = ch.element_columns()
             k_d = np.asarray(regime, float).reshape(-1, 2)
             rest = np.asarray([r[:4] for r in ch.rest], float)           # s0, v0, k0, d0 per element
             dk, dd = k_d[:, 0] - rest[:, 2], k_d[:, 1] - rest[:, 3]
-
-            def update(J, R):          # each element's slopes swapped: J + sum_i G_i (dk_i R_s,i + dd_i R_v,i)
+            # each element's slopes swapped: J + sum_i G_i (dk_i R_s,i + dd_i R_v,i), kept as the dense product
+            for name, R in (("xd", Rxd), ("x", Rx), ("z", Rz)):
                 D = dk[:, None] * R[0::2] + dd[:, None] * R[1::2]
-                return J + sp.csr_matrix(Gel @ D) if np.any(D) else J
-
-            Jxd, Jx = update(Jxd, Rxd), update(Jx, Rx)
-            if dae.nz:
-                Jz = update(Jz, Rz)
+                if np.any(D) and (name != "z" or dae.nz):
+                    self._upd[name] = Gel @ D
             g0 = ch.rest_force - k_d[:, 0] * rest[:, 0] - k_d[:, 1] * rest[:, 1]
             F_L = F_L - Gel @ g0
             cols.append(Gel)
@@ -281,9 +286,29 @@ class LinearPart:
             cols.append(Gj)
         self.G = np.hstack(cols) if cols else np.zeros((F.size, 0))
         self.F0 = F_L
-        self.Jxd, self.Jx, self.Jz, self.Ju = Jxd.tocsc(), Jx.tocsc(), Jz.tocsc(), Ju.tocsc()
+        self.Ju = Ju.tocsc()
         self.ng = self.G.shape[1]
         self._explicit = None
+
+    def _jac(self, name):
+        """The regime's sparse ``dF/d(name)`` (built on first use: the second-order route reads dense blocks)."""
+        J = self._sparse.get(name)
+        if J is None:
+            J = self._rest_J[("xd", "x", "z").index(name)]
+            if name in self._upd:
+                J = J + sp.csr_matrix(self._upd[name])
+            J = self._sparse[name] = J.tocsc()
+        return J
+
+    Jxd = property(lambda self: self._jac("xd"), doc="``dF/dẋ`` of the regime (csc).")
+    Jx = property(lambda self: self._jac("x"), doc="``dF/dx`` of the regime (csc).")
+    Jz = property(lambda self: self._jac("z"), doc="``dF/dz`` of the regime (csc).")
+
+    def dense_jacobians(self):
+        """``(dF/dẋ, dF/dx)`` of the regime, dense: the rest ones plus the slopes' product (entry for entry the
+        sum the sparse :attr:`Jxd`, :attr:`Jx` hold)."""
+        Jxd, Jx = self.ch.rest_dense(self.p_ref)
+        return tuple(J + self._upd[n] if n in self._upd else J.copy() for n, J in (("xd", Jxd), ("x", Jx)))
 
     def explicit(self):
         """``(A, B, E, c, Zx, Zu, Zg, zc)`` of the index-1 explicit form (dense, computed once)."""
@@ -332,13 +357,5 @@ class LinearPart:
         diff = np.abs(F - model)
         row = int(np.argmax(diff)) if diff.size else 0
         return float(diff.max(initial=0.0)), scale, row
-
-
-def ca_dense(v):
-    return np.asarray(ca.DM(v).full())
-
-
-def _sp_of(J):
-    return _sp(J)
 
 

@@ -223,7 +223,7 @@ def _mechanical_blocks(lin):
     Ri = np.setdiff1d(np.arange(lin.Jx.shape[0]), np.r_[np.arange(len(m.inertial)), Rb])
     if Ii.size != Ri.size:
         return None
-    Jxd, Jx = dense(lin.Jxd, float), dense(lin.Jx, float)      # a few hundred rows: dense slicing is cheapest
+    Jxd, Jx = lin.dense_jacobians()      # a few hundred rows: dense slicing is cheapest
     M = Jxd[np.ix_(Rb, Iv)]
     K = Jx[np.ix_(Rb, Iq)]
     C = Jx[np.ix_(Rb, Iv)]

@@ -11,7 +11,6 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
 
-from bscomp.kernel.dae import _sp
 from bscomp.linear.linearization import explicit_form
 from bscomp.simulation.split_kernels import REGIME_RTOL, Kernels, Numeric, rigid_block
 
@@ -77,9 +76,9 @@ class SplitModel:
         self.v0 = np.concatenate([xd0, xs, z0, u0])
         self.xs, self.u0 = np.asarray(xs, float), np.asarray(u0, float)
         self.xd0, self.z0 = np.asarray(xd0, float), np.asarray(z0, float)
-        F0, Jxd, Jx, Jz, Ju = dae.jacobians(xd0, xs, z0, u0, p)
-        self.F0 = np.asarray(F0, float).reshape(-1, 1)
-        self.J = sp.hstack([_sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju)]).tolil()
+        F0, Jxd, Jx, Jz, Ju = dae.jacobians_at(xd0, xs, z0, u0, p)
+        self.F0 = F0.reshape(-1, 1)
+        self.J = sp.hstack([Jxd, Jx, Jz, Ju]).tolil()
         self.regimes, self.pool, self.retries, self.max_residual = [], {}, 0, 0.0
         r = len(self.rows)
         self.iw = [self.N.index(i) for i in self.Nw]            # columns of the Newton unknowns in the block

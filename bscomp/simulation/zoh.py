@@ -25,7 +25,6 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.signal import lfilter
 
-from bscomp.kernel.dae import _sp
 from bscomp.linear.linearization import explicit_form, linearized_parts, warn_linearized
 from bscomp.simulation.common import SampledLoop, finish
 
@@ -94,8 +93,8 @@ def simulate_zoh(problem, options=None):
     nx, nu, nt = dae.nx, dae.nu, len(t)
     u0 = U[:, 0]
     xd0, z0 = dae.initialize(xs, u0, p, store=False)
-    _, Jxd, Jx, Jz, Ju = dae.jacobians(xd0, xs, z0, u0, p)
-    A, B, Zx, Zu = explicit_form(dae, _sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju))
+    _, Jxd, Jx, Jz, Ju = dae.jacobians_at(xd0, xs, z0, u0, p)
+    A, B, Zx, Zu = explicit_form(dae, Jxd, Jx, Jz, Ju)
     disc = _Discretisation(A, B, xd0)  # per call: it depends on this call's linearization point
     h_all = np.diff(t)
     Uh = np.empty((nt, nu))
@@ -119,7 +118,7 @@ def simulate_zoh(problem, options=None):
     dU = Uh - u0
     XD = xd0 + dX @ A.T + dU @ B.T
     Z = z0 + dX @ Zx.T + dU @ Zu.T
-    worst = _check_linearization(dae, parts, t, X, XD, Z, Uh, p, tuple(_sp(J) for J in (Jxd, Jx, Jz, Ju)))
+    worst = _check_linearization(dae, parts, t, X, XD, Z, Uh, p, (Jxd, Jx, Jz, Ju))
     return finish(problem, X, XD, Z, Uh, {"method": "lti", "discretisations": len(disc.cache),
                                           "linearization_error": worst}, t_wall)
 
