@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import re
 
+import casadi as ca
+
 from bscomp.kernel.units import convention_units
 
 __all__ = ["state_meta", "input_meta", "parameter_meta", "output_meta", "unit_of", "unit_suffix", "measured_outputs",
@@ -145,7 +147,7 @@ def parameter_meta(system, name):
 def _symbol_unit(dae, name):
     if name in dae.x_names:
         return state_meta(dae, dae.x_names.index(name))[0]
-    xd = [dae.xds[k].name() for k in range(dae.nx)]
+    xd = [e.name() for e in ca.vertsplit(dae.xds)]
     if name in xd:
         return derivative_unit(state_meta(dae, xd.index(name))[0])
     if name in dae.u_names:

@@ -274,7 +274,7 @@ class SampledLoop:
         return Uc
 
 
-def evaluate_outputs(dae, names, XD, X, Z, Uh, p, chunk=1000):
+def evaluate_outputs(dae, names, XD, X, Z, Uh, p, chunk=256):
     """Named outputs at every time point: ``{name: (nt,) array}``.
 
     The output Function is mapped over chunks of time points and called through zero-copy buffers on
@@ -287,11 +287,13 @@ def evaluate_outputs(dae, names, XD, X, Z, Uh, p, chunk=1000):
     return {name: Y[:, i].copy() for i, name in enumerate(names)}
 
 
-def evaluate_mapped(dae, key, build, data, p, chunk=1000):
+def evaluate_mapped(dae, key, build, data, p, chunk=256):
     """``f(d_1[k], ..., d_n[k], p)`` for every row k of the (nt, ·) arrays ``data``: ``(nt, n_out)``.
 
     ``build()`` makes the Function (one dense column output); its map over ``min(chunk, nt)`` points is cached
-    on the Dae under ``key``, and called through zero-copy buffers (see :func:`evaluate_outputs`)."""
+    on the Dae under ``key``, and called through zero-copy buffers (see :func:`evaluate_outputs`). Building the
+    map costs about linearly in its width (an output of the moving-nut bed: 3.2 ms for 1,000 points, 1.2 ms for
+    256), the calls only a few microseconds each: hence the narrow default."""
     data = [np.ascontiguousarray(a, dtype=float) for a in data]
     nt = data[0].shape[0]
     n = min(chunk, nt)

@@ -92,7 +92,7 @@ class Outputs:
             eo = dae.output_expr(other)
             used = {v.name() for v in ca.symvar(eo)}
             vecs = (dae.xds, dae.xs, dae.zs)
-            cols = [np.array([i for i in range(v.numel()) if v[i].name() in used], int) for v in vecs]
+            cols = [np.array([i for i, e in enumerate(ca.vertsplit(v)) if e.name() in used], int) for v in vecs]
             sub = [ca.vertcat(*[v[int(i)] for i in c]) if c.size else ca.SX(0, 1) for v, c in zip(vecs, cols,
                                                                                                 strict=True)]
             fo = ca.Function("y_other", [*sub, dae.us, dae.ps], [eo])
