@@ -83,13 +83,15 @@ class Outputs:
         aff = [n for n, a in zip(names, affine, strict=True) if a]
         other = [n for n, a in zip(names, affine, strict=True) if not a]
         jac = cols = fo = None
-        if aff:
-            ea = dae.output_expr(aff)
+        if aff:                  # the affine rows of e and J (one expression and one differentiation for all)
+            ia = [i for i, a in enumerate(affine) if a]
+            Ja = J[ia, :]
+            nx, nz = dae.nx, dae.nz
+            cuts = np.cumsum([0, nx, nx, nz, dae.nu])
             jac = ca.Function("yj", [dae.xds, dae.xs, dae.zs, dae.us, dae.ps],
-                              [ea, ca.jacobian(ea, dae.xds), ca.jacobian(ea, dae.xs), ca.jacobian(ea, dae.zs),
-                               ca.jacobian(ea, dae.us)])
+                              [e[ia]] + [Ja[:, int(a):int(b)] for a, b in zip(cuts[:-1], cuts[1:], strict=True)])
         if other:                # evaluated on the few state columns they read (every symbol of the expression)
-            eo = dae.output_expr(other)
+            eo = e[[i for i, a in enumerate(affine) if not a]]
             used = {v.name() for v in ca.symvar(eo)}
             vecs = (dae.xds, dae.xs, dae.zs)
             cols = [np.array([i for i, e in enumerate(ca.vertsplit(v)) if e.name() in used], int) for v in vecs]

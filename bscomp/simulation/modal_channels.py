@@ -351,8 +351,9 @@ class LinearPart:
             g[off:off + n] = jt.force(d, dd) - Kr @ d - (Cr @ dd if Cr is not None else 0.0)
         F = np.asarray(dae.F(np.zeros(dae.nx), ch.x_a + dx, ch.z_a, u, ch.p)).ravel()
         Gg = self.G @ g
-        model = self.F0 + self.Jx @ dx + self.Ju @ u + Gg
-        scale = max(np.abs(self.Jx @ dx).max(initial=0.0), np.abs(self.Ju @ u).max(initial=0.0),
+        Jx_dx = self.dense_jacobians()[1] @ dx        # a check: no need for the sparse Jacobian's assembly
+        model = self.F0 + Jx_dx + self.Ju @ u + Gg
+        scale = max(np.abs(Jx_dx).max(initial=0.0), np.abs(self.Ju @ u).max(initial=0.0),
                     np.abs(Gg).max(initial=0.0), np.abs(self.F0).max(initial=0.0), 1e-300)
         diff = np.abs(F - model)
         row = int(np.argmax(diff)) if diff.size else 0
