@@ -212,11 +212,12 @@ class ModalSimulator:
             theta = spec.pack(mp.regime, mp.lin.regime, mp.z_ref, cset)      # the slopes the part was built with
             S_list = [S for S, _ in cset]
             rows, gsel = self.rows(mp, S_list), self.gsel(mp, S_list)
-            shape = (self._padded(mp.lam.size), self.dae.nu, gsel.size, rows[0].shape[0], spec.key)
+            extrema = tuple(i for i, cand in enumerate(self.cands) if any(c[0] != 0.0 for c in cand))
+            shape = (self._padded(mp.lam.size), self.dae.nu, gsel.size, rows[0].shape[0], spec.key, extrema)
             kern = self.kernels.get(shape)
             if kern is None:
                 kern = self.kernels[shape] = Kernel(*shape[:4], spec.fs, 2 * len(self.ch.elements), THETAS,
-                                                    jit=self.jit)
+                                                    jit=self.jit, extrema=extrema)
             st = Stepper(mp, rows, gsel, spec.fast, theta, kern)
             self.steppers[key] = st
         self._last_stepper = (mp, cset, st)

@@ -64,6 +64,7 @@ def pack_step(sd, n_el_rows, m_pad=None) -> np.ndarray:
         rows = slice(None) if k in (0, 2, 4) else slice(0, n_el_rows)
         CE = cols_(CE[rows])
         parts += [CE.real, CE.imag, Yu[rows], Y0[rows], Y1[rows], yc[rows]]
+    parts.append(np.array([sd.tau], float))
     return np.concatenate([np.asarray(a, float).reshape(-1, order="F") for a in parts])
 
 
@@ -78,10 +79,14 @@ class Kernel:
         ``(y, theta) -> (g, dg/dy, fmax, regime_ok, element_ok)``.
     thetas : tuple of float
         Interior points of the error check.
+    extrema : tuple of int
+        Elements whose law depends on their displacement (a clearance, a contact): their displacement's extrema
+        between the check points are checked too (:meth:`extremum_function`).
     """
 
-    def __init__(self, m, nu, r, rm, laws, n_el_rows, thetas, n_newton=3, jit=False):
+    def __init__(self, m, nu, r, rm, laws, n_el_rows, thetas, n_newton=3, jit=False, extrema=()):
         self.m, self.nu, self.r, self.rm, self.thetas = m, nu, r, rm, tuple(thetas)
+        self.extrema = tuple(int(i) for i in extrema)
         self.law_newton, self.law_value, self.law_check, self.law_elements = laws
         self.n_theta = self.law_newton.size1_in(1)
         self.ne = n_el_rows
@@ -89,6 +94,7 @@ class Kernel:
         for k in range(2 + len(self.thetas)):         # the end, the interior points, the start
             n = rm if k in (0, 2, 4) else n_el_rows
             self.shapes += [(n, m), (n, m), (n, nu), (n, r), (n, r), (n, 1)]
+        self.shapes.append((1, 1))                     # the step length
         self.n_mats = sum(a * b for a, b in self.shapes)
         self.nx = 2 * m + r
         self._f = {}
@@ -142,9 +148,11 @@ class Kernel:
         _, fmax, okr, oke = self.law_check(y_free + ca.mtimes(H, g), th)
         err = S(0)
         ne = self.ne
+        el_rows = [(0.0, None)]                         # (θ, the elements' rows there); the start's built below
         for k, (theta, (Cr, Ci, Yuj, Y0j, Y1j, ycj)) in enumerate(zip(self.thetas, points[1:], strict=True)):
             yj = ca.mtimes(Cr, xr) - ca.mtimes(Ci, xi) + ca.mtimes(Yuj, u) + ca.mtimes(Y0j, g0) \
                 + ca.mtimes(Y1j, g) + ycj
+            el_rows.append((theta, yj[:ne]))
             if k == 1:                                  # the midpoint: every channel
                 gj, fj, okej = self.law_value(yj, th)
                 gi = g0 + theta * (g - g0)
@@ -157,6 +165,11 @@ class Kernel:
                 continue
             err = ca.fmax(err, ca.norm_inf(gj - gi))
             fmax, oke = ca.fmax(fmax, fj), oke * okej
+        if self.extrema and ne:
+            Cr0, Ci0, Yu0, Y00, _, yc0 = (A[:ne, :] for A in self._start(P))
+            el_rows[0] = (0.0, ca.mtimes(Cr0, xr) - ca.mtimes(Ci0, xi) + ca.mtimes(Yu0, u) + ca.mtimes(Y00, g0) + yc0)
+            el_rows.append((1.0, (y_free + ca.mtimes(H, g))[:ne]))
+            err = ca.fmax(err, self._extremum_error(el_rows, P[-1], g0, g, th))
         ur = ca.mtimes(Qur, u) + qcr + ca.mtimes(Q0r, g0) + ca.mtimes(Q1r, g)
         ui = ca.mtimes(Qui, u) + qci + ca.mtimes(Q0i, g0) + ca.mtimes(Q1i, g)
         x1r = Er * xr - Ei * xi + ur
@@ -165,6 +178,57 @@ class Kernel:
         f = ca.Function(f"modal_step_{_tag(n_newton)}", [x, u, *P, th, Mc], [ca.vertcat(x1r, x1i, g), info])
         self._f[n_newton] = f
         return f
+
+    def _start(self, P):
+        """The step matrices of the start point (``θ = 0``) among the matrix symbols ``P``."""
+        k = 10 + 6 * (1 + len(self.thetas))
+        return P[k:k + 6]
+
+    def _extremum_error(self, el_rows, tau, g0, g1, th):
+        """The largest law error at the displacement extrema of the :attr:`extrema` elements between consecutive
+        check points (:meth:`extremum_function`, one SX call per step)."""
+        nel = self.ne // 2
+        return self.extremum_function()(ca.horzcat(*[y for _, y in el_rows]), tau, g0[:nel], g1[:nel], th)
+
+    def extremum_function(self):
+        """SX Function ``(Y, τ, g_0, g_1, θ_law) -> error``, ``Y`` the elements' rows at the start, the check points
+        and the end (one column each).
+
+        A contact that closes and opens again (a bounce of a few microseconds) between two points of the check
+        passes it unseen, and the run goes on as if the clearance had stayed open or closed. Between points
+        ``θ_a < θ_b`` the displacement is the cubic Hermite interpolant of ``s`` and ``v = ṡ`` at both
+        (``Δ = (θ_b - θ_a) τ``); where ``v`` changes sign, its value at ``x = v_a / (v_a - v_b)`` (where the chord of
+        ``v`` crosses zero: the interpolant is flat near its stationary point, so ``s*`` hardly depends on where
+        exactly that is) with ``v* = 0`` is where the element's correction is compared with the step's force line,
+        at ``θ* = θ_a + x (θ_b - θ_a)``. Only the elements whose law depends on the displacement
+        (a clearance, a contact) are checked: a friction's law is in the velocity."""
+        F = self._f.get("extremum")
+        if F is not None:
+            return F
+        ne, nel = self.ne, self.ne // 2
+        pts = (0.0,) + self.thetas + (1.0,)
+        Y = ca.SX.sym("Y", ne, len(pts))
+        tau, g0, g1 = ca.SX.sym("tau"), ca.SX.sym("g0", nel), ca.SX.sym("g1", nel)
+        th = ca.SX.sym("theta", self.n_theta)
+        errs = []
+        for k, (ta, tb) in enumerate(zip(pts[:-1], pts[1:], strict=True)):
+            dt = (tb - ta) * tau
+            for i in self.extrema:
+                sa, va, sb, vb = Y[2 * i, k], Y[2 * i + 1, k], Y[2 * i, k + 1], Y[2 * i + 1, k + 1]
+                # v changes sign: the stationary point where v's chord crosses zero (the displacement is flat
+                # there, so its value is insensitive to where exactly the root is)
+                x = ca.if_else(va * vb < 0, va / ca.if_else(va == vb, 1, va - vb), 0)
+                x2, x3 = x * x, x * x * x
+                s_ = (2 * x3 - 3 * x2 + 1) * sa + (x3 - 2 * x2 + x) * dt * va + (3 * x2 - 2 * x3) * sb \
+                    + (x3 - x2) * dt * vb
+                v_ = ca.if_else(va * vb < 0, 0, va)
+                y = ca.SX.zeros(ne)
+                y[2 * i], y[2 * i + 1] = s_, v_
+                ge = self.law_elements(y, th)[0][i]
+                errs.append(ca.fabs(ge - (g0[i] + (ta + x * (tb - ta)) * (g1[i] - g0[i]))))
+        err = ca.mmax(ca.vertcat(*errs)) if errs else ca.SX(0)
+        F = self._f["extremum"] = ca.Function("modal_extremum", [Y, tau, g0, g1, th], [err])
+        return F
 
     def guarded(self, n_newton):
         """``(x, aux, u, *matrices, theta, chord, ctl) -> (x1, info, aux1)``: :meth:`step` unless ``aux = [scale,
@@ -253,7 +317,7 @@ class Kernel:
     def _chord(self, x0, u0, P, th):
         """``(I - L_0 H)^{-1}``, ``L_0`` the laws' Jacobian at the chunk's start state (the chord iterations')."""
         m, r = self.m, self.r
-        CEr, CEi, Du, Dg, _, yc = P[10 + 6 * (1 + len(self.thetas)):]
+        CEr, CEi, Du, Dg, _, yc = self._start(P)
         H = P[10 + 4]
         if not r:
             return ca.MX.zeros(0, 0)
@@ -279,7 +343,8 @@ class Kernel:
             names = [f"modal_chunk{k}_{_tag(it)}" for k, it in wanted]
             # the laws by their value and check Functions: the Newton one is the same expression and its Jacobian
             # (modal_laws.LawSpec._build, in the source key), the largest to serialize
-            key = "|".join([_SOURCE_KEY, repr((self.m, self.nu, self.r, self.rm, self.ne, self.thetas, FORCE_FLOOR))]
+            shape = (self.m, self.nu, self.r, self.rm, self.ne, self.thetas, FORCE_FLOOR, self.extrema)
+            key = "|".join([_SOURCE_KEY, repr(shape)]
                            + [f.serialize() for f in (self.law_check, self.law_elements)])
             funcs = native_functions(lambda: [self.chunk(k, it) for k, it in wanted], key=key, names=names)
             self._native = dict(zip(wanted, funcs, strict=True))

@@ -14,7 +14,10 @@ only. The linear structure is exact for any step; the force's linear interpolati
 A-stable) is checked at ``θ = 1/4, 1/2, 3/4`` (the elements' rows at the quarter points, every channel at the
 midpoint): the error ``max_j |law(y(θ_j)) - g(θ_j τ)|`` must stay below the tolerance times the largest
 channel force so far (:data:`~bscomp.simulation.modal_kernels.FORCE_FLOOR`), or the driver redoes the step in
-four (:mod:`bscomp.simulation.modal_driver`). This module
+four (:mod:`bscomp.simulation.modal_driver`). A clearance's or contact's displacement is also checked at its
+extrema between the points (cubic Hermite of ``s`` and ``v``:
+:meth:`~bscomp.simulation.modal_kernels.Kernel.extremum_function`), so a bounce shorter than a quarter step is
+seen. This module
 computes the matrices of those formulas per sub-step length (:class:`StepData`); the compiled kernel
 (:mod:`bscomp.simulation.modal_kernels`) evaluates them.
 """
