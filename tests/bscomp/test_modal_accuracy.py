@@ -152,21 +152,26 @@ def test_the_default_keeps_an_octave_above_a_stiff_contacts_own_mode():
         simulate(dae, t, inputs={"push.f": 0.5}, outputs=["m.a"], method="modal", modal_options={"f_keep": None})
 
 
+def _clearance_bed(n_elements, nut_position, b, c, amp, freq):
+    """A bed of benchmarks/fuzz_moving_nut.py with a clearance and no friction, flattened, and its square wave."""
+    s = testbed.testbed_axial_torsional(nut_joint="moving", n_elements=n_elements, nut_position=nut_position)
+    s.insert("backlash", Backlash(b=b, c=c, eps=0.0), between=("table_joint.flange", "table.flange_a"))
+
+    def u(tt):
+        return amp if (tt * freq) % 1.0 < 0.5 else -amp
+
+    return flatten(s), u
+
+
 def test_a_stiff_contacts_modes_are_kept_dynamic():
     """Seed 97 of benchmarks/fuzz_moving_nut.py: the moving-nut bed (14 elements, nut at 0.366 m) with a 3.2 um
     clearance of 3.1e10 N/m (its contact modes at 23.5 and 24.6 kHz, 17x Table 5.2's), no friction, a 5.5 V
     square wave at 18.7 Hz. With every mode above 30 kHz static, each impact rang modes the static part drops:
     table.a NRMSE 4.0e-3 against IDAS over 0.05 s at any ``tol`` (1e-3..1e-5). The default now keeps the modes
     to 49.1 kHz: over 0.02 s 2.7e-4 against IDAS rtol 1e-9, against 2.4e-3 with f_keep held at 30 kHz."""
-    s = testbed.testbed_axial_torsional(nut_joint="moving", n_elements=14, nut_position=0.3662941413512001)
-    s.insert("backlash", Backlash(b=3.2097779271554304e-06, c=31374007295.583412, eps=0.0),
-             between=("table_joint.flange", "table.flange_a"))
-    dae = flatten(s)
+    dae, u = _clearance_bed(14, 0.3662941413512001, 3.2097779271554304e-06, 31374007295.583412, 5.484418906960989,
+                            18.74679008983348)
     t = np.arange(0.0, 0.02 + 1e-12, 1e-4)
-
-    def u(tt):
-        return 5.484418906960989 if (tt * 18.74679008983348) % 1.0 < 0.5 else -5.484418906960989
-
     ref = simulate(dae, t, inputs={"amp.u": u}, outputs=["table.a"], rtol=1e-9, atol=1e-12, max_num_steps=10**7)
     err = {}
     for fk in (None, 3e4):
@@ -189,15 +194,9 @@ def test_a_bounce_between_the_check_points_is_seen(monkeypatch):
     The displacement's extremum between check points (cubic Hermite of s and v) is now checked too: 9.0e-5."""
     import bscomp.simulation.modal_kernels as mk
 
-    s = testbed.testbed_axial_torsional(nut_joint="moving", n_elements=11, nut_position=0.6732667738405385)
-    s.insert("backlash", Backlash(b=1.9485467261522464e-05, c=11462632456.757195, eps=0.0),
-             between=("table_joint.flange", "table.flange_a"))
-    dae = flatten(s)
+    dae, u = _clearance_bed(11, 0.6732667738405385, 1.9485467261522464e-05, 11462632456.757195, 2.025349329193674,
+                            43.39005481755329)
     t = np.arange(0.0, 0.05 + 1e-12, 1e-4)
-
-    def u(tt):
-        return 2.025349329193674 if (tt * 43.39005481755329) % 1.0 < 0.5 else -2.025349329193674
-
     ref = simulate(dae, t, inputs={"amp.u": u}, outputs=["table.a"], rtol=1e-8, atol=1e-11, max_num_steps=10**7)
 
     def err():
