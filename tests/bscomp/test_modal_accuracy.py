@@ -87,10 +87,7 @@ def test_the_error_falls_with_the_tolerance(rattling):
 def _clearance_bed():
     """The moving-nut test bed (8 screw elements, nut at 0.486 m) with a 1.87 um nut-table clearance, no guideway
     friction: the table is free whenever the clearance is open (seed 0 of benchmarks/fuzz_moving_nut.py)."""
-    s = testbed.testbed_axial_torsional(nut_joint="moving", n_elements=8, nut_position=0.48592701410419925)
-    s.insert("backlash", Backlash(b=1.874024340935909e-06, c=1142998595.469288, eps=1e-7),
-             between=("table_joint.flange", "table.flange_a"))
-    return flatten(s)
+    return _fuzz_clearance_bed(8, 0.48592701410419925, 1.874024340935909e-06, 1142998595.469288, 0.0, 1.0, eps=1e-7)[0]
 
 
 def test_a_free_table_in_a_clearance_converges_with_the_tolerance():
@@ -152,10 +149,10 @@ def test_the_default_keeps_an_octave_above_a_stiff_contacts_own_mode():
         simulate(dae, t, inputs={"push.f": 0.5}, outputs=["m.a"], method="modal", modal_options={"f_keep": None})
 
 
-def _clearance_bed(n_elements, nut_position, b, c, amp, freq):
+def _fuzz_clearance_bed(n_elements, nut_position, b, c, amp, freq, eps=0.0):
     """A bed of benchmarks/fuzz_moving_nut.py with a clearance and no friction, flattened, and its square wave."""
     s = testbed.testbed_axial_torsional(nut_joint="moving", n_elements=n_elements, nut_position=nut_position)
-    s.insert("backlash", Backlash(b=b, c=c, eps=0.0), between=("table_joint.flange", "table.flange_a"))
+    s.insert("backlash", Backlash(b=b, c=c, eps=eps), between=("table_joint.flange", "table.flange_a"))
 
     def u(tt):
         return amp if (tt * freq) % 1.0 < 0.5 else -amp
@@ -169,8 +166,8 @@ def test_a_stiff_contacts_modes_are_kept_dynamic():
     square wave at 18.7 Hz. With every mode above 30 kHz static, each impact rang modes the static part drops:
     table.a NRMSE 4.0e-3 against IDAS over 0.05 s at any ``tol`` (1e-3..1e-5). The default now keeps the modes
     to 49.1 kHz: over 0.02 s 2.7e-4 against IDAS rtol 1e-9, against 2.4e-3 with f_keep held at 30 kHz."""
-    dae, u = _clearance_bed(14, 0.3662941413512001, 3.2097779271554304e-06, 31374007295.583412, 5.484418906960989,
-                            18.74679008983348)
+    dae, u = _fuzz_clearance_bed(14, 0.3662941413512001, 3.2097779271554304e-06, 31374007295.583412, 5.484418906960989,
+                                 18.74679008983348)
     t = np.arange(0.0, 0.02 + 1e-12, 1e-4)
     ref = simulate(dae, t, inputs={"amp.u": u}, outputs=["table.a"], rtol=1e-9, atol=1e-12, max_num_steps=10**7)
     err = {}
@@ -194,8 +191,8 @@ def test_a_bounce_between_the_check_points_is_seen(monkeypatch):
     The displacement's extremum between check points (cubic Hermite of s and v) is now checked too: 9.0e-5."""
     import bscomp.simulation.modal_kernels as mk
 
-    dae, u = _clearance_bed(11, 0.6732667738405385, 1.9485467261522464e-05, 11462632456.757195, 2.025349329193674,
-                            43.39005481755329)
+    dae, u = _fuzz_clearance_bed(11, 0.6732667738405385, 1.9485467261522464e-05, 11462632456.757195, 2.025349329193674,
+                                 43.39005481755329)
     t = np.arange(0.0, 0.05 + 1e-12, 1e-4)
     ref = simulate(dae, t, inputs={"amp.u": u}, outputs=["table.a"], rtol=1e-8, atol=1e-11, max_num_steps=10**7)
 
