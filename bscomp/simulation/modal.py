@@ -94,7 +94,7 @@ class Outputs:
             eo = e[[i for i, a in enumerate(affine) if not a]]
             used = {v.name() for v in ca.symvar(eo)}
             vecs = (dae.xds, dae.xs, dae.zs)
-            cols = [np.array([i for i, e in enumerate(ca.vertsplit(v)) if e.name() in used], int) for v in vecs]
+            cols = [np.array([i for i, sym in enumerate(ca.vertsplit(v)) if sym.name() in used], int) for v in vecs]
             sub = [ca.vertcat(*[v[int(i)] for i in c]) if c.size else ca.SX(0, 1) for v, c in zip(vecs, cols,
                                                                                                 strict=True)]
             fo = ca.Function("y_other", [*sub, dae.us, dae.ps], [eo])
