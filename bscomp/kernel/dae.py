@@ -428,11 +428,10 @@ class Dae:
         z = (self.z_start if z_guess is None else np.asarray(z_guess, float)).copy()
         xd = np.zeros(self.nx) if xd_guess is None else np.asarray(xd_guess, float).copy()
         for it in range(max_iter):
-            res, Jxd, _, Jz, _ = self.jacobians(xd, x0, z, u0, p)
-            r = np.asarray(res, float).ravel()
+            r, Jxd, _, Jz, _ = self.jacobians_at(xd, x0, z, u0, p)
             if np.linalg.norm(r, np.inf) < tol * (1 + np.linalg.norm(xd, np.inf)) and it > 0:
                 break
-            W = sp.hstack([_sp(Jxd), _sp(Jz)]).tocsc()
+            W = sp.hstack([Jxd, Jz]).tocsc()
             try:
                 lu = spla.splu(W)
             except RuntimeError as exc:

@@ -132,8 +132,8 @@ class Kernel:
         xr, xi, g0 = x[:m], x[m:2 * m], x[2 * m:]
         Er, Ei, Qur, Qui, qcr, qci, Q0r, Q0i, Q1r, Q1i = P[:10]
         points = [P[10 + 6 * k:16 + 6 * k] for k in range(1 + len(self.thetas))]   # the start is the chunk's
-        CEr, CEi, Yu, Y0, H, yc = points[0]
-        y_free = ca.mtimes(CEr, xr) - ca.mtimes(CEi, xi) + ca.mtimes(Yu, u) + ca.mtimes(Y0, g0) + yc
+        H = points[0][4]
+        y_free = _rows_at(points[0], xr, xi, u, g0)
         g = g0
         upd = S(0)
         solve = self._solver()
@@ -149,9 +149,8 @@ class Kernel:
         err = S(0)
         ne = self.ne
         el_rows = [(0.0, None)]                         # (θ, the elements' rows there); the start's built below
-        for k, (theta, (Cr, Ci, Yuj, Y0j, Y1j, ycj)) in enumerate(zip(self.thetas, points[1:], strict=True)):
-            yj = ca.mtimes(Cr, xr) - ca.mtimes(Ci, xi) + ca.mtimes(Yuj, u) + ca.mtimes(Y0j, g0) \
-                + ca.mtimes(Y1j, g) + ycj
+        for k, (theta, pt) in enumerate(zip(self.thetas, points[1:], strict=True)):
+            yj = _rows_at(pt, xr, xi, u, g0, g)
             el_rows.append((theta, yj[:ne]))
             if k == 1:                                  # the midpoint: every channel
                 gj, fj, okej = self.law_value(yj, th)
@@ -166,8 +165,7 @@ class Kernel:
             err = ca.fmax(err, ca.norm_inf(gj - gi))
             fmax, oke = ca.fmax(fmax, fj), oke * okej
         if self.extrema and ne:
-            Cr0, Ci0, Yu0, Y00, _, yc0 = (A[:ne, :] for A in self._start(P))
-            el_rows[0] = (0.0, ca.mtimes(Cr0, xr) - ca.mtimes(Ci0, xi) + ca.mtimes(Yu0, u) + ca.mtimes(Y00, g0) + yc0)
+            el_rows[0] = (0.0, _rows_at([A[:ne, :] for A in self._start(P)], xr, xi, u, g0))
             el_rows.append((1.0, (y_free + ca.mtimes(H, g))[:ne]))
             err = ca.fmax(err, self._extremum_error(el_rows, P[-1], g0, g, th))
         ur = ca.mtimes(Qur, u) + qcr + ca.mtimes(Q0r, g0) + ca.mtimes(Q1r, g)
@@ -317,11 +315,10 @@ class Kernel:
     def _chord(self, x0, u0, P, th):
         """``(I - L_0 H)^{-1}``, ``L_0`` the laws' Jacobian at the chunk's start state (the chord iterations')."""
         m, r = self.m, self.r
-        CEr, CEi, Du, Dg, _, yc = self._start(P)
         H = P[10 + 4]
         if not r:
             return ca.MX.zeros(0, 0)
-        y0 = ca.mtimes(CEr, x0[:m]) - ca.mtimes(CEi, x0[m:2 * m]) + ca.mtimes(Du, u0) + ca.mtimes(Dg, x0[2 * m:]) + yc
+        y0 = _rows_at(self._start(P), x0[:m], x0[m:2 * m], u0, x0[2 * m:])
         L = self.law_newton(y0, th)[1]
         return self._solver(r)(L, H, ca.MX(ca.DM.eye(r)))
 
@@ -351,6 +348,16 @@ class Kernel:
         if (n, n_newton) not in self._native:
             self._native[(n, n_newton)] = native_functions([self.chunk(n, n_newton)])[0]
         return self._native[(n, n_newton)]
+
+
+def _rows_at(pt, xr, xi, u, g0, g1=None):
+    """The channel rows at one point of a step, ``Re(C_E ξ_0) + Y_u u + Y_0 g_0 (+ Y_1 g_1) + y_c``, from that point's
+    six step matrices ``pt`` (:meth:`Kernel.offsets`); without ``g1`` the part the end forces do not move."""
+    Cr, Ci, Yu, Y0, Y1, yc = pt
+    y = ca.mtimes(Cr, xr) - ca.mtimes(Ci, xi) + ca.mtimes(Yu, u) + ca.mtimes(Y0, g0)
+    if g1 is not None:
+        y = y + ca.mtimes(Y1, g1)
+    return y + yc
 
 
 def _tag(n_newton):
