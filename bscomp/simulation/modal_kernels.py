@@ -46,9 +46,13 @@ JIT_SCHEMES = (-3, 3)  # the chunks' chord and the batches' Newton iterations (b
 
 
 def pack_step(sd, n_el_rows, m_pad=None) -> np.ndarray:
-    """Flat vector of a :class:`~bscomp.simulation.modal_steps.StepData` (the layout of :meth:`Kernel._unpack`): the
-    end and the midpoint with every channel row, the other interior points with the elements' rows only. With
-    ``m_pad`` the modal coordinates are padded with inert zeros (one kernel serves parts of a few sizes)."""
+    """Flat vector of a :class:`~bscomp.simulation.modal_steps.StepData` in the layout of :meth:`Kernel.step`
+    (:attr:`Kernel.shapes`): the exponentials ``[Re E, Im E]``; the state update ``[Q_u, q_c, Q_0, Q_1]`` (real rows,
+    then imaginary); the channel rows of the end and the interior points stacked as one matrix on
+    ``[Re ξ_0; Im ξ_0; u; 1; g_0]`` (the end and the midpoint with every channel row, the other interior points with
+    the elements' rows only), their ``Y_1`` (the end's, ``H``, apart: the Newton iterations use it alone), the
+    start's rows; the step length. With ``m_pad`` the modal coordinates are padded with inert zeros (one kernel
+    serves parts of a few sizes)."""
     m = sd.E.size
     pad = 0 if m_pad is None else m_pad - m
 
@@ -59,12 +63,19 @@ def pack_step(sd, n_el_rows, m_pad=None) -> np.ndarray:
         return np.concatenate([A, np.zeros((A.shape[0], pad), A.dtype)], axis=1) if pad else A
 
     E, Qu, qc, Q0, Q1 = (rows_(a) for a in (sd.E, sd.Qu, sd.qc, sd.Q0, sd.Q1))
-    parts = [E.real, E.imag, Qu.real, Qu.imag, qc.real, qc.imag, Q0.real, Q0.imag, Q1.real, Q1.imag]
-    for k, (CE, Yu, Y0, Y1, yc) in enumerate([sd.end] + list(sd.samples) + [sd.start]):
-        rows = slice(None) if k in (0, 2, 4) else slice(0, n_el_rows)
+    Q = np.hstack([Qu, qc[:, None], Q0, Q1])
+
+    def lhs(point, rows):               # the rows' matrix on [Re ξ_0; Im ξ_0; u; 1; g_0]
+        CE, Yu, Y0, _, yc = point
         CE = cols_(CE[rows])
-        parts += [CE.real, CE.imag, Yu[rows], Y0[rows], Y1[rows], yc[rows]]
-    parts.append(np.array([sd.tau], float))
+        return np.hstack([CE.real, -CE.imag, Yu[rows], yc[rows, None], Y0[rows]])
+
+    points = [(sd.end, slice(None))] + [(pt, slice(None) if k == 1 else slice(0, n_el_rows))
+                                        for k, pt in enumerate(sd.samples)]
+    parts = [np.column_stack([E.real, E.imag]), np.vstack([Q.real, Q.imag]),
+             np.vstack([lhs(pt, rows) for pt, rows in points]), sd.end[3],
+             np.vstack([pt[3][rows] for pt, rows in points[1:]]), lhs(sd.start, slice(None)),
+             np.array([sd.tau], float)]
     return np.concatenate([np.asarray(a, float).reshape(-1, order="F") for a in parts])
 
 
@@ -90,11 +101,13 @@ class Kernel:
         self.law_newton, self.law_value, self.law_check, self.law_elements = laws
         self.n_theta = self.law_newton.size1_in(1)
         self.ne = n_el_rows
-        self.shapes = [(m, 1)] * 2 + [(m, nu)] * 2 + [(m, 1)] * 2 + [(m, r)] * 4
-        for k in range(2 + len(self.thetas)):         # the end, the interior points, the start
-            n = rm if k in (0, 2, 4) else n_el_rows
-            self.shapes += [(n, m), (n, m), (n, nu), (n, r), (n, r), (n, 1)]
-        self.shapes.append((1, 1))                     # the step length
+        #: rows of each interior point: every channel at the midpoint, the elements' at the others
+        self.point_rows = [rm if k == 1 else n_el_rows for k in range(len(self.thetas))]
+        nz = 2 * m + nu + 1 + r                        # [Re ξ_0; Im ξ_0; u; 1; g_0]
+        ri = sum(self.point_rows)
+        #: the step matrices (:func:`pack_step`): E, Q, the end's and interior points' rows, H, the interior
+        #: points' Y_1, the start's rows, the step length
+        self.shapes = [(m, 2), (2 * m, nu + 1 + 2 * r), (rm + ri, nz), (rm, r), (ri, r), (rm, nz), (1, 1)]
         self.n_mats = sum(a * b for a, b in self.shapes)
         self.nx = 2 * m + r
         self._f = {}
@@ -122,7 +135,7 @@ class Kernel:
         f = self._f.get(n_newton)
         if f is not None:
             return f
-        m, r = self.m, self.r
+        m, r, rm = self.m, self.r, self.rm
         S = ca.MX          # matrix loops and small SX callees: faster than a flat SX in the VM, compact C
         x = S.sym("x", self.nx)
         u = S.sym("u", self.nu)
@@ -130,10 +143,12 @@ class Kernel:
         th = S.sym("theta", self.n_theta)
         Mc = S.sym("chord", r, r)
         xr, xi, g0 = x[:m], x[m:2 * m], x[2 * m:]
-        Er, Ei, Qur, Qui, qcr, qci, Q0r, Q0i, Q1r, Q1i = P[:10]
-        points = [P[10 + 6 * k:16 + 6 * k] for k in range(1 + len(self.thetas))]   # the start is the chunk's
-        H = points[0][4]
-        y_free = _rows_at(points[0], xr, xi, u, g0)
+        E, Q, A, H, Y1i, _, tau = P
+        # every point's rows but the g_1 part in one product (one long loop per column: the C compiler vectorizes
+        # it; a product per point and term was most of a step's time)
+        z = ca.vertcat(xr, xi, u, 1, g0)
+        base = ca.mtimes(A, z)
+        y_free = base[:rm]
         g = g0
         upd = S(0)
         solve = self._solver()
@@ -145,12 +160,16 @@ class Kernel:
                 dg = ca.mtimes(Mc, self.law_value(y_free + ca.mtimes(H, g), th)[0] - g)
             g = g + dg
             upd = ca.norm_inf(dg)
-        _, fmax, okr, oke = self.law_check(y_free + ca.mtimes(H, g), th)
+        y_end = y_free + ca.mtimes(H, g)
+        _, fmax, okr, oke = self.law_check(y_end, th)
         err = S(0)
         ne = self.ne
         el_rows = [(0.0, None)]                         # (θ, the elements' rows there); the start's built below
-        for k, (theta, pt) in enumerate(zip(self.thetas, points[1:], strict=True)):
-            yj = _rows_at(pt, xr, xi, u, g0, g)
+        y_int = base[rm:] + ca.mtimes(Y1i, g)
+        at = 0
+        for k, (theta, n_rows) in enumerate(zip(self.thetas, self.point_rows, strict=True)):
+            yj = y_int[at:at + n_rows]
+            at += n_rows
             el_rows.append((theta, yj[:ne]))
             if k == 1:                                  # the midpoint: every channel
                 gj, fj, okej = self.law_value(yj, th)
@@ -165,22 +184,23 @@ class Kernel:
             err = ca.fmax(err, ca.norm_inf(gj - gi))
             fmax, oke = ca.fmax(fmax, fj), oke * okej
         if self.extrema and ne:
-            el_rows[0] = (0.0, _rows_at([A[:ne, :] for A in self._start(P)], xr, xi, u, g0))
-            el_rows.append((1.0, (y_free + ca.mtimes(H, g))[:ne]))
-            err = ca.fmax(err, self._extremum_error(el_rows, P[-1], g0, g, th))
-        ur = ca.mtimes(Qur, u) + qcr + ca.mtimes(Q0r, g0) + ca.mtimes(Q1r, g)
-        ui = ca.mtimes(Qui, u) + qci + ca.mtimes(Q0i, g0) + ca.mtimes(Q1i, g)
-        x1r = Er * xr - Ei * xi + ur
-        x1i = Er * xi + Ei * xr + ui
+            el_rows[0] = (0.0, self._start_rows(P, z)[:ne])
+            el_rows.append((1.0, y_end[:ne]))
+            err = ca.fmax(err, self._extremum_error(el_rows, tau, g0, g, th))
+        w = ca.mtimes(Q, ca.vertcat(u, 1, g0, g))
+        Er, Ei = E[:, 0], E[:, 1]
+        x1r = Er * xr - Ei * xi + w[:m]
+        x1i = Er * xi + Ei * xr + w[m:]
         info = ca.vertcat(err, fmax, okr, oke, upd)
         f = ca.Function(f"modal_step_{_tag(n_newton)}", [x, u, *P, th, Mc], [ca.vertcat(x1r, x1i, g), info])
         self._f[n_newton] = f
         return f
 
-    def _start(self, P):
-        """The step matrices of the start point (``θ = 0``) among the matrix symbols ``P``."""
-        k = 10 + 6 * (1 + len(self.thetas))
-        return P[k:k + 6]
+    @staticmethod
+    def _start_rows(P, z):
+        """The channel rows at a step's start (``θ = 0``: the part ``g_1`` does not move) on ``z = [Re ξ_0; Im ξ_0;
+        u; 1; g_0]``, from the step matrices ``P``."""
+        return ca.mtimes(P[5], z)
 
     def _extremum_error(self, el_rows, tau, g0, g1, th):
         """The largest law error at the displacement extrema of the :attr:`extrema` elements between consecutive
@@ -315,12 +335,11 @@ class Kernel:
     def _chord(self, x0, u0, P, th):
         """``(I - L_0 H)^{-1}``, ``L_0`` the laws' Jacobian at the chunk's start state (the chord iterations')."""
         m, r = self.m, self.r
-        H = P[10 + 4]
         if not r:
             return ca.MX.zeros(0, 0)
-        y0 = _rows_at(self._start(P), x0[:m], x0[m:2 * m], u0, x0[2 * m:])
+        y0 = self._start_rows(P, ca.vertcat(x0[:m], x0[m:2 * m], u0, 1, x0[2 * m:]))
         L = self.law_newton(y0, th)[1]
-        return self._solver(r)(L, H, ca.MX(ca.DM.eye(r)))
+        return self._solver(r)(L, P[3], ca.MX(ca.DM.eye(r)))
 
     def runner(self, n, n_newton=None):
         """A buffered caller of ``n`` steps (a power of 4): ``call(x0, U (n, nu), mats, theta, ctl) -> (X, INFO)``."""
@@ -348,16 +367,6 @@ class Kernel:
         if (n, n_newton) not in self._native:
             self._native[(n, n_newton)] = native_functions([self.chunk(n, n_newton)])[0]
         return self._native[(n, n_newton)]
-
-
-def _rows_at(pt, xr, xi, u, g0, g1=None):
-    """The channel rows at one point of a step, ``Re(C_E ξ_0) + Y_u u + Y_0 g_0 (+ Y_1 g_1) + y_c``, from that point's
-    six step matrices ``pt`` (:meth:`Kernel.offsets`); without ``g1`` the part the end forces do not move."""
-    Cr, Ci, Yu, Y0, Y1, yc = pt
-    y = ca.mtimes(Cr, xr) - ca.mtimes(Ci, xi) + ca.mtimes(Yu, u) + ca.mtimes(Y0, g0)
-    if g1 is not None:
-        y = y + ca.mtimes(Y1, g1)
-    return y + yc
 
 
 def _tag(n_newton):
