@@ -195,7 +195,6 @@ class ModalSimulator:
             spec = LawSpec(self.ch, sizes, self.cands, pats)
             spec.f = spec.function()
             spec.fs = spec.functions()
-            spec.fast = NumpyCall(spec.f)
             self.laws[key] = spec
         return spec
 
@@ -217,8 +216,8 @@ class ModalSimulator:
             kern = self.kernels.get(shape)
             if kern is None:
                 kern = self.kernels[shape] = Kernel(*shape[:4], spec.fs, 2 * len(self.ch.elements), THETAS,
-                                                    jit=self.jit, extrema=extrema)
-            st = Stepper(mp, rows, gsel, spec.fast, theta, kern)
+                                                    jit=self.jit, extrema=extrema, law=spec.f)
+            st = Stepper(mp, rows, gsel, theta, kern)
             self.steppers[key] = st
         self._last_stepper = (mp, cset, st)
         return st

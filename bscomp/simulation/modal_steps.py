@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bscomp.simulation.modal_kernels import NumpyCall, pack_step
+from bscomp.simulation.modal_kernels import pack_step
 
 __all__ = ["phis", "StepData", "Stepper", "ModalHistory", "block"]
 
@@ -96,15 +96,16 @@ class Stepper:
         ``(Cxi, Du, Dg, yc)`` of the measured channel coordinates.
     gsel : ndarray of int
         Columns of ``Bg`` of the active channel forces (the others are zero).
-    law : casadi.Function
-        :meth:`bscomp.simulation.modal_laws.LawSpec.function`.
     theta : ndarray
         Packed numbers of the law.
+    kernel : Kernel
+        The compiled steps of this shape; its :meth:`~bscomp.simulation.modal_kernels.Kernel.law_call` is the law
+        called from numpy here.
     """
 
-    def __init__(self, mp, rows, gsel, law, theta, kernel):
-        self.mp, self.rows, self.law, self.theta, self.kernel = mp, rows, law, theta, kernel
-        self._law = law if isinstance(law, NumpyCall) else NumpyCall(law)
+    def __init__(self, mp, rows, gsel, theta, kernel):
+        self.mp, self.rows, self.theta, self.kernel = mp, rows, theta, kernel
+        self._law = kernel.law_call()
         self.gsel = np.asarray(gsel, int)
         self.r = self.gsel.size
         self.m = kernel.m                    # modal coordinates of the kernel (>= the part's: padded)
