@@ -20,12 +20,50 @@ import casadi as ca
 
 from bscomp.errors import BscompError
 
-__all__ = ["quiet_native_stderr", "native_function", "native_functions", "CFLAGS"]
+__all__ = ["quiet_native_stderr", "native_function", "native_functions", "CFLAGS", "NATIVE_CFLAGS", "cpu_id"]
 
-#: The C compiler's flags. -O3 over -O2: the modal steps' loops over the step matrices run 10 % faster (moving-nut
-#: bed 160 -> 145 ms warm), the same numbers to the bit on the four benchmark beds (no -ffast-math, no FMA
-#: contraction without -march), and the same compile time.
-CFLAGS = "-O3"
+#: The C compiler's flags everywhere. -O3 over -O2: the modal steps' loops run 10 % faster, the same compile time;
+#: no fused multiply-add contraction (GCC contracts by default where the CPU has FMA), so the numbers are those of
+#: CasADi's virtual machine to the bit.
+CFLAGS = "-O3 -ffp-contract=off"
+#: Added on an x86 Linux whose CPU is identified (:func:`cpu_id`, part of the cache key: a library built here is
+#: never loaded on another CPU): its vector width for the modal steps' products (moving-nut bed: the compiled steps
+#: 62 -> 50 ms of a 0.6 s run). A compiler that refuses it is asked again without.
+NATIVE_CFLAGS = "-march=native"
+
+
+def cpu_id() -> str:
+    """A short hash of this CPU's model and instruction-set flags (``/proc/cpuinfo``), or ``""`` where they are
+    not readable or not an x86's (then :data:`NATIVE_CFLAGS` are not used)."""
+    global _CPU
+    if _CPU is None:
+        _CPU = ""
+        try:
+            info = Path("/proc/cpuinfo").read_text(errors="replace")
+        except OSError:
+            return _CPU
+        lines = {}
+        for line in info.splitlines():
+            k, _, v = line.partition(":")
+            lines.setdefault(k.strip(), v.strip())
+            if not line.strip() and lines:
+                break                                   # the first processor's block
+        if "flags" in lines:
+            _CPU = hashlib.sha1(f"{lines.get('model name')}|{lines['flags']}".encode()).hexdigest()[:12]
+    return _CPU
+
+
+_CPU = None
+
+
+def _flags() -> tuple[list, list]:
+    """``(flags, fallback)``: ``$BSCOMP_JIT_CFLAGS`` alone if set, else :data:`CFLAGS` and, where :func:`cpu_id`
+    knows the CPU, :data:`NATIVE_CFLAGS` (fallback: without them)."""
+    user = os.environ.get("BSCOMP_JIT_CFLAGS")
+    if user:
+        return user.split(), user.split()
+    base = CFLAGS.split()
+    return (base + NATIVE_CFLAGS.split(), base) if cpu_id() else (base, base)
 
 
 @contextlib.contextmanager
@@ -56,8 +94,9 @@ def native_function(f, cache_dir=None):
     """``f`` generated as C, compiled with the system C compiler and loaded; cached on disk by source hash.
 
     The cache directory is ``$BSCOMP_CACHE_DIR`` or ``~/.cache/bscomp``; a model compiled once loads in
-    milliseconds in later runs and in worker processes. The compiler flags are :data:`CFLAGS` unless
-    ``$BSCOMP_JIT_CFLAGS`` gives others (e.g. ``-O3 -march=native``; they are part of the cache key).
+    milliseconds in later runs and in worker processes. The compiler flags are :data:`CFLAGS` (and
+    :data:`NATIVE_CFLAGS` on an identified x86 CPU) unless ``$BSCOMP_JIT_CFLAGS`` gives others; flags and CPU are
+    part of the cache key.
     """
     return native_functions([f], cache_dir)[0]
 
@@ -73,9 +112,10 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
         raise BscompError("jit=True needs a C compiler (cc or gcc on PATH, or $CC)")
     root = Path(cache_dir or os.environ.get("BSCOMP_CACHE_DIR") or Path.home() / ".cache" / "bscomp") / "jit"
     root.mkdir(parents=True, exist_ok=True)
-    flags = (os.environ.get("BSCOMP_JIT_CFLAGS") or CFLAGS).split()
+    flags, fallback = _flags()
+    tag = f"{flags}|{cpu_id() if '-march=native' in flags else ''}|{_AXPY_ORDER}"
     if key is not None:
-        digest = hashlib.sha1(f"{key}|{ca.__version__}|{flags}|{_AXPY_ORDER}".encode()).hexdigest()[:16]
+        digest = hashlib.sha1(f"{key}|{ca.__version__}|{tag}".encode()).hexdigest()[:16]
         so = root / f"{names[0]}_k{digest}.so"
         if so.exists():
             return [ca.external(n, str(so)) for n in names]
@@ -87,7 +127,7 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
         cg.add(f)
     src = _axpy_order(cg.dump())
     if key is None:
-        so = root / f"{name}_{hashlib.sha1(f'{src}|{flags}'.encode()).hexdigest()[:16]}.so"
+        so = root / f"{name}_{hashlib.sha1(f'{src}|{tag}'.encode()).hexdigest()[:16]}.so"
     if not so.exists():
         with tempfile.TemporaryDirectory(dir=root) as tmp:
             c = Path(tmp) / f"{name}.c"
@@ -95,6 +135,9 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
             out = Path(tmp) / so.name
             run = subprocess.run([cc, *flags, "-shared", "-fPIC", str(c), "-o", str(out)], capture_output=True,
                                  text=True)
+            if run.returncode and fallback != flags:
+                run = subprocess.run([cc, *fallback, "-shared", "-fPIC", str(c), "-o", str(out)],
+                                     capture_output=True, text=True)
             if run.returncode:
                 raise BscompError(f"compiling {name} failed: {run.stderr[-500:]}")
             os.replace(out, so)  # atomic: concurrent workers never load a half-written file

@@ -49,3 +49,34 @@ def test_flags_are_part_of_the_cache_key(tmp_path, monkeypatch):
     monkeypatch.setenv("BSCOMP_JIT_CFLAGS", "-O1")
     native.native_function(f, cache_dir=tmp_path)
     assert len(list((tmp_path / "jit").glob("products_*.so"))) == 2
+
+
+def test_a_library_for_another_cpu_is_not_loaded(tmp_path, monkeypatch):
+    """With ``-march=native`` the CPU is part of the key: another CPU (a shared home directory on a cluster) builds
+    its own library instead of loading one that may not run there."""
+    monkeypatch.delenv("BSCOMP_JIT_CFLAGS", raising=False)
+    monkeypatch.setattr(native, "_CPU", "cpu-a")
+    f = _products()
+    native.native_function(f, cache_dir=tmp_path)
+    monkeypatch.setattr(native, "_CPU", "cpu-b")
+    native.native_function(f, cache_dir=tmp_path)
+    assert len(list((tmp_path / "jit").glob("products_*.so"))) == 2
+
+
+def test_flags_the_compiler_refuses_fall_back(tmp_path, monkeypatch):
+    """A compiler that does not know the CPU flags still compiles the library (with :data:`CFLAGS` alone), and the
+    numbers are the virtual machine's."""
+    monkeypatch.delenv("BSCOMP_JIT_CFLAGS", raising=False)
+    monkeypatch.setattr(native, "_CPU", "cpu-x")
+    monkeypatch.setattr(native, "NATIVE_CFLAGS", "-mno-such-flag-bscomp")
+    f = _products()
+    args = [np.linspace(-1.0, 1.0, f.nnz_in(i)).reshape(f.size_in(i), order="F") for i in range(4)]
+    got = np.asarray(native.native_function(f, cache_dir=tmp_path)(*args))
+    assert np.array_equal(got, np.asarray(f(*args)))
+
+
+def test_a_bad_flag_of_the_user_is_a_named_error(tmp_path, monkeypatch):
+    """``$BSCOMP_JIT_CFLAGS`` is used as given: a flag the compiler refuses is an error that quotes the compiler."""
+    monkeypatch.setenv("BSCOMP_JIT_CFLAGS", "-O2 -mno-such-flag-bscomp")
+    with pytest.raises(native.BscompError, match="compiling products failed"):
+        native.native_function(_products(), cache_dir=tmp_path)
