@@ -43,8 +43,7 @@ def affine_model(dae, p, x0, u0=None) -> dict:
     """
     u0 = np.zeros(dae.nu) if u0 is None else np.asarray(u0, float)
     xd0, z0 = dae.initialize(x0, u0, p, store=False)
-    _, Jxd, Jx, Jz, Ju = dae.jacobians(xd0, x0, z0, u0, p)
-    Jxd, Jx, Jz, Ju = _sp(Jxd), _sp(Jx), _sp(Jz), _sp(Ju)
+    _, Jxd, Jx, Jz, Ju = dae.jacobians_at(xd0, x0, z0, u0, p)
     A, B, Zx, Zu = explicit_form(dae, Jxd, Jx, Jz, Ju)
     return {"x0": np.asarray(x0, float), "u0": u0, "xd0": np.asarray(xd0, float).ravel(),
             "z0": np.asarray(z0, float).ravel(), "A": np.asarray(A), "B": np.asarray(B), "Zx": np.asarray(Zx),
@@ -82,10 +81,9 @@ def check_linear(dae, p, lin, rel_tol=1e-8):
     rng = np.random.default_rng(0)
     x0, xd0, z0 = lin["x0"], lin["xd0"], lin["z0"]
     pert = [v + (1e-3 + np.abs(v)) * rng.standard_normal(v.shape) for v in (xd0, x0, z0, np.zeros(dae.nu))]
-    J0 = dae.jacobians(xd0, x0, z0, lin["u0"], p)[1:]
-    J1 = dae.jacobians(*pert, p)[1:]
+    J0 = dae.jacobians_at(xd0, x0, z0, lin["u0"], p)[1:]
+    J1 = dae.jacobians_at(*pert, p)[1:]
     for a, b in zip(J0, J1):
-        a, b = _sp(a), _sp(b)
         if a.nnz or b.nnz:
             d = abs(a - b).max() if (a - b).nnz else 0.0
             if d > rel_tol * max(abs(a).max() if a.nnz else 0.0, abs(b).max() if b.nnz else 0.0, 1e-300):
@@ -154,6 +152,12 @@ class ModalDae:
         res = xd - self.Asp @ x - self.Bm @ u - self.fm
         return (ca.DM(res), ca.sparsify(ca.DM(np.eye(n))), ca.sparsify(ca.DM(-self.Asp)), ca.DM(n, 0),
                 ca.DM(-self.Bm))
+
+    def jacobians_at(self, xd, x, z, u, p):
+        """:meth:`jacobians` as ``(F (n,) ndarray, dF/dxd, dF/dx, dF/dz, dF/du)`` scipy csc, the interface of
+        :meth:`bscomp.kernel.dae.Dae.jacobians_at`."""
+        res, *J = self.jacobians(xd, x, z, u, p)
+        return (np.asarray(res, float).ravel(), *(_sp(j) for j in J))
 
     def initialize(self, x0=None, u0=None, p=None, store=False, **_):
         x = self.x_start if x0 is None else np.asarray(x0, float).ravel()
