@@ -375,7 +375,7 @@ class Kernel:
         names = [f"modal_chunk{k}_{_tag(it)}" for k, it in wanted]
         if self.law is not None:
             wanted.append("law")
-            names.append(_dense(self.law).name())
+            names.append(_dense_name(self.law))
         # the laws by their value and check Functions: the Newton one and the whole law are the same expression
         # and its Jacobian (modal_laws.LawSpec._build, in the source key), the largest to serialize
         shape = (self.m, self.nu, self.r, self.rm, self.ne, self.thetas, FORCE_FLOOR, self.extrema)
@@ -387,7 +387,7 @@ class Kernel:
 
     def law_call(self):
         """:class:`NumpyCall` of :attr:`law`: compiled with the chunks under ``jit`` (the consistent forces after
-        each regime switch: ~5x faster than the virtual machine)."""
+        each regime switch: 4 us a call on the moving-nut bed against 16 us in the virtual machine)."""
         if self._law_call is None:
             if self.jit:
                 if self._native is None:
@@ -459,9 +459,14 @@ class NumpyCall:
         return self._out
 
 
+def _dense_name(F):
+    """The name of :func:`_dense` ``(F)`` (without building it)."""
+    return F.name() if all(F.sparsity_out(i).is_dense() for i in range(F.n_out())) else F.name() + "_dense"
+
+
 def _dense(F):
     """``F`` with dense outputs (itself if they are; an SX Function's densified copy ``<name>_dense``, else)."""
-    if all(F.sparsity_out(i).is_dense() for i in range(F.n_out())):
+    if _dense_name(F) == F.name():
         return F
     ins = F.sx_in()
     return ca.Function(F.name() + "_dense", ins, [ca.densify(o) for o in F.call(ins)])

@@ -30,6 +30,7 @@ CFLAGS = "-O3 -ffp-contract=off"
 #: never loaded on another CPU): its vector width for the modal steps' products (moving-nut bed: the compiled steps
 #: 62 -> 50 ms of a 0.6 s run). A compiler that refuses it is asked again without.
 NATIVE_CFLAGS = "-march=native"
+_CPU = None                                             # cpu_id(), read once
 
 
 def cpu_id() -> str:
@@ -51,9 +52,6 @@ def cpu_id() -> str:
         if "flags" in lines:
             _CPU = hashlib.sha1(f"{lines.get('model name')}|{lines['flags']}".encode()).hexdigest()[:12]
     return _CPU
-
-
-_CPU = None
 
 
 def _flags() -> tuple[list, list]:
@@ -133,11 +131,13 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
             c = Path(tmp) / f"{name}.c"
             c.write_text(src)
             out = Path(tmp) / so.name
-            run = subprocess.run([cc, *flags, "-shared", "-fPIC", str(c), "-o", str(out)], capture_output=True,
-                                 text=True)
+            def compile_(fl):
+                return subprocess.run([cc, *fl, "-shared", "-fPIC", str(c), "-o", str(out)], capture_output=True,
+                                      text=True)
+
+            run = compile_(flags)
             if run.returncode and fallback != flags:
-                run = subprocess.run([cc, *fallback, "-shared", "-fPIC", str(c), "-o", str(out)],
-                                     capture_output=True, text=True)
+                run = compile_(fallback)
             if run.returncode:
                 raise BscompError(f"compiling {name} failed: {run.stderr[-500:]}")
             os.replace(out, so)  # atomic: concurrent workers never load a half-written file
