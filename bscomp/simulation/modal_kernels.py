@@ -42,6 +42,7 @@ SKIPPED = 1e300   # the error a skipped step reports (never accepted)
 # a change of this file or of the laws' construction recompiles
 _SOURCE_KEY = hashlib.sha1(Path(__file__).read_bytes()
                            + (Path(__file__).parent / "modal_laws.py").read_bytes()).hexdigest()
+CONSISTENT_ITERATIONS = 8  # Newton iterations at most for the consistent forces (Kernel.newton_function)
 JIT_SCHEMES = (-3, 3)  # the chunks' chord and the batches' Newton iterations (bscomp.simulation.modal_driver)
 
 
@@ -123,7 +124,7 @@ class Kernel:
         self.jit = bool(jit)
         self._native = None
         self.law = law
-        self._law_call = None
+        self._law_call = self._newton_call = None
 
     def _matrix_symbols(self):
         """One MX symbol per step matrix (separate inputs: a call passes pointers, nothing is copied)."""
@@ -376,14 +377,55 @@ class Kernel:
         if self.law is not None:
             wanted.append("law")
             names.append(_dense_name(self.law))
+        if self.r:
+            wanted.append("newton")
+            names.append(f"modal_newton{CONSISTENT_ITERATIONS}")
         # the laws by their value and check Functions: the Newton one and the whole law are the same expression
         # and its Jacobian (modal_laws.LawSpec._build, in the source key), the largest to serialize
         shape = (self.m, self.nu, self.r, self.rm, self.ne, self.thetas, FORCE_FLOOR, self.extrema)
         key = "|".join([_SOURCE_KEY, repr(shape), repr(names)]
                        + [f.serialize() for f in (self.law_check, self.law_elements)])
-        funcs = native_functions(lambda: [self.chunk(*w) if w != "law" else _dense(self.law) for w in wanted],
+        named = {"law": lambda: _dense(self.law), "newton": self.newton_function}
+        funcs = native_functions(lambda: [named[w]() if w in named else self.chunk(*w) for w in wanted],
                                  key=key, names=names)
         return dict(zip(wanted, funcs, strict=True))
+
+    def newton_function(self):
+        """MX Function ``(y_free, H, g, θ, tol) -> (g, y, upd)``: Newton on ``g = law(y_free + H g)`` in the channel
+        forces, at most :data:`CONSISTENT_ITERATIONS` iterations, stopping after the first whose update relative to
+        ``1 + max |g|`` is below ``tol`` (the later ones skipped by a short-circuit conditional); ``y = y_free + H g``
+        and ``upd`` the last relative update. The consistent forces after a regime switch (the step's static
+        feedthrough only): :meth:`bscomp.simulation.modal_steps.Stepper.consistent`."""
+        F = self._f.get("newton")
+        if F is not None:
+            return F
+        rm, r = self.rm, self.r
+        y_free, H, g, th = (ca.MX.sym("y_free", rm), ca.MX.sym("H", rm, r), ca.MX.sym("g", r),
+                            ca.MX.sym("theta", self.n_theta))
+        tol = ca.MX.sym("tol")
+        args = [y_free, H, g, ca.MX.sym("upd"), th]
+        gl, L = self.law_newton(y_free + ca.mtimes(H, g), th)
+        g1 = g + self._solver()(L, H, gl - g)
+        run = ca.Function("newton_iteration", args, [g1, ca.norm_inf(g1 - g) / (1 + ca.norm_inf(g1))])
+        skip = ca.Function("newton_done", args, [g, args[3]])
+        it = ca.Function.if_else("newton_guarded", skip, run)
+        gk, upd = g, ca.MX(np.inf)
+        for _ in range(CONSISTENT_ITERATIONS):
+            gk, upd = it(upd < tol, y_free, H, gk, upd, th)
+        F = self._f["newton"] = ca.Function(f"modal_newton{CONSISTENT_ITERATIONS}", [y_free, H, g, th, tol],
+                                            [gk, y_free + ca.mtimes(H, gk), upd])
+        return F
+
+    def newton_call(self):
+        """:class:`NumpyCall` of :meth:`newton_function`: compiled with the chunks under ``jit``."""
+        if self._newton_call is None:
+            if self.jit:
+                if self._native is None:
+                    self._native = self._library()
+                self._newton_call = NumpyCall(self._native["newton"])
+            else:
+                self._newton_call = NumpyCall(self.newton_function())
+        return self._newton_call
 
     def law_call(self):
         """:class:`NumpyCall` of :attr:`law`: compiled with the chunks under ``jit`` (the consistent forces after
@@ -437,9 +479,9 @@ class _Buffered:
 
 
 class NumpyCall:
-    """A small Function called with numpy vectors through its buffer (no DM conversion: ~10x cheaper per call
-    than ``F(...)`` from Python). Returns the dense outputs as numpy arrays (reused between calls: copy what
-    is kept); a sparse output is densified first."""
+    """A small Function called with numpy vectors (or matrices, passed column by column as CasADi reads them)
+    through its buffer (no DM conversion: ~10x cheaper per call than ``F(...)`` from Python). Returns the dense
+    outputs as numpy arrays (reused between calls: copy what is kept); a sparse output is densified first."""
 
     def __init__(self, F):
         self.F = F = _dense(F)
@@ -454,7 +496,7 @@ class NumpyCall:
 
     def __call__(self, *args):
         for arg, a in zip(self._args, args, strict=True):
-            arg[:] = np.ravel(a)
+            arg[:] = np.ravel(a, order="F")         # a matrix argument column by column, as CasADi reads it
         self.trigger()
         return self._out
 

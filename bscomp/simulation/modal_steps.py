@@ -25,7 +25,6 @@ computes the matrices of those formulas per sub-step length (:class:`StepData`);
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg.lapack import dgesv as _dgesv
 
 from bscomp.simulation.modal_kernels import pack_step
 
@@ -33,16 +32,6 @@ __all__ = ["phis", "StepData", "Stepper", "ModalHistory", "block"]
 
 THETAS = (0.25, 0.5, 0.75)
 NEWTON_TOL = 1e-9    # last Newton update relative to 1 + max |g| accepted as converged
-
-
-def solve_small(A, b):
-    """``A^{-1} b`` by LAPACK's ``dgesv`` called directly: what ``np.linalg.solve`` computes, without its ~6 us of
-    checks and wrapping (a switch's Newton solves a 7 x 7 system ~2 times). A singular ``A`` raises
-    ``np.linalg.LinAlgError`` as ``np.linalg.solve`` does."""
-    _, _, x, info = _dgesv(A, b)
-    if info > 0:
-        raise np.linalg.LinAlgError("Singular matrix")
-    return x
 
 
 def phis(lam, tau):
@@ -149,24 +138,17 @@ class Stepper:
         """Channel forces consistent with ``xi`` at zero step length (static feedthrough only)."""
         Cxi, Du, Dg, yc = self.rows
         y_free = (Cxi @ xi).real + Du @ u + yc
-        return self.newton(y_free, Dg[:, self.gsel], g, 8)
+        return self.newton(y_free, Dg[:, self.gsel], g)
 
-    def newton(self, y_free, H, g, n_iter):
-        """Newton on ``g = law(y_free + H g)``: ``(g, y, last relative update)``."""
+    def newton(self, y_free, H, g):
+        """Newton on ``g = law(y_free + H g)``: ``(g, y, last relative update)``, converged when the update relative
+        to ``1 + max |g|`` is below :data:`NEWTON_TOL` (one compiled call:
+        :meth:`~bscomp.simulation.modal_kernels.Kernel.newton_function`)."""
         g = np.array(g, float)
         if not self.r:
             return g, y_free, 0.0
-        upd = np.inf
-        eye = np.eye(self.r)
-        for _ in range(n_iter):
-            y = y_free + H @ g
-            gl, L, *_ = self._law(y, self.theta)
-            dg = solve_small(eye - L @ H, gl.ravel() - g)
-            g += dg
-            upd = np.abs(dg).max() / (1.0 + np.abs(g).max())
-            if upd < NEWTON_TOL:
-                break
-        return g, y_free + H @ g, upd
+        g, y, upd = self.kernel.newton_call()(y_free, H, g, self.theta, NEWTON_TOL)
+        return g.ravel().copy(), y.ravel().copy(), float(upd[0, 0])
 
     def pack_state(self, xi, g):
         """The kernel's state ``[Re ξ; 0; Im ξ; 0; g]`` in this stepper's buffer (valid until the next call; a

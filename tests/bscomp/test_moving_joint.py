@@ -292,3 +292,50 @@ def test_a_free_chain_through_a_clearance_matches_idas():
     assert r.stats["rigid_body_dampers"] and np.abs(ref["m2.v"]).max() > 0.05      # m2 was hit
     for o in outs:
         assert _nrmse(r[o], ref[o]) < 1e-3, (o, _nrmse(r[o], ref[o]))
+
+
+def _numpy_newton(stp, y_free, H, g, tol, n_iter):
+    """The consistent forces' Newton written in numpy (what Kernel.newton_function compiles)."""
+    g = np.array(g, float)
+    for _ in range(n_iter):
+        gl, L = (np.asarray(a) for a in stp.kernel.law_newton(y_free + H @ g, stp.theta))
+        dg = np.linalg.solve(np.eye(g.size) - L @ H, gl.ravel() - g)
+        g = g + dg
+        if np.abs(dg).max() / (1.0 + np.abs(g).max()) < tol:
+            break
+    return g
+
+
+@pytest.mark.parametrize("jit", [False, True])
+def test_consistent_forces_solve_the_static_feedthrough(moving, jit):
+    """``Stepper.consistent`` (one call of the compiled Newton, Kernel.newton_function): the forces it returns
+    satisfy ``g = law(y_free + H g)`` and equal a numpy Newton's, in the sticking and the sliding regime of the
+    friction and with the backlash closed, from zero forces (the first iteration does most of the work)."""
+    from bscomp.simulation.modal_steps import NEWTON_TOL
+
+    sim = ModalSimulator(moving, moving.p0, jit=jit)
+    jt = sim.ch.joints[0]
+    cset = sim.channel_set([jt.z0], [jt.z0])
+    rng = np.random.default_rng(11)
+    for regime in ((0, 0), (1, 1)):
+        mp = sim.part(regime, [jt.z0])
+        stp = sim.stepper(mp, cset)
+        xi = (rng.normal(size=mp.lam.size) + 1j * rng.normal(size=mp.lam.size)) * 1e-5
+        u = np.zeros(moving.nu)
+        u[moving.u_names.index("amp.u")] = AMP
+        g, y, upd = stp.consistent(xi, u, np.zeros(stp.r))
+        Cxi, Du, Dg, yc = stp.rows
+        H = Dg[:, stp.gsel]
+        y_free = (Cxi @ xi).real + Du @ u + yc
+        np.testing.assert_allclose(y, y_free + H @ g, rtol=0, atol=1e-12 * (1 + np.abs(y).max()))
+        gl = np.asarray(stp.kernel.law_newton(y, stp.theta)[0]).ravel()
+        assert upd < NEWTON_TOL and np.abs(gl - g).max() < 1e-8 * (1 + np.abs(g).max()), (regime, upd)
+        ref = _numpy_newton(stp, y_free, H, np.zeros(stp.r), NEWTON_TOL, 8)
+        np.testing.assert_allclose(g, ref, rtol=0, atol=1e-9 * (1 + np.abs(ref).max()))
+        # a feedthrough that couples the forces (H ~ 0 at these states): the compiled Newton against numpy's
+        Hc = rng.normal(size=H.shape) * 0.1 * np.abs(y_free).max() / max(np.abs(ref).max(), 1e-300)
+        g, y, upd = stp.newton(y_free, Hc, np.zeros(stp.r))
+        ref = _numpy_newton(stp, y_free, Hc, np.zeros(stp.r), NEWTON_TOL, 8)
+        assert np.abs(Hc @ ref).max() > 1e-6 * np.abs(y_free).max()          # the coupling matters
+        np.testing.assert_allclose(g, ref, rtol=0, atol=1e-9 * (1 + np.abs(ref).max()))
+        np.testing.assert_allclose(y, y_free + Hc @ g, rtol=0, atol=1e-12 * (1 + np.abs(y).max()))

@@ -80,3 +80,14 @@ def test_a_bad_flag_of_the_user_is_a_named_error(tmp_path, monkeypatch):
     monkeypatch.setenv("BSCOMP_JIT_CFLAGS", "-O2 -mno-such-flag-bscomp")
     with pytest.raises(native.BscompError, match="compiling products failed"):
         native.native_function(_products(), cache_dir=tmp_path)
+
+
+def test_numpy_call_passes_a_matrix_column_by_column():
+    """NumpyCall hands a numpy matrix to CasADi column by column (CasADi's storage): ``A b`` for a non-symmetric
+    ``A`` is numpy's ``A @ b``, not ``A.T @ b``."""
+    from bscomp.simulation.modal_kernels import NumpyCall
+
+    A, b = ca.SX.sym("A", 3, 2), ca.SX.sym("b", 2)
+    call = NumpyCall(ca.Function("Ab", [A, b], [ca.mtimes(A, b)]))
+    An = np.array([[1.0, 2.0], [3.0, 4.0], [5.0, 6.0]])
+    np.testing.assert_array_equal(call(An, np.array([1.0, -1.0]))[0].ravel(), An @ np.array([1.0, -1.0]))
