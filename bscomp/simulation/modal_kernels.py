@@ -124,7 +124,7 @@ class Kernel:
         self.jit = bool(jit)
         self._native = None
         self.law = law
-        self._law_call = self._newton_call = None
+        self._calls = {}                               # NumpyCalls of the law and the Newton (_numpy_call)
 
     def _matrix_symbols(self):
         """One MX symbol per step matrix (separate inputs: a call passes pointers, nothing is copied)."""
@@ -418,26 +418,26 @@ class Kernel:
 
     def newton_call(self):
         """:class:`NumpyCall` of :meth:`newton_function`: compiled with the chunks under ``jit``."""
-        if self._newton_call is None:
-            if self.jit:
-                if self._native is None:
-                    self._native = self._library()
-                self._newton_call = NumpyCall(self._native["newton"])
-            else:
-                self._newton_call = NumpyCall(self.newton_function())
-        return self._newton_call
+        return self._numpy_call("newton", self.newton_function)
 
     def law_call(self):
         """:class:`NumpyCall` of :attr:`law`: compiled with the chunks under ``jit`` (the consistent forces after
         each regime switch: 4 us a call on the moving-nut bed against 16 us in the virtual machine)."""
-        if self._law_call is None:
+        return self._numpy_call("law", lambda: self.law)
+
+    def _numpy_call(self, key, build):
+        """:class:`NumpyCall` of the library's Function ``key`` under ``jit``, else of ``build()`` in the virtual
+        machine (made once)."""
+        call = self._calls.get(key)
+        if call is None:
             if self.jit:
                 if self._native is None:
                     self._native = self._library()
-                self._law_call = NumpyCall(self._native["law"])
+                F = self._native[key]
             else:
-                self._law_call = NumpyCall(self.law)
-        return self._law_call
+                F = build()
+            call = self._calls[key] = NumpyCall(F)
+        return call
 
 
 def _tag(n_newton):
