@@ -33,7 +33,7 @@ from bscomp.simulation.modal_channels import (
     ModalSimulationError,
     rigid_body_dampers,
 )
-from bscomp.simulation.modal_kernels import FORCE_FLOOR, SKIPPED, Kernel, NumpyCall
+from bscomp.simulation.modal_kernels import CTL, FORCE_FLOOR, Kernel, NumpyCall
 from bscomp.simulation.modal_laws import REGIME_MARGIN, LawSpec, coefficient_patterns, regime_eps
 from bscomp.simulation.modal_parts import ModalPart, element_bands
 from bscomp.simulation.modal_steps import THETAS, ModalHistory, Stepper, block
@@ -92,7 +92,7 @@ class ModalSimulator:
         self.outputs = {}     # names -> modal.Outputs (rows per modal part)
         self._checked = set()
         self._csets = {}
-        self._ctl_buf = np.zeros(3)             # the stop rule handed to every kernel call (copied by the call)
+        self._ctl_buf = np.zeros(CTL)           # the stop rule handed to every kernel call (copied by the call)
         self.stats = {"setup_channels_s": time.perf_counter() - t0, "modal_parts": 0, "modal_part_s": 0.0}
         self._element_band(f_band)
         self._rest_part()
@@ -381,14 +381,15 @@ class ModalSimulator:
                 "extremes; e.g. an amplifier current limit): use method='idas' or 'split'")
         self._checked.add(key)
 
-    def _ctl(self, tol):
-        """The kernel's stop rule (the one of :meth:`_flags`): ``[tol, running force scale, Newton acceptance]``;
-        errors are judged against the step's largest force, at least ``FORCE_FLOOR`` (1.0) x the running scale."""
+    def _ctl(self, tol, wanted):
+        """The kernel's stop rule (the one of :meth:`_flags`): ``[tol, running force scale, Newton acceptance, steps
+        wanted]``; errors are judged against the step's largest force, at least ``FORCE_FLOOR`` (1.0) x the running
+        scale."""
         ctl = self._ctl_buf
-        ctl[0], ctl[1], ctl[2] = tol, self.scale, NEWTON_ACCEPT * tol
+        ctl[0], ctl[1], ctl[2], ctl[3] = tol, self.scale, NEWTON_ACCEPT * tol, wanted
         return ctl
 
-    def _flags(self, info, tol):
+    def _flags(self, info, aux, tol):
         """``(j, switch, scale_j, scale_c)`` of a block of step infos: the first ``j`` steps are accepted; ``switch``:
         the last of them ended in another regime (the linear part is switched there); ``scale_j`` the running force
         scale after the ``j`` accepted steps, ``scale_c`` after every computed one (``c``: ``j`` or ``j + 1``, what a
@@ -397,18 +398,17 @@ class ModalSimulator:
         the element.
 
         The kernel applies the same rule and skips every step after the first bad or regime-changing one
-        (:data:`~bscomp.simulation.modal_kernels.SKIPPED`), so only the last computed step is tested here."""
-        n = len(info)
-        c = n if info[n - 1, 0] < SKIPPED else int(np.count_nonzero(info[:, 0] < SKIPPED))   # skipped: a tail
-        scale0 = self.scale
+        (:data:`~bscomp.simulation.modal_kernels.SKIPPED`) or after the steps wanted; its running numbers ``aux``
+        say how many it computed and the scales (:meth:`~bscomp.simulation.modal_kernels.Kernel.chunk`), so only
+        the last computed step is tested here."""
+        top, _, c, before = aux.tolist()
+        c = int(c)
         if c == 0:
-            return 0, False, scale0, scale0
-        fm = info[:c, 1]
-        top = max(scale0, float(fm.max()))            # the running scale after step c - 1
+            return 0, False, self.scale, self.scale
         err, fmax, okr, oke, upd = info[c - 1].tolist()
         sc = max(fmax, FORCE_FLOOR * top)
         if err > tol * sc or oke < 0.5 or not upd < NEWTON_ACCEPT * tol * sc:
-            return c - 1, False, (max(scale0, float(fm[:c - 1].max())) if c > 1 else scale0), top
+            return c - 1, False, before, top
         return c, bool(okr < 0.5), top, top
 
     def _chunk(self, st, U, k, n, h, tol, XI, G, level):
@@ -425,8 +425,8 @@ class ModalSimulator:
         if N > len(Uc):
             Uc = np.vstack([Uc, np.repeat(Uc[-1:], N - len(Uc), axis=0)])
         x0 = stp.pack_state(st.xi, st.g[stp.gsel])
-        X, info = run(x0, Uc, mats, stp.theta, self._ctl(tol))
-        b, switch, scale, _ = self._flags(info[:n * per], tol)
+        X, info = run(x0, Uc, mats, stp.theta, self._ctl(tol, n * per))
+        b, switch, scale, _ = self._flags(info, run.aux, tol)
         done, part = divmod(b, per)
         self.counts["chunks"] += 1
         if not b:
@@ -464,8 +464,8 @@ class ModalSimulator:
             left = n - i
             x0 = stp.pack_state(st.xi, st.g[stp.gsel])
             run = stp.kernel.runner(_chunk_size(left), FINE_ITERATIONS if deepest else CHUNK_ITERATIONS)
-            X, info = run(x0, u, mats, stp.theta, self._ctl(tol))
-            j, switch, scale, scale_c = self._flags(info[:left], tol)
+            X, info = run(x0, u, mats, stp.theta, self._ctl(tol, left))
+            j, switch, scale, scale_c = self._flags(info, run.aux, tol)
             self.counts["batches"] += 1
             forced = deepest and j < left and not switch
             if forced:

@@ -12,10 +12,12 @@ regime change inside a step shows in the error (the law is exact in any regime);
 driver to switch the linear part.
 
 A chunk stops computing after its first step the driver will not accept (the driver's own rule, evaluated in
-the kernel from ``ctl = [tol, force scale, Newton acceptance]``: error or last Newton update too large for the
-step's largest force (at least :data:`FORCE_FLOOR` of the running force scale), contact point out of its
-element, or a regime change at the end): the remaining steps are skipped by a short-circuit conditional and
-report an error of ``SKIPPED``, so a chunk that fails early costs what it computed, not its length.
+the kernel from ``ctl = [tol, force scale, Newton acceptance, steps wanted]``: error or last Newton update too
+large for the step's largest force (at least :data:`FORCE_FLOOR` of the running force scale), contact point out
+of its element, or a regime change at the end) or after the steps the driver wants (a chunk is a power of 4
+long): the remaining steps are skipped by a short-circuit conditional and report an error of ``SKIPPED``, so a
+chunk that fails early costs what it computed, not its length. It also returns its running numbers (``AUX``):
+the driver reads how many steps it computed and the force scales from them, not from the step infos.
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ from bscomp.simulation.native import native_functions
 __all__ = ["pack_step", "Kernel", "NumpyCall"]
 
 INFO = 5
+AUX = 4    # a chunk's running numbers: force scale, stop, steps computed, the scale before the last of them
+CTL = 4    # its stop rule: tolerance, force scale, Newton acceptance, steps wanted
 #: A step's errors are judged against its own largest force, but at least this fraction of the run's largest so
 #: far. 1.0 (the run's largest alone) is the rule. 0.1 was measured (docs/nonlinear.md, "Accuracy on drives we did
 #: not build"): 80 random friction + backlash chains 2x closer to IDAS rtol 1e-10 (a light mass in a long stretch of
@@ -260,25 +264,28 @@ class Kernel:
 
     def guarded(self, n_newton):
         """``(x, aux, u, *matrices, theta, chord, ctl) -> (x1, info, aux1)``: :meth:`step` unless ``aux = [scale,
-        stop]`` says an earlier step of the chunk was not acceptable (then the state passes through and the info
-        reports :data:`SKIPPED`). ``aux1`` carries the running force scale and the stop flag by the driver's
-        rule (:meth:`bscomp.simulation.modal_driver.ModalSimulator._flags`)."""
+        stop, count, scale before]`` says an earlier step of the chunk was not acceptable or the ``ctl[3]`` steps
+        wanted are done (then the state passes through and the info reports :data:`SKIPPED`). ``aux1`` carries the
+        running force scale, the stop flag by the driver's rule
+        (:meth:`bscomp.simulation.modal_driver.ModalSimulator._flags`), the steps computed and the scale before the
+        last of them."""
         key = ("guarded", n_newton)
         F = self._f.get(key)
         if F is not None:
             return F
         step = self.step(n_newton)
-        x, aux, u = ca.MX.sym("x", self.nx), ca.MX.sym("aux", 2), ca.MX.sym("u", self.nu)
+        x, aux, u = ca.MX.sym("x", self.nx), ca.MX.sym("aux", AUX), ca.MX.sym("u", self.nu)
         P = self._matrix_symbols()
-        th, Mc, ctl = ca.MX.sym("theta", self.n_theta), ca.MX.sym("chord", self.r, self.r), ca.MX.sym("ctl", 3)
+        th, Mc, ctl = ca.MX.sym("theta", self.n_theta), ca.MX.sym("chord", self.r, self.r), ca.MX.sym("ctl", CTL)
         args = [x, aux, u, *P, th, Mc, ctl]
         x1, info = step(x, u, *P, th, Mc)
         sc = ca.fmax(aux[0], info[1])
         judge = ca.fmax(info[1], FORCE_FLOOR * sc)
         bad = ca.logic_or(ca.logic_or(info[0] > ctl[0] * judge, info[3] < 0.5),
                           ca.logic_not(info[4] < ctl[2] * judge))
-        stop = ca.logic_or(bad, info[2] < 0.5)
-        run = ca.Function(f"modal_run_{_tag(n_newton)}", args, [x1, info, ca.vertcat(sc, stop)])
+        count = aux[2] + 1
+        stop = ca.logic_or(ca.logic_or(bad, info[2] < 0.5), count >= ctl[3])
+        run = ca.Function(f"modal_run_{_tag(n_newton)}", args, [x1, info, ca.vertcat(sc, stop, count, aux[0])])
         skip = ca.Function(f"modal_skip_{_tag(n_newton)}", args,
                            [x, ca.DM([SKIPPED, 0.0, 1.0, 0.0, SKIPPED]), aux])
         F = ca.Function.if_else(f"modal_guarded_{_tag(n_newton)}", skip, run)
@@ -301,12 +308,12 @@ class Kernel:
         if F is not None:
             return F
         x0 = ca.MX.sym("x", self.nx)
-        aux0 = ca.MX.sym("aux", 2)
+        aux0 = ca.MX.sym("aux", AUX)
         U = ca.MX.sym("U", self.nu, n)
         P = self._matrix_symbols()
         th = ca.MX.sym("theta", self.n_theta)
         Mc = ca.MX.sym("chord", self.r, self.r)
-        ctl = ca.MX.sym("ctl", 3)
+        ctl = ca.MX.sym("ctl", CTL)
         sub = self.guarded(n_newton) if n == 1 else self._inner(n // 4, n_newton)
         q = max(n // 4, 1)
         Xs, Is, x, aux = [], [], x0, aux0
@@ -321,11 +328,12 @@ class Kernel:
         return F
 
     def chunk(self, n, n_newton):
-        """MX Function of ``n`` steps (n a power of 4), ``(x0, U, mats, theta, ctl) -> (X, INFO)`` with ``U``
+        """MX Function of ``n`` steps (n a power of 4), ``(x0, U, mats, theta, ctl) -> (X, INFO, AUX)`` with ``U``
         (nu, n), ``mats`` the packed step matrices (:func:`pack_step`; split once per call, passed on by
-        reference), ``ctl = [tol, force scale, Newton acceptance]`` (the steps after the first unacceptable one
-        are skipped), ``X`` (nx, n) the states after each step and ``INFO`` (5, n). Chord iterations use the
-        laws' Jacobian at the chunk's start (computed here, once per call)."""
+        reference), ``ctl = [tol, force scale, Newton acceptance, steps wanted]`` (the steps after the first
+        unacceptable one, or after the steps wanted, are skipped), ``X`` (nx, n) the states after each step,
+        ``INFO`` (5, n) and ``AUX = [running force scale, stop, steps computed, the scale before the last]``. Chord
+        iterations use the laws' Jacobian at the chunk's start (computed here, once per call)."""
         key = ("chunk", n, n_newton)
         F = self._f.get(key)
         if F is not None:
@@ -334,11 +342,11 @@ class Kernel:
         U = ca.MX.sym("U", self.nu, n)
         mats = ca.MX.sym("mats", self.n_mats)
         th = ca.MX.sym("theta", self.n_theta)
-        ctl = ca.MX.sym("ctl", 3)
+        ctl = ca.MX.sym("ctl", CTL)
         P = [ca.reshape(mats[a:b], *shape) for (a, b), shape in zip(self.offsets(), self.shapes, strict=True)]
         Mc = self._chord(x0, U[:, 0], P, th) if n_newton < 0 else ca.MX.zeros(self.r, self.r)
-        X, I, _ = self._inner(n, n_newton)(x0, ca.vertcat(ctl[1], 0), U, *P, th, Mc, ctl)
-        F = ca.Function(f"modal_chunk{n}_{_tag(n_newton)}", [x0, U, mats, th, ctl], [X, I])
+        X, I, aux = self._inner(n, n_newton)(x0, ca.vertcat(ctl[1], 0, 0, ctl[1]), U, *P, th, Mc, ctl)
+        F = ca.Function(f"modal_chunk{n}_{_tag(n_newton)}", [x0, U, mats, th, ctl], [X, I, aux])
         self._f[key] = F
         return F
 
@@ -457,6 +465,8 @@ class _Buffered:
         self.I = np.zeros((n, INFO))
         self.buf.set_res(0, memoryview(self.X.reshape(-1)))
         self.buf.set_res(1, memoryview(self.I.reshape(-1)))
+        self.aux = np.zeros(AUX)             # [running scale, stop, steps computed, scale before the last]
+        self.buf.set_res(2, memoryview(self.aux))
         self.x0 = np.zeros(nx)
         self.U = np.zeros((n, F.size1_in(1)))  # (n, nu) rows = CasADi columns
         self.ctl = np.zeros(F.nnz_in(4))

@@ -115,14 +115,22 @@ def test_kernel_skips_the_steps_after_the_first_unacceptable_one(moving):
     _, mats = stp.data(1e-4)
     run = stp.kernel.runner(16, -3)
     x0 = stp.pack_state(st.xi, st.g[stp.gsel])
-    X_all, I_all = (a.copy() for a in run(x0, u, mats, stp.theta, np.array([1e300, 1.0, 1e300])))
-    X0, I0 = (a.copy() for a in run(x0, u, mats, stp.theta, np.array([0.0, 1.0, 0.0])))
+    X_all, I_all = (a.copy() for a in run(x0, u, mats, stp.theta, np.array([1e300, 1.0, 1e300, 16])))
+    aux_all = run.aux.copy()
+    X0, I0 = (a.copy() for a in run(x0, u, mats, stp.theta, np.array([0.0, 1.0, 0.0, 16])))
     assert np.all(I0[1:, 0] == SKIPPED) and np.all(X0[1:] == X0[0])       # nothing computed after step 0
+    assert run.aux[2] == 1 and run.aux[3] == 1.0                          # one step; the scale before it
     np.testing.assert_array_equal(X0[0], X_all[0])
     computed = np.flatnonzero(I_all[:, 0] < SKIPPED)
     assert computed[0] == 0 and np.array_equal(computed, np.arange(computed.size))
+    assert aux_all[2] == computed.size and aux_all[0] == max(1.0, I_all[computed, 1].max())
     if computed.size < 16:                               # an unstopped chunk only stops at a regime change
         assert I_all[computed[-1], 2] < 0.5
+    # the steps wanted: a chunk of 16 asked for 5 computes 5, the same ones
+    X5, I5 = (a.copy() for a in run(x0, u, mats, stp.theta, np.array([1e300, 1.0, 1e300, 5])))
+    n5 = min(5, computed.size)
+    assert run.aux[2] == n5 and np.all(I5[n5:, 0] == SKIPPED)
+    np.testing.assert_array_equal(X5[:n5], X_all[:n5])
 
 
 def test_moving_nut_with_friction_and_backlash_matches_idas_at_rtol_1e9(moving):
