@@ -296,9 +296,13 @@ class Kernel:
     def _solver(self, cols=1):
         """SX Function ``(L, H, b) -> (I - L H)^{-1} b`` for ``b`` of ``cols`` columns (the Newton update in the
         channel forces; with the identity, the chord matrix in one factorisation)."""
-        r, rm = self.r, self.rm
-        L, H, b = ca.SX.sym("L", r, rm), ca.SX.sym("H", rm, r), ca.SX.sym("b", r, cols)
-        return ca.Function(f"newton_update{cols}", [L, H, b], [ca.solve(ca.SX.eye(r) - ca.mtimes(L, H), b)])
+        F = self._f.get(("solver", cols))
+        if F is None:              # one Function per shape: the chunks, the chord and the Newton call the same one
+            r, rm = self.r, self.rm
+            L, H, b = ca.SX.sym("L", r, rm), ca.SX.sym("H", rm, r), ca.SX.sym("b", r, cols)
+            F = self._f[("solver", cols)] = ca.Function(f"newton_update{cols}", [L, H, b],
+                                                        [ca.solve(ca.SX.eye(r) - ca.mtimes(L, H), b)])
+        return F
 
     def _inner(self, n, n_newton):
         """``n`` guarded steps (a power of 4) taking the step matrices as separate arguments: four calls of the
@@ -413,8 +417,9 @@ class Kernel:
         tol = ca.MX.sym("tol")
         args = [y_free, H, g, ca.MX.sym("upd"), th]
         gl, L = self.law_newton(y_free + ca.mtimes(H, g), th)
-        g1 = g + self._solver()(L, H, gl - g)
-        run = ca.Function("newton_iteration", args, [g1, ca.norm_inf(g1 - g) / (1 + ca.norm_inf(g1))])
+        dg = self._solver()(L, H, gl - g)
+        g1 = g + dg
+        run = ca.Function("newton_iteration", args, [g1, ca.norm_inf(dg) / (1 + ca.norm_inf(g1))])
         skip = ca.Function("newton_done", args, [g, args[3]])
         it = ca.Function.if_else("newton_guarded", skip, run)
         gk, upd = g, ca.MX(np.inf)
