@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -111,7 +112,7 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
     root = Path(cache_dir or os.environ.get("BSCOMP_CACHE_DIR") or Path.home() / ".cache" / "bscomp") / "jit"
     root.mkdir(parents=True, exist_ok=True)
     flags, fallback = _flags()
-    tag = f"{flags}|{cpu_id() if '-march=native' in flags else ''}|{_AXPY_ORDER}"
+    tag = f"{flags}|{cpu_id() if '-march=native' in flags else ''}|{_AXPY_ORDER}|{_FIXED_PRODUCT}"
     if key is not None:
         digest = hashlib.sha1(f"{key}|{ca.__version__}|{tag}".encode()).hexdigest()[:16]
         so = root / f"{names[0]}_k{digest}.so"
@@ -123,7 +124,7 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
     cg = ca.CodeGenerator(name + ".c", {"with_header": False})
     for f in functions:
         cg.add(f)
-    src = _axpy_order(cg.dump())
+    src = _fixed_products(_axpy_order(cg.dump()))
     if key is None:
         so = root / f"{name}_{hashlib.sha1(f'{src}|{tag}'.encode()).hexdigest()[:16]}.so"
     if not so.exists():
@@ -174,3 +175,32 @@ def _axpy_order(src: str) -> str:
     vectorizes it). Every ``z_j`` still sums its terms in the order
     ``k = 0, 1, ...``: the same numbers to the bit. A CasADi whose helper reads differently is left as it is."""
     return src.replace(_DOT_ORDER, _AXPY_ORDER)
+
+
+_PRODUCT_CALL = re.compile(r"casadi_mtimes_dense\(([\w+]+), (\d+), (\d+), ([\w+]+), (\d+), ([\w+]+), 0\);")
+_FIXED_PRODUCT = """static inline void bscomp_mv_{a}_{b}_{c}(const casadi_real* x, const casadi_real* y,
+    casadi_real* z) {{
+  casadi_int i, j, k;
+  for (i=0; i<{c}; ++i) {{
+    for (k=0; k<{b}; ++k) {{
+      for (j=0; j<{a}; ++j) {{
+        z[j + i*{a}] += x[j + k*{a}] * y[k + i*{b}];
+      }}
+    }}
+  }}
+}}
+"""
+
+
+def _fixed_products(src: str) -> str:
+    """Every dense product ``z += x y`` of constant sizes (all of them in a CasADi MX Function) through its own copy
+    of :func:`_axpy_order`'s loop with the sizes written in: the compiler unrolls and vectorizes a loop whose
+    trip counts it knows (CasADi's one helper takes them at run time). The same operations in the same order: the
+    numbers to the bit."""
+    sizes = sorted({(int(a), int(b), int(c)) for _, a, b, _, c, _ in _PRODUCT_CALL.findall(src)})
+    anchor = src.find("void casadi_mtimes_dense(")
+    if not sizes or anchor < 0:
+        return src
+    src = _PRODUCT_CALL.sub(lambda m: f"bscomp_mv_{m[2]}_{m[3]}_{m[5]}({m[1]}, {m[4]}, {m[6]});", src)
+    defs = "".join(_FIXED_PRODUCT.format(a=a, b=b, c=c) for a, b, c in sizes)
+    return src[:anchor] + defs + "\n" + src[anchor:]

@@ -42,6 +42,29 @@ def test_compiled_products_equal_the_virtual_machine_to_the_bit(tmp_path):
     assert np.array_equal(got, ref)
 
 
+def test_every_product_gets_a_copy_of_its_own_sizes():
+    """``_fixed_products`` leaves no call of CasADi's run-time-sized product in the generated C of the modal steps'
+    shapes: each is a copy with its sizes written in (a CasADi that writes the call differently would silently lose
+    the speed: this says so)."""
+    cg = ca.CodeGenerator("p.c", {"with_header": False})
+    cg.add(_products())
+    src = native._fixed_products(native._axpy_order(cg.dump()))
+    calls = [line for line in src.splitlines() if "casadi_mtimes_dense(" in line and "void" not in line]
+    assert calls == []
+    for a, b in ((35, 98), (9, 7), (88, 17)):
+        assert f"bscomp_mv_{a}_{b}_1(" in src
+
+
+def test_sized_matrix_products_equal_the_virtual_machine_to_the_bit(tmp_path):
+    """A product of two matrices (several columns) through its sized copy: the virtual machine's numbers."""
+    A, B = ca.MX.sym("A", 13, 6), ca.MX.sym("B", 6, 5)
+    f = ca.Function("matmat", [A, B], [ca.mtimes(A, B) + 1.0])
+    rng = np.random.default_rng(5)
+    args = [rng.standard_normal(f.size_in(i)) * 10.0 ** rng.uniform(-6, 6, f.size_in(i)) for i in range(2)]
+    got = np.asarray(native.native_function(f, cache_dir=tmp_path)(*args))
+    assert np.array_equal(got, np.asarray(f(*args)))
+
+
 def test_flags_are_part_of_the_cache_key(tmp_path, monkeypatch):
     """Other compiler flags build another library: a cached -O3 one is never loaded for ``-O1``."""
     f = _products()
