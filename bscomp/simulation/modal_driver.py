@@ -443,7 +443,7 @@ class ModalSimulator:
         self.counts["substeps"] += part
         xi, g = stp.unpack_state(X[b - 1])
         st.xi = xi
-        st.g = np.zeros_like(st.g)
+        st.g = np.zeros(st.g.size)
         st.g[stp.gsel] = g
         if switch:                        # the last accepted sub-step ended in another regime
             xi0, g0 = stp.unpack_state(np.asarray(X[b - 2] if b >= 2 else x0))
@@ -483,7 +483,7 @@ class ModalSimulator:
         it ended in (the others stayed in the current ones)."""
         xi, g = stp.unpack_state(X[j - 1])
         st.xi = xi
-        st.g = np.zeros_like(st.g)
+        st.g = np.zeros(st.g.size)
         st.g[stp.gsel] = g
         self.counts["substeps"] += j
         if follow:
@@ -565,6 +565,6 @@ class _State:
             self.mp = new
         elif moved:
             stp = sim.stepper(self.mp, self.cset)
-            g = np.zeros_like(self.g)
+            g = np.zeros(self.g.size)
             g[stp.gsel] = self.g[stp.gsel]
             self.g = g

@@ -161,7 +161,9 @@ class Stepper:
 
     def unpack_state(self, x):
         m, n = self.m, self.m_part
-        return x[:n] + 1j * x[m:m + n], x[2 * m:].copy()
+        xi = np.empty(n, complex)
+        xi.real, xi.imag = x[:n], x[m:m + n]
+        return xi, x[2 * m:].copy()
 
     def end_values(self, xi0, g0, g1, u, tau):
         """Channel values at the end of a step (numpy)."""
