@@ -123,12 +123,12 @@ def simulate(model, t, inputs: dict | None = None, x0: dict | None = None, param
         models, ~1 s to compile once (modal: 5-20 s once per model shape, its kernels take every number as
         an input).
     modal_options : dict, optional
-        ``method="modal"``: ``tol`` (interpolation error of the nonlinear forces inside a step, relative to the
-        largest of them so far; default 1e-3; a light mass beside much larger impacts wants 1e-4, see
-        ``docs/nonlinear.md``), ``f_keep`` (highest undamped natural frequency kept dynamically [Hz], the others
-        static; default 3e4 Hz, raised to an octave above the modes a stiff contact makes in its contact regime
-        -- ``stats["f_keep_used"]`` -- a given value is kept and warned about; None keeps all), ``window``
-        (elements between the moving contact point and the reference position of the linear part before the
+        ``method="modal"``: ``tol`` (interpolation error of the nonlinear forces inside a step, relative to the largest
+        of them so far; default 1e-3; a light mass beside much larger impacts, or the acceleration of a mass creeping
+        below breakaway, wants 1e-4, see ``docs/nonlinear.md``), ``f_keep`` (highest undamped natural frequency kept
+        dynamically [Hz], the others static; default 3e4 Hz, raised to an octave above the modes a stiff contact makes
+        in its contact regime -- ``stats["f_keep_used"]`` -- a given value is kept and warned about; None keeps all),
+        ``window`` (elements between the moving contact point and the reference position of the linear part before the
         reference follows it; default 2).
 
     Returns
