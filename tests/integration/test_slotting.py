@@ -135,10 +135,11 @@ def test_sampled_controllers_close_the_loop_on_the_moving_nut_like_idas(name):
     traj = slotting.slotting_trajectory(P, rapid_distance=0.03, slot_length=0.06, travel=0.12)
     t = np.arange(0.0, 0.01 + 1e-12, 1e-4)
     outs = ["table.s", "table.v", "amp.u", "sn.z"]
+    _, kind = slotting.controller(P, name, 0.0)
+    dae = slotting.closed_loop_plant(P, kind, "R", friction=True, nut_joint="moving")
     runs = []
     for kw in ({"method": "modal"}, {"rtol": 1e-8, "atol": 1e-12, "max_num_steps": 10**7}):
-        ctrl, kind = slotting.controller(P, name, lambda tt: float(traj.position(tt)))   # fresh controller memory
-        dae = slotting.closed_loop_plant(P, kind, "R", friction=True, nut_joint="moving")
+        ctrl, _ = slotting.controller(P, name, lambda tt: float(traj.position(tt)))    # fresh controller memory
         runs.append(simulate(dae, t, controllers=[ctrl], outputs=outs, **kw))
     r, ref = runs
     assert ref["table.s"][-1] > 5e-5 and np.ptp(ref["amp.u"]) > 10.0        # the loop acted: the table moved
