@@ -69,9 +69,17 @@ def stepped_frfs(model: str, case: str, conditions: dict) -> list:
     return out
 
 
-def load_case(model: str, case: str) -> tuple:
-    """``(truth, [FRF data, time data])`` of a bundled truth case."""
+def load_case(model: str, case: str, seed: int | None = None) -> tuple:
+    """``(truth, [FRF data, time data])`` of a bundled truth case, or with ``seed`` of a truth drawn anew
+    (:func:`bscomp.systems.truths.generate_case`, written once to ``benchmarks/.cache/truths/<seed>``)."""
     root = resources.files("bscomp.systems") / "data" / "truths" / model / case
+    if seed is not None:
+        from bscomp.systems.truths import generate_case
+
+        base = Path(__file__).resolve().parent / ".cache" / "truths" / str(seed)
+        root = base / model / case
+        if not (root / "truth.json").exists():
+            generate_case(case, model, base, seed)
     truth = json.loads((root / "truth.json").read_text())
     return truth, load_all([str(root / "frf.csv"), str(root / "time.csv")])
 
@@ -88,8 +96,8 @@ def hidden_pairs(d, truth) -> list:
     return out
 
 
-def run(model: str, case: str, stepped: bool = False) -> dict:
-    truth, data = load_case(model, case)
+def run(model: str, case: str, stepped: bool = False, seed: int | None = None) -> dict:
+    truth, data = load_case(model, case, seed)
     if stepped:                     # the stepped sines at two amplitudes instead of the small-signal FRF
         data = stepped_frfs(model, case, data[1].conditions) + [data[1]]
     t0 = time.perf_counter()
@@ -99,7 +107,8 @@ def run(model: str, case: str, stepped: bool = False) -> dict:
     recal, final = stairs["re-calibrated"], d.staircase[-1][1]
     params = [f"{a.name}.{n} {a.values[n] / t - 1:+.1%}" for a, n, t in hidden_pairs(d, truth)]
     # named first: with the candidates the data cannot tell apart from it (bscomp.validate.equivalence)
-    return {"model": model, "case": case, "first": " ~ ".join(d.ranked[0].group_names) if d.ranked else "-",
+    return {"model": model, "case": case, "seed": truth["seed"],
+            "first": " ~ ".join(d.ranked[0].group_names) if d.ranked else "-",
             "runner_up": _runner_up(d), "accepted": [a.name for a in d.accepted], "params": params,
             "recalibrated": recal, "final": final, "values": {k: v for k, (v, _) in d.recalibrated.items()},
             "drop": 1 - final / recal if recal > 0 else 0.0, "wall_s": wall,
@@ -134,19 +143,22 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="also write the rows to this JSON file")
     ap.add_argument("--stepped", action="store_true", help="stepped-sine FRFs at 0.2 V and 2 V (stating their "
                     "amplitude) instead of the bundled small-signal FRF, beside the same time series")
+    ap.add_argument("--seed", type=int, action="append", help="a truth drawn anew with this seed (generated once, "
+                    "cached in benchmarks/.cache/truths) instead of the bundled one; repeat for several")
     args = ap.parse_args(argv)
     rows = []
-    print("| model | case | named first | runner-up (Vuong z, shared) | accepted | main parameters vs truth | "
-          "error re-calibrated -> final | left | wall |\n|---|---|---|---|---|---|---|---|---:|")
-    for model in args.model or list(MODELS):
-        for case in args.case or CASES:
-            if args.stepped and case == "delay":        # the truth's delay is applied to its data, not a System
-                continue
-            r = run(model, case, args.stepped)
-            rows.append(r)
-            print(f"| {model} | {case} | {r['first']} | {r['runner_up']} | {', '.join(r['accepted']) or 'nothing'} | "
-                  f"{', '.join(r['params']) or '-'} | {r['recalibrated']:.3g} -> {r['final']:.3g} "
-                  f"({-r['drop']:+.0%}) | {r['left']} | {r['wall_s']:.0f} s |", flush=True)
+    print("| model | case | seed | named first | runner-up (Vuong z, shared) | accepted | main parameters vs truth | "
+          "error re-calibrated -> final | left | wall |\n|---|---|---:|---|---|---|---|---|---|---:|")
+    for model, case, seed in ((m, c, s) for s in args.seed or [None] for m in args.model or list(MODELS)
+                              for c in args.case or CASES):
+        if args.stepped and case == "delay":        # the truth's delay is applied to its data, not a System
+            continue
+        r = run(model, case, args.stepped, seed)
+        rows.append(r)
+        print(f"| {model} | {case} | {r['seed']} | {r['first']} | {r['runner_up']} | "
+              f"{', '.join(r['accepted']) or 'nothing'} | "
+              f"{', '.join(r['params']) or '-'} | {r['recalibrated']:.3g} -> {r['final']:.3g} "
+              f"({-r['drop']:+.0%}) | {r['left']} | {r['wall_s']:.0f} s |", flush=True)
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(rows, fh, indent=1)
