@@ -526,10 +526,11 @@ def _screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen,
             meds, n = _linear_medians(cand, effects, ev, st, sigmas, unc, meds)
             nfev += n
         starts = [tuple([v] + meds[1:]) for v in grid]
-        if len(cand.parameters) == 2 and not cand.nonlinear:
-            # linear two-parameter effects (a mass on a spring, a joint's stiffness and damping): a grid over
-            # both priors -- evaluations are cheap and the cost is far from convex
-            starts = [(a, b) for a in grid for b in cand.parameters[1].starts(n_screen)]
+        if len(cand.parameters) >= 2 and not cand.nonlinear:
+            # linear effects of two or more parameters (a mass on a spring, a joint's stiffness and damping): a
+            # grid over the first two priors -- evaluations are cheap and the cost is far from convex -- the rest
+            # (a sub-assembly's damping ratio) at their medians, left to the refinement
+            starts = [(a, b, *meds[2:]) for a in grid for b in cand.parameters[1].starts(n_screen)]
         elif len(cand.parameters) > 1 and not use_lin:
             starts += list(zip(*[p.starts(n_screen) for p in cand.parameters]))[1:3]
         pr0 = Problem(ev, sigmas, dict(unc), [], effects, st)
