@@ -531,6 +531,7 @@ def _screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen,
             # grid over the first two priors -- evaluations are cheap and the cost is far from convex -- the rest
             # (a sub-assembly's damping ratio) at their medians, left to the refinement
             starts = [(a, b, *meds[2:]) for a in grid for b in cand.parameters[1].starts(n_screen)]
+            starts += cand.mode_starts(meds)
         elif len(cand.parameters) > 1 and not use_lin:
             starts += list(zip(*[p.starts(n_screen) for p in cand.parameters]))[1:3]
         pr0 = Problem(ev, sigmas, dict(unc), [], effects, st)

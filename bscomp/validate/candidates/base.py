@@ -15,7 +15,7 @@ from bscomp.errors import UnknownNameError
 from bscomp.kernel.interface import InsertionPoint, NotApplicable, ValidationInterface, interface_of
 from bscomp.validate.candidates._edits import Edits
 
-__all__ = ["CandidateParameter", "Candidate"]
+__all__ = ["CandidateParameter", "Candidate", "mass_spring_starts"]
 
 
 @dataclass
@@ -225,6 +225,11 @@ class Candidate:
                                    f"{self.parameter_names}")
         return out
 
+    def mode_starts(self, medians) -> list:
+        """Extra screening points of a linear effect that adds a lightly damped mode: ``[]`` here; a mass on a
+        spring gives points along the mode's frequency (:func:`mass_spring_starts`)."""
+        return []
+
     def apply(self, system, **values):
         """A copy of ``system`` with this effect added and its parameters set (prior medians for any
         not given)."""
@@ -281,6 +286,25 @@ def _legacy_interface(system):
             out.append(InsertionPoint("rotor", "rotational", (f"{val}.flange_a" if "." not in val else val,)))
     return ValidationInterface(inputs=[getattr(system, "input", "")], outputs=list(getattr(system, "outputs", [])),
                                points=out, ground=ground)
+
+
+#: The band :func:`mass_spring_starts` screens [Hz] and its points per decade (neighbours 10 % apart in frequency:
+#: a mode damped at a few % improves an FRF only within about that of the measured one).
+MODE_BAND, MODE_POINTS_PER_DECADE = (20.0, 2000.0), 24
+
+
+def mass_spring_starts(cand, medians) -> list:
+    """Screening points of a mass ``m`` on a spring ``k`` (the first two parameters) along its frequency
+    ``sqrt(k/m) / 2 pi`` over :data:`MODE_BAND`, the mass at ``medians[0]`` (the refinement fits it; the frequency
+    is what an FRF sees first), the rest at ``medians``: the 5 x 5 grid over both priors steps the frequency by
+    ~1.8x, so a lightly damped part's mode between two of its points improved nothing and the refinement started
+    from a rigid part (a 38 kg part at 205 Hz, ``benchmarks/diagnose_table.py --seed 2203 --case
+    joint_friction``). Inside the spring's prior bounds."""
+    pk = cand.parameters[1]
+    m = medians[0]
+    n = int(round(MODE_POINTS_PER_DECADE * math.log10(MODE_BAND[1] / MODE_BAND[0]))) + 1
+    ks = [m * (2.0 * math.pi * f) ** 2 for f in np.geomspace(*MODE_BAND, n)]
+    return [(m, k, *medians[2:]) for k in ks if pk.lower <= k <= pk.upper]
 
 
 def _zeta_damper(zeta, k, m):
