@@ -71,7 +71,7 @@ def summary(out_dir=DEFAULT_OUT) -> str:
 
 
 _MAIN = {"joint": ("k", "m", "zeta", "f_target"), "friction": ("F_c", "v_s", "d"), "backlash": ("b", "c"),
-         "delay": ("T",), "ripple": ("A", "p", "phi_0")}
+         "delay": ("T",), "ripple": ("A", "p", "phi_0"), "housing": ("m", "k", "zeta", "f_target")}
 
 
 def _fmt(v) -> str:

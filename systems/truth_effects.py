@@ -6,6 +6,7 @@ detached from the drive.
 * :class:`SoftBacklash` -- a clearance with softplus contact corners of finite stiffness;
 * :class:`TorqueRipple` -- a motor's cogging torque, periodic in the motor angle (no candidate has one);
 * :class:`RigidJointDamping` -- the drive's modal damping computed with a detached body joined rigidly.
+* :class:`HeldBodyDamping` -- the same with bodies held (a housing taken as rigid, as the model has it).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from bscomp.components import Damper, Spring
 from bscomp.kernel.component import Parameter
 from bscomp.kernel.partials import PartialCompliant, PartialRotCompliant
 
-__all__ = ["AtanFriction", "SoftBacklash", "TorqueRipple", "RigidJointDamping", "softplus"]
+__all__ = ["AtanFriction", "SoftBacklash", "TorqueRipple", "RigidJointDamping", "HeldBodyDamping", "softplus"]
 
 
 class AtanFriction(PartialCompliant):
@@ -158,3 +159,34 @@ class RigidJointDamping:
 
     def __repr__(self):
         return f"RigidJointDamping({self.base!r}, body={self.body!r})"
+
+
+class HeldBodyDamping:
+    """The drive's modal damping computed with some coordinates held at zero (bodies taken as rigidly grounded).
+
+    The ``housing`` truth un-grounds the thrust bearing: the drive's modal damping
+    (:class:`~bscomp.systems.testbed.DriveModalDamping`) is that of the drive with the rigid housing the model
+    has, so it is evaluated on ``M``, ``K`` without the housing's coordinates (the bearing's spring then acts
+    to ground, as in the model); the housing's own dashpots are all that damp its bodies.
+    """
+
+    needs_coordinates = True
+
+    def __init__(self, base, held):
+        self.base, self.held = base, tuple(held)
+
+    def matrix(self, M, K, coordinates=None):
+        M = M.toarray() if hasattr(M, "toarray") else np.array(M, float)
+        K = K.toarray() if hasattr(K, "toarray") else np.array(K, float)
+        names = list(coordinates)
+        missing = [n for n in self.held if n not in names]
+        if missing:
+            raise ValueError(f"HeldBodyDamping: no coordinate(s) {missing} in the model")
+        keep = [i for i, n in enumerate(names) if n not in self.held]
+        C = np.zeros_like(M)
+        C[np.ix_(keep, keep)] = np.asarray(self.base.matrix(M[np.ix_(keep, keep)], K[np.ix_(keep, keep)],
+                                                            coordinates=[names[i] for i in keep]), float)
+        return C
+
+    def __repr__(self):
+        return f"HeldBodyDamping({self.base!r}, held={self.held!r})"

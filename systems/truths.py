@@ -32,6 +32,15 @@ the real drive would differ from the model a user has:
       peak torque, p 6-12 periods per revolution, phi_0 uniform). A diagnosis should not name a
       candidate for it: the honest answer is that the error stays, unexplained.
 
+  ``housing``
+      the thrust bearing's housing is not rigid (the block Sec 3.5.2.3 blames for a missing mode): the
+      angular-contact pair ``b1`` un-grounded, its outer ring on a seat (5-15 % of the housing's mass)
+      joined by a stiff seat spring (10-30x the fasteners, log) to the housing block, the block on its
+      fasteners to the frame -- two bodies and two springs (no class of the candidates), 15-60 kg in all,
+      the fastener stiffness chosen so that the truth has an undamped mode at a frequency drawn in 400-900 Hz
+      (inside the FRF band), each spring with a dashpot of 2-5 % of critical (:class:`HeldBodyDamping`: the
+      drive's modal damping as with the rigid housing).
+
   ``control`` has none of them (mis-set parameters, mesh and moving nut only).
 
 Every random value comes from ``numpy.random.default_rng([seed, stream])``: the same seed gives the
@@ -63,16 +72,18 @@ from bscomp.components import Damper, Fixed, FixedRotational, Mass, Spring
 
 from .parameters import DATA_DIR, get_value
 from .testbed import drive_fraction, testbed, thesis_parameters
-from .truth_effects import AtanFriction, RigidJointDamping, SoftBacklash, TorqueRipple
+from .truth_effects import AtanFriction, HeldBodyDamping, RigidJointDamping, SoftBacklash, TorqueRipple
 
-__all__ = ["CASES", "MODELS", "AtanFriction", "SoftBacklash", "RigidJointDamping", "draw", "truth_system",
+__all__ = ["CASES", "MODELS", "AtanFriction", "SoftBacklash", "RigidJointDamping", "HeldBodyDamping", "draw",
+           "truth_system",
            "make_frf", "make_time", "generate_case", "default_seed", "square_wave", "TIME_NOISE", "FRF_NOISE",
            "TorqueRipple"]
 
-CASES = ("control", "joint", "friction", "backlash", "delay", "joint_friction", "ripple")
+CASES = ("control", "joint", "friction", "backlash", "delay", "joint_friction", "ripple", "housing")
 MODELS = ("axial_torsional", "full")
 HIDDEN = {"control": (), "joint": ("joint",), "friction": ("friction",), "backlash": ("backlash",),
-          "delay": ("delay",), "joint_friction": ("joint", "friction"), "ripple": ("ripple",)}
+          "delay": ("delay",), "joint_friction": ("joint", "friction"), "ripple": ("ripple",),
+          "housing": ("housing",)}
 
 #: Ranges of the random draws (uniform; ``log`` = log-uniform).
 RANGES = {
@@ -91,6 +102,11 @@ RANGES = {
     "delay_T": (1.0e-4, 1.0e-3),           # s
     "ripple_fraction": (0.01, 0.03),       # torque ripple amplitude / the square wave's peak torque
     "ripple_periods": (6, 12),             # ripple periods per motor revolution (integers, inclusive)
+    "housing_mass": (15.0, 60.0),          # kg, seat + block ("a huge block", Sec 3.5.2.3)
+    "housing_seat_fraction": (0.05, 0.15),  # seat (bearing ring and its bore) / housing mass
+    "housing_seat_ratio": (10.0, 30.0),    # seat stiffness / fastener stiffness, log
+    "housing_frequency": (400.0, 900.0),   # Hz, the truth's extra mode: inside the FRF band (2 Hz - 1 kHz)
+    "housing_zeta": (0.02, 0.05),
 }
 BACKLASH_WIDTH = 0.05                      # softplus width / b
 
@@ -126,6 +142,9 @@ def draw(seed: int) -> dict:
     lo, hi = R["ripple_periods"]
     d["ripple"] = {"fraction": u("ripple_fraction"), "p": int(rng.integers(lo, hi + 1)),
                    "phase": float(rng.uniform(0.0, 2.0 * math.pi))}
+    d["housing"] = {"m": u("housing_mass"), "seat_fraction": u("housing_seat_fraction"),
+                    "seat_ratio": logu("housing_seat_ratio"), "f_target": u("housing_frequency"),
+                    "zeta": u("housing_zeta")}
     return d
 
 
@@ -197,15 +216,21 @@ def _joint_stiffness(s, m_p, f_target) -> float:
     E = np.zeros_like(K1)                          # the unit spring: K(k) = K1 + (k - 1) E
     E[i, i] = E[j, j] = 1.0
     E[i, j] = E[j, i] = K1[i, j]                   # -1 or +1 (the flange's direction on the coordinate)
+    return _bisect_mode(K1 - E, E, M, f_target, f"table part {m_p:.1f} kg")
+
+
+def _bisect_mode(K0, E, M, f_target, what) -> float:
+    """The ``k`` that puts an undamped mode of ``K0 + k E`` (mass ``M``) at ``f_target`` [Hz]: a bisection on
+    the number of modes below the target, monotone in k for ``E`` positive semi-definite."""
 
     def below(k):
-        lam = sla.eigh(K1 + (k - 1.0) * E, M, eigvals_only=True)
+        lam = sla.eigh(K0 + k * E, M, eigvals_only=True)
         return int(np.sum(np.sqrt(np.clip(lam, 0, None)) / (2 * np.pi) < f_target))
 
     lo, hi = 1.0e3, 1.0e11
     n_lo, n_hi = below(lo), below(hi)
     if n_lo == n_hi:
-        raise RuntimeError(f"truths: no spring puts a mode at {f_target:.1f} Hz (table part {m_p:.1f} kg)")
+        raise RuntimeError(f"truths: no spring puts a mode at {f_target:.1f} Hz ({what})")
     for _ in range(80):
         mid = math.sqrt(lo * hi)
         if below(mid) == n_lo:
@@ -215,6 +240,49 @@ def _joint_stiffness(s, m_p, f_target) -> float:
         if hi / lo - 1.0 < 1e-12:
             break
     return math.sqrt(lo * hi)
+
+
+def _add_housing(s, h: dict, base_damping) -> dict:
+    """Un-ground the thrust bearing ``b1`` and put its outer ring on a two-body housing (module docstring,
+    ``housing``); returns the hidden values: ``m`` (seat + block) [kg], ``k`` the fastener stiffness and
+    ``k_seat`` [N/m], ``k_static`` (the two in series), the dashpots, ``zeta`` and ``f_target`` [Hz]."""
+    from bscomp import flatten, second_order
+    from bscomp.components import FixedNode, NodeToFlange
+
+    b1 = s.component("b1")
+    s.replace("b1", type(b1)(grounded=False, **{n: getattr(b1, n) for n in ("k_axial", "k_radial", "k_tilt",
+                                                                              "c_axial", "c_radial")}))
+    m_seat = h["seat_fraction"] * h["m"]
+    s.add("housing_hold", FixedNode(dofs=("u", "v", "tx", "ty", "tz")))
+    s.add("housing_ring", NodeToFlange())
+    s.connect("b1.node_b", "housing_hold.node")
+    s.connect("b1.node_b", "housing_ring.node")
+    s.add("housing_seat", Mass(m=m_seat))
+    s.add("housing_block", Mass(m=h["m"] - m_seat))
+    s.add("housing_frame", Fixed())
+    s.connect("housing_ring.flange", "housing_seat.flange_a")
+    for el, a, b in (("seat", "housing_seat.flange_a", "housing_block.flange_a"),
+                     ("fastener", "housing_block.flange_a", "housing_frame.flange")):
+        s.add(f"{el}_spring", Spring(c=1.0))
+        s.add(f"{el}_damper", Damper(d=0.0))
+        for part in (f"{el}_spring", f"{el}_damper"):
+            s.connect(a, f"{part}.flange_a")
+            s.connect(f"{part}.flange_b", b)
+    s.damping = HeldBodyDamping(base_damping, ("b1.node_b.w", "housing_block.s"))
+    ratio = h["seat_ratio"]
+    dae = flatten(s)
+    so = [second_order(dae, inputs=[], outputs=[], params={"fastener_spring.c": k, "seat_spring.c": ratio * k})
+          for k in (1.0, 2.0)]                          # K linear in k (a spring's constant must be > 0)
+    E = so[1].K.toarray() - so[0].K.toarray()
+    f_t = h["f_target"]
+    k = _bisect_mode(so[0].K.toarray() - E, E, so[0].M.toarray(), f_t, f"housing {h['m']:.1f} kg")
+    d_f = 2.0 * h["zeta"] * math.sqrt(k * h["m"])
+    d_s = 2.0 * h["zeta"] * math.sqrt(ratio * k * m_seat)
+    for n, v in (("fastener_spring.c", k), ("seat_spring.c", ratio * k), ("fastener_damper.d", d_f),
+                 ("seat_damper.d", d_s)):
+        s.set(n, v)
+    return {"m": h["m"], "m_seat": m_seat, "k": k, "k_seat": ratio * k, "k_static": k * ratio / (1.0 + ratio),
+            "d": d_f, "d_seat": d_s, "zeta": h["zeta"], "f_target": f_t}
 
 
 def truth_system(case: str, model: str = "axial_torsional", seed: int | None = None, *, linear: bool = False,
@@ -288,6 +356,8 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
                  between=("table_joint.flange", "table.flange_a"))
         s.damping = RigidJointDamping(base_damping, "table.s")
         hidden["backlash"] = dict(bl)
+    if "housing" in HIDDEN[case]:
+        hidden["housing"] = _add_housing(s, dr["housing"], base_damping)
     if "delay" in HIDDEN[case]:
         hidden["delay"] = dict(dr["delay"])
     if "ripple" in HIDDEN[case]:

@@ -38,6 +38,9 @@ def test_draws_are_seeded_and_within_the_ranges():
         assert 800 <= d["friction"]["F_c"] <= 3000 and 5e-6 <= d["backlash"]["b"] <= 40e-6
         assert 1e9 <= d["backlash"]["c"] <= 3e9 and 20 <= d["joint"]["m"] <= 60
         assert 0.01 <= d["ripple"]["fraction"] <= 0.03 and d["ripple"]["p"] in range(6, 13)
+        h = d["housing"]
+        assert 15 <= h["m"] <= 60 and 0.05 <= h["seat_fraction"] <= 0.15 and 10 <= h["seat_ratio"] <= 30
+        assert 400 <= h["f_target"] <= 900 and 0.02 <= h["zeta"] <= 0.05
         T = d["delay"]["T"]
         assert 1e-4 - 2e-5 <= T <= 1e-3 + 2e-5
         assert abs(T / (truths.DT / truths.FINE) - round(T / (truths.DT / truths.FINE))) < 1e-9
@@ -72,6 +75,38 @@ def test_joint_truth_has_an_extra_mode_between_the_first_two(model):
     assert s.get("table.m") + s.get("table_part.m") == pytest.approx(c.get("table.m"), rel=1e-12)
     assert s.get("part_spring.c") == pytest.approx(j["k"]) and 20 <= j["m"] <= 60
     assert j["d"] == pytest.approx(2 * j["zeta"] * math.sqrt(j["k"] * j["m"])) and 0.03 <= j["zeta"] <= 0.05
+
+
+@pytest.mark.parametrize("model", truths.MODELS)
+def test_housing_truth_has_its_mode_at_the_target_and_the_drive_keeps_its_damping(model):
+    """The housing truth: b1 un-grounded on a seat and a block (two bodies, two springs), an undamped mode at the
+    drawn target, the first axial mode lower than the control's; the drive's modal damping is the control truth's
+    (same seed: same mesh, nut position, mis-set values) to the bit on the drive's coordinates, the housing's two
+    coordinates damped by their dashpots alone."""
+    seed = truths.default_seed("housing", model)
+    s, info = truths.truth_system("housing", model, seed)
+    c, _ = truths.truth_system("control", model, seed)
+    h = info["hidden"]["housing"]
+    assert not s.component("b1").grounded and c.component("b1").grounded
+    assert s.get("housing_seat.m") + s.get("housing_block.m") == pytest.approx(h["m"], rel=1e-12)
+    assert s.get("seat_spring.c") == pytest.approx(h["k_seat"]) and s.get("fastener_spring.c") == pytest.approx(h["k"])
+    assert 10 <= h["k_seat"] / h["k"] <= 30 and h["k_static"] == pytest.approx(1 / (1 / h["k"] + 1 / h["k_seat"]))
+    assert h["d"] == pytest.approx(2 * h["zeta"] * math.sqrt(h["k"] * h["m"]))
+    so, so0 = (second_order(flatten(x), inputs=[], outputs=[]) for x in (s, c))
+    lam = np.sort(np.real(np.linalg.eigvals(np.linalg.solve(so.M.toarray(), so.K.toarray()))))
+    f = np.sqrt(np.clip(lam, 0, None)) / (2 * np.pi)
+    assert np.min(np.abs(f - h["f_target"])) < 1e-6 * h["f_target"] and 400 <= h["f_target"] <= 900
+    assert _drive_frequencies(s, 300.0)[0] < 0.97 * _drive_frequencies(c, 300.0)[0]
+    names = list(so.coordinates)
+    held = [names.index("b1.node_b.w"), names.index("housing_block.s")]
+    keep = [n for n in range(len(names)) if n not in held]
+    assert [names[n] for n in keep] == list(so0.coordinates)
+    C, C0 = so.C.toarray(), so0.C.toarray()
+    assert np.allclose(C[np.ix_(keep, keep)], C0, rtol=0, atol=1e-12 * np.max(np.abs(C0)))
+    assert not np.any(C[np.ix_(keep, held)])
+    i, j = held
+    assert C[i, i] == pytest.approx(h["d_seat"], rel=1e-12)
+    assert C[j, j] == pytest.approx(h["d"] + h["d_seat"], rel=1e-12)
 
 
 def test_friction_force_at_10_mm_per_s_is_the_coulomb_force():
