@@ -27,7 +27,8 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    re-distributes the rigid-body inertia). The report says which of these held. Candidates the data
    cannot tell apart (Vuong's test prefers neither, and they remove the same error:
    :mod:`~bscomp.validate.equivalence`) are reported as **one group** with the one accepted
-   (``EffectFit.equivalent``, with what to measure to separate them), not one picked by round-off.
+   (``EffectFit.equivalent``, with what to measure to separate them), not one picked by round-off: within
+   a group the lower BIC (the same fit with fewer parameters) is named first.
    Repeat (greedy) up to ``max_effects``. FRF files that state their sine amplitude are compared with the
    model at that amplitude (the describing function of its friction and backlash,
    :class:`~bscomp.validate.evaluation.Evaluator`). With FRFs at an amplitude and no time series
@@ -64,7 +65,7 @@ from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
 from bscomp.validate.conclusion import UNEXPLAINED, conclusion, remainder
 from bscomp.validate.datasets import FrfData, warn_amplitude_fit
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
-from bscomp.validate.equivalence import mark_equivalent
+from bscomp.validate.equivalence import mark_equivalent, simpler_first
 from bscomp.validate.evaluation import Problem
 from bscomp.validate.refinement import job_base, refine_candidate, refine_task
 
@@ -280,6 +281,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         n_evals += n
         results.sort(key=lambda r: (not r.refined, _score(r), r.delta_bic))
         mark_equivalent(results, current, datasets, sigmas, ref)   # one group where the data cannot tell
+        simpler_first(results)                                     # ... the lower BIC named first in it
         rounds.append(results)
         log(f"round {rnd}: " + ", ".join(f"{r.name} {r.error_after:.3g} dBIC {r.delta_bic:.0f}" for r in results))
         chosen = _choose(results, current, datasets, thresholds, unconfirmed_why, unconfirmed)

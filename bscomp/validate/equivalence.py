@@ -48,7 +48,7 @@ import numpy as np
 from bscomp.kernel.interface import NotApplicable
 from bscomp.validate.evaluation import residual_blocks
 
-__all__ = ["Z_CRIT", "SHARED", "residual_vector", "compare_fits", "mark_equivalent", "tell_apart"]
+__all__ = ["Z_CRIT", "SHARED", "residual_vector", "compare_fits", "mark_equivalent", "simpler_first", "tell_apart"]
 
 Z_CRIT = 1.959963984540054
 """Two-sided 5 % point of the standard normal: Vuong's statistic below it prefers neither model."""
@@ -157,6 +157,22 @@ def mark_equivalent(results, current, datasets, sigmas, system=None, z_crit: flo
             how = tell_apart(a.candidate, b.candidate, system)
             a.equivalent[b.name] = {**st, "tell_apart": how}
             b.equivalent[a.name] = {**st, "z": -st["z"], "dchi2": -st["dchi2"], "tell_apart": how}
+
+
+def simpler_first(results) -> None:
+    """Within candidates the data cannot tell apart (``equivalent``, :func:`mark_equivalent`), name the one with
+    the lower BIC first: the same fit within noise with fewer parameters (a bearing housing whose fitted mass is
+    too light to show its own mode and whose fastener damping is fitted is a damped spring in series, as the
+    nut-table joint is; the error alone ordered them by round-off). In place; other candidates keep their order.
+    """
+    moved = True
+    while moved:
+        moved = False
+        for i in range(len(results) - 1):
+            a, b = results[i], results[i + 1]
+            if b.name in a.equivalent and b.delta_bic < a.delta_bic:
+                results[i], results[i + 1] = b, a
+                moved = True
 
 
 def _where(point) -> str:
