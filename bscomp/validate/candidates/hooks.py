@@ -83,19 +83,23 @@ class DetachedBodyDamping:
     damping on the body's own coordinate: the added mode neither takes the place of the drive's first or
     second mode nor changes the damping forces among the drive's coordinates. A body joined to more than
     one coordinate (another effect attached to it) stays part of the drive.
+
+    ``held`` bodies are taken out instead, as if grounded (a bearing housing: the drive's damping was measured
+    with the housing the model has, rigid; the bearing's spring stays on the screw's diagonal).
     """
 
     needs_coordinates = True
 
-    def __init__(self, base, bodies):
+    def __init__(self, base, bodies, held=()):
         self.base = base
         self.bodies = list(bodies)
+        self.held = list(held)
 
     def matrix(self, M, K, coordinates=None):
         M = M.toarray() if hasattr(M, "toarray") else np.array(M, float)
         K = K.toarray() if hasattr(K, "toarray") else np.array(K, float)
         names = list(coordinates)
-        drop = []
+        drop = [names.index(b) for b in self.held]
         M2, K2 = M.copy(), K.copy()
         for b in self.bodies:
             i = names.index(b)
@@ -116,7 +120,8 @@ class DetachedBodyDamping:
         return C
 
     def __repr__(self):
-        return f"DetachedBodyDamping({self.base!r}, bodies={self.bodies!r})"
+        held = f", held={self.held!r}" if self.held else ""
+        return f"DetachedBodyDamping({self.base!r}, bodies={self.bodies!r}{held})"
 
 
 class ExtraDamping(Candidate):

@@ -134,18 +134,25 @@ class BearingHousing(Candidate):
 
     ``support`` point (FE drive, ``(screw port, bearing)``): the grounded thrust bearing becomes the
     same bearing un-grounded, its housing side on a :class:`~components.housing.Housing` -- mass ``m``
-    on an axial fastener spring ``k`` with 5 % of critical damping to the frame, radial and tilt
-    potentials held (no free DOF besides the axial one). ``connection`` point (lumped drive,
-    ``(a, b)``): a spring ``k`` (+ damper) in series at ``a``--``b`` and the mass ``m`` at ``b``.
+    on an axial fastener spring ``k`` with a dashpot of ``zeta`` of critical (``d = 2 zeta sqrt(k m)``) to
+    the frame, radial and tilt potentials held (no free DOF besides the axial one). The drive's modal
+    damping stays that of the drive with the rigid housing it was measured with (the housing's coordinate
+    held, :class:`~bscomp.validate.candidates.DetachedBodyDamping` ``held``): the dashpot alone damps the
+    housing. ``connection`` point (lumped drive, ``(a, b)``): a spring ``k`` (+ damper) in series at
+    ``a``--``b`` and the mass ``m`` at ``b``.
+
+    ``zeta`` is fitted (prior median 5 %, bounds 0.5-100 %), as for :class:`TableSubassembly`.
     """
 
-    zeta = 0.05
+    zeta = 0.05   # the prior median of ``zeta``
 
     def __init__(self):
         super().__init__(
             name="bearing_housing", title="bearing-housing mass and compliance", role="screw_support",
             parameters=[CandidateParameter("m", "kg", 0.5, 100.0, 10.0, 1.3, "housing mass"),
-                        CandidateParameter("k", "N/m", 1e7, 5e10, 1e9, 2.0, "axial fastener (housing) stiffness")],
+                        CandidateParameter("k", "N/m", 1e7, 5e10, 1e9, 2.0, "axial fastener (housing) stiffness"),
+                        CandidateParameter("zeta", "1", 0.005, 1.0, self.zeta, 0.7,
+                                           "damping ratio of its fasteners (of critical, on m)")],
             signature="the axial mode seen from both motor and table is softer than modelled and a second "
                       "axial mode appears above it; both FRFs change near the axial modes",
             group="bearing_housing", kinds=("support", "connection"))
@@ -162,7 +169,11 @@ class BearingHousing(Candidate):
             h = e.unique("housing")
             e.add(h, Housing, m=10.0, c=1e9, d=d0)
             e.connect(f"{bearing}.node_b", f"{h}.node")
-            return {"mass": f"{h}.m", "stiffness": f"{h}.c", "damping": f"{h}.d"}
+            held = e.s.damping is not None and hasattr(e.s.damping, "modal_ratios")
+            if held:
+                e.s.damping = DetachedBodyDamping(e.s.damping, [], held=[f"{bearing}.node_b.w"])
+            return {"mass": f"{h}.m", "stiffness": f"{h}.c", "damping": f"{h}.d",
+                    "held": f"{bearing}.node_b.w" if held else None}
         a, b = point.ports[:2]
         spring, loss, mass = e.unique("housing_spring"), e.unique("housing_loss"), e.unique("housing_mass")
         insert_series(e, spring, Spring, {"c": 1e9}, a, b)
@@ -175,7 +186,14 @@ class BearingHousing(Candidate):
 
     def _overrides(self, values, state):
         m, k = values["m"], values["k"]
-        return {state["mass"]: m, state["stiffness"]: k, state["damping"]: _zeta_damper(self.zeta, k, m)}
+        return {state["mass"]: m, state["stiffness"]: k,
+                state["damping"]: _zeta_damper(values.get("zeta", self.zeta), k, m)}
+
+    def _extra_code(self, values, state):
+        if not state.get("held"):
+            return []
+        return ["from bscomp.validate.candidates import DetachedBodyDamping",
+                f"s.damping = DetachedBodyDamping(s.damping, [], held=[{state['held']!r}])"]
 
 
 class ParameterScale(Candidate):

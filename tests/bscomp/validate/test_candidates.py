@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from bscomp import flatten
+from bscomp import flatten, second_order
 from bscomp import frf as bscomp_frf
 from bscomp.errors import ModelDefinitionError, ParameterError, PortConnectionError, UnknownNameError
 from bscomp.kernel.interface import InsertionPoint as Point
@@ -297,6 +297,24 @@ def test_bearing_housing_adds_an_axial_mode_and_lowers_the_first(nominal, name):
     # a stiff light housing changes nothing
     stiff = fe_modes(BearingHousing().apply(nom.system, m=0.5, k=5e10))
     assert abs(elastic(stiff)[0] / elastic(nom.modes)[0] - 1) < 0.01
+
+
+@pytest.mark.parametrize("name", FE)
+def test_bearing_housing_is_damped_by_its_dashpot_alone(nominal, name):
+    """The drive's modal damping stays that of the drive with the rigid housing it was measured with (the
+    housing's coordinate held): on the drive's coordinates the damping matrix is the nominal model's to the bit,
+    on the housing's coordinate only its dashpot, 2 zeta sqrt(k m)."""
+    nom = nominal(name)
+    so0 = second_order(nom.dae, inputs=[], outputs=[])
+    so = second_order(flatten(BearingHousing().apply(nom.system, m=20.0, k=4e8, zeta=0.03)), inputs=[], outputs=[])
+    names = list(so.coordinates)
+    i = names.index("b1.node_b.w")
+    keep = [n for n in range(len(names)) if n != i]
+    assert [names[n] for n in keep] == list(so0.coordinates)
+    C, C0 = so.C.toarray(), so0.C.toarray()
+    assert np.array_equal(C[np.ix_(keep, keep)], C0)
+    assert C[i, i] == pytest.approx(2 * 0.03 * math.sqrt(4e8 * 20.0), rel=1e-12)
+    assert not np.any(np.delete(C[i], i)) and not np.any(np.delete(C[:, i], i))
 
 
 def test_bearing_housing_needs_a_grounded_bearing(nominal):

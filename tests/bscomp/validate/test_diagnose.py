@@ -16,6 +16,8 @@ bearing housing looked alike (Vuong z 0.29): the anti-resonances' noise drowned 
 Each case runs diagnose once (module fixture) and several tests read the result.
 """
 
+import math
+
 import numpy as np
 import pytest
 
@@ -51,11 +53,13 @@ def _recalibrated_error(diag: Diagnosis) -> float:
 def test_hidden_effect_is_found(case):
     hidden, name, pname, min_drop = CASES[case]
     _, diag = run_case(case, hidden)
-    # it ranks first in round 1, alone, and is the accepted effect
+    # it ranks first in round 1 and is the accepted effect; alone, but for the joint: a light bearing housing with a
+    # fitted fastener damping is the same damped spring in series (test_joint_and_a_light_damped_housing_are_one_group)
     for r in (diag.ranked[0], diag.accepted[0] if diag.accepted else None):
-        assert r is not None and r.group_names == (name,), diag.table()
-    # the runner-up is told apart: the data prefer the hidden effect (Vuong z > 1.96)
-    runner = next(r for r in diag.ranked[1:] if r.refined)
+        assert r is not None and r.name == name, diag.table()
+        assert set(r.group_names) == {name} | ({"bearing_housing"} if case == "joint" else set()), diag.table()
+    # the runner-up outside its group is told apart: the data prefer the hidden effect (Vuong z > 1.96)
+    runner = next(r for r in diag.ranked[1:] if r.refined and r.name not in diag.ranked[0].group_names)
     assert diag.ranked[0].compared[runner.name]["z"] > 1.96, diag.table()
     # the hidden effect's fitted parameter within 2 % of the truth (the truth is the candidate itself)
     fit = diag.accepted[0]
@@ -121,20 +125,27 @@ def test_diagnosis_apply_code_json_plot(tmp_path):
 
 
 @pytest.mark.slow
-def test_joint_is_told_apart_from_a_bearing_housing():
-    """On 3 coordinates a housing spring (with its mass) at the screw support is the nearest stand-in for the
-    nut-table joint: both remove the same error (shared improvement ~1), but the joint fits to the noise
-    floor and the housing does not (it has no damper; its mass is not the joint's damping): Vuong's z is
-    significant and the two are not grouped; the JSON keeps the numbers."""
+def test_joint_and_a_light_damped_housing_are_one_group():
+    """On 3 coordinates a housing at the screw support whose fastener damping is fitted (bearing_housing's zeta)
+    stands in for the nut-table joint as a ~1 kg body (its own mode above 2.5 kHz, out of sight) on the joint's
+    spring with the joint's damping: a damped spring in series either way, the same error within noise (D < 15.4,
+    the improvements 100 % shared). The two are one group, the joint named first (lower BIC: the same fit with two
+    parameters instead of three) and accepted, the words say which relative motion tells them apart. (With the
+    housing's damping held at 5 % the housing could not take the joint's damping and was told apart, Vuong z
+    significant -- a constraint of the candidate, not of the data.) The JSON keeps the numbers."""
     import json
 
     _, diag = run_case("joint", CASES["joint"][0])
     first, housing = diag.ranked[0], next(r for r in diag.ranked if r.name == "bearing_housing")
-    assert first.name == "nut_table_joint" and housing.refined, diag.table()
+    assert first.name == "nut_table_joint" and housing.refined and diag.accepted[0].name == "nut_table_joint"
+    assert "bearing_housing" in first.equivalent and first.delta_bic < housing.delta_bic, diag.table()
     st = first.compared["bearing_housing"]
-    assert st["shared"] > 0.99 and st["z"] > 1.96 and not st["indistinguishable"], st
-    assert housing.error_after > first.error_after + 0.1, diag.table()
-    assert "indistinguishable" not in diag.table() and "~" not in diag.message
+    assert st["shared"] > 0.99 and abs(st["z"]) < 1.96 and st["indistinguishable"], st
+    h, j = housing.values, first.values
+    assert h["m"] < 2.0 and math.sqrt(h["k"] / h["m"]) / (2 * math.pi) > 2500.0, h
+    assert abs(h["k"] / j["k"] - 1) < 0.01 and abs(2 * h["zeta"] * math.sqrt(h["k"] * h["m"]) / j["d"] - 1) < 0.05
+    assert "lead.flange_b - axial.flange_a" in first.equivalent["bearing_housing"]["tell_apart"]
+    assert "indistinguishable" in diag.table() and "~ bearing_housing" in diag.message
     d = json.loads(diag.to_json())
     assert d["ranked"][0]["compared"]["bearing_housing"]["z"] == pytest.approx(st["z"])
 
@@ -146,7 +157,7 @@ def test_joint_case_does_not_turn_on_round_off(monkeypatch, eps, seed):
     named bearing_housing first. Here the basis is perturbed on purpose (T -> T (I + eps R), the block form
     recomputed: outputs off by ~eps); with one noise level per FRF block and without the refinement's
     restart these three named bearing_housing first (nut_table_joint stalled with d on its 1 N s/m bound).
-    The diagnosis must not change: same effect named first and accepted, same fit."""
+    The diagnosis must not change: same effect named first and accepted, same fit (the runner-up's error too)."""
     from bscomp.simulation import compiled_time
 
     real = compiled_time.real_modal_form
@@ -163,12 +174,13 @@ def test_joint_case_does_not_turn_on_round_off(monkeypatch, eps, seed):
     data, ref = run_case("joint", CASES["joint"][0])
     monkeypatch.setattr(compiled_time, "real_modal_form", perturbed)
     diag = diagnose(validation_drive(), data.datasets, max_effects=1)
-    assert diag.ranked[0].group_names == ("nut_table_joint",) and diag.accepted, diag.table()
+    assert diag.ranked[0].name == "nut_table_joint" and diag.accepted, diag.table()
     assert diag.accepted[0].name == ref.accepted[0].name, diag.table()
-    for r in diag.ranked[:2]:
+    for i, r in enumerate(diag.ranked[:2]):
         r0 = next(q for q in ref.ranked if q.name == r.name)
         assert abs(r.error_after / r0.error_after - 1) < 1e-4, (r.name, r.error_after, r0.error_after)
-        assert all(abs(r.values[p] / r0.values[p] - 1) < 1e-3 for p in r.values), (r.values, r0.values)
+        if i == 0:   # the housing in the joint's group (a ~1 kg mass out of sight) has a flat valley: its values move
+            assert all(abs(r.values[p] / r0.values[p] - 1) < 1e-3 for p in r.values), (r.values, r0.values)
 
 
 def test_a_value_left_at_its_bound_is_marked_in_the_report():
