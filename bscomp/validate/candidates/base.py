@@ -230,6 +230,13 @@ class Candidate:
         spring gives points along the mode's frequency (:func:`mass_spring_starts`)."""
         return []
 
+    def mode_hz(self, values: dict, system, known: dict | None = None) -> float | None:
+        """The frequency [Hz] of the mode this effect adds at ``values`` in ``system`` (``known``: re-calibrated
+        values of its parameters, dotted names), estimated from the effect's own parameters, or None (an effect that
+        adds no mode of its own). :func:`~bscomp.validate.conclusion.conclusion` says when it lies above the
+        measured FRFs: then only the time series saw the effect."""
+        return None
+
     def apply(self, system, **values):
         """A copy of ``system`` with this effect added and its parameters set (prior medians for any
         not given)."""

@@ -3,6 +3,8 @@ stiffness, missing mass and inertia (thesis Sec 3.5.2.3-3.5.2.4)."""
 
 from __future__ import annotations
 
+import math
+
 from bscomp.components import Backlash, Damper, Housing, Inertia, Mass, Spring
 from bscomp.components._joint6 import PartialJoint6
 from bscomp.errors import ModelDefinitionError, UnknownNameError
@@ -122,6 +124,16 @@ class TableSubassembly(Candidate):
     def mode_starts(self, medians) -> list:
         return mass_spring_starts(self, medians)
 
+    def mode_hz(self, values, system, known=None) -> float | None:
+        """``sqrt(k (1/m + 1/M)) / 2 pi`` with ``M`` the table's mass (``m`` of the point's table-side component,
+        re-calibrated if known; ``sqrt(k/m)`` where it has none)."""
+        table = self.applicable(system).ports[1].split(".")[0]
+        try:
+            M = float((known or {}).get(f"{table}.m", system.get(f"{table}.m")))
+        except (UnknownNameError, KeyError, TypeError, ValueError):   # a table side without a mass: the part alone
+            M = math.inf
+        return math.sqrt(values["k"] * (1.0 / values["m"] + 1.0 / M)) / (2.0 * math.pi)
+
     def _extra_code(self, values, state):
         if not state.get("detached"):
             return []
@@ -183,6 +195,16 @@ class BearingHousing(Candidate):
         e.connect(f"{spring}.flange_b", f"{loss}.flange_b")
         e.connect(f"{mass}.flange_a", f"{spring}.flange_b")
         return {"mass": f"{mass}.m", "stiffness": f"{spring}.c", "damping": f"{loss}.d"}
+
+    def mode_hz(self, values, system, known=None) -> float | None:
+        """``sqrt((k + k_b) / m) / 2 pi``: the housing between its fasteners and the bearing's axial stiffness ``k_b``
+        (re-calibrated if known; the lumped connection kind: the fasteners alone, ``sqrt(k/m)``)."""
+        point = self.applicable(system)
+        k_b = 0.0
+        if point.kind == "support":
+            name = f"{point.ports[1]}.k_axial"
+            k_b = float((known or {}).get(name, system.get(name)))
+        return math.sqrt((values["k"] + k_b) / values["m"]) / (2.0 * math.pi)
 
     def _overrides(self, values, state):
         m, k = values["m"], values["k"]

@@ -546,3 +546,33 @@ def test_a_mass_on_a_spring_is_screened_along_its_frequency():
     assert np.all(f[1:] / f[:-1] < 1.101)
     f_low = math.sqrt(pk.lower / pm.median) / (2 * math.pi)     # the spring's lower bound: 35.6 Hz on 20 kg
     assert f[0] < 1.101 * max(20.0, f_low) and f[-1] == pytest.approx(2000.0)
+
+
+def test_an_effect_whose_mode_lies_above_the_measured_frfs_is_said_to_be_seen_by_the_time_series_alone(nominal):
+    """mode_hz: a housing between its fasteners k and the bearing's axial stiffness k_b (re-calibrated value used),
+    sqrt((k + k_b)/m); a table part sqrt(k (1/m + 1/M)). The conclusion adds a sentence for an accepted effect whose
+    mode lies above 1.5x the highest FRF frequency (the rattling clearance's stand-in housing: 13.5 kg on 1.98 GN/m
+    beside a 313 MN/m bearing, 2.08 kHz against FRFs to 1 kHz) and none for one inside the band."""
+    from types import SimpleNamespace
+
+    from bscomp.validate.conclusion import OUT_OF_BAND, _out_of_band
+    from bscomp.validate.measurements import FrfData
+
+    s = nominal("testbed_axial_torsional").system
+    h = BearingHousing()
+    f = h.mode_hz({"m": 13.5, "k": 1.98e9, "zeta": 0.08}, s, {"b1.k_axial": 3.13e8})
+    assert f == pytest.approx(math.sqrt((1.98e9 + 3.13e8) / 13.5) / (2 * math.pi), rel=1e-12)
+    f0 = h.mode_hz({"m": 13.5, "k": 1.98e9, "zeta": 0.08}, s)
+    assert f0 == pytest.approx(math.sqrt((1.98e9 + s.get("b1.k_axial")) / 13.5) / (2 * math.pi), rel=1e-12)
+    part = TableSubassembly().mode_hz({"m": 33.3, "k": 3.76e7, "zeta": 0.035}, s, {"table.m": 250.0})
+    assert part == pytest.approx(math.sqrt(3.76e7 * (1 / 33.3 + 1 / 250.0)) / (2 * math.pi), rel=1e-12)
+    freqs = np.geomspace(2.0, 1000.0, 50)
+    frf = FrfData(freqs=freqs, H={("amp.u", "table.a"): np.ones(50, complex)})
+    setup = SimpleNamespace(datasets=[frf], reference=s)
+    fit = SimpleNamespace(candidate=h, values={"m": 13.5, "k": 1.98e9, "zeta": 0.08})
+    note = _out_of_band([fit], setup, {"b1.k_axial": 3.13e8})
+    assert f > OUT_OF_BAND * 1000.0 and "its own mode (2074 Hz) lies above the measured FRFs (to 1000 Hz)" in note
+    assert "an FRF measured to ~3100 Hz" in note
+    inside = SimpleNamespace(candidate=h, values={"m": 28.4, "k": 4.95e8, "zeta": 0.037})     # the 765 Hz housing
+    assert _out_of_band([inside], setup, {"b1.k_axial": 2.7e8}) == ""
+    assert _out_of_band([fit], SimpleNamespace(datasets=[], reference=s), {}) == ""        # no FRF: nothing said
