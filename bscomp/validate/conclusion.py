@@ -108,13 +108,13 @@ def conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effe
 
 def _out_of_band(accepted, setup, values) -> str:
     """A sentence per accepted effect whose own mode lies above every measured FRF (module docstring)."""
-    tops = [float(np.max(d.freqs)) for d in setup.datasets if isinstance(d, FrfData)]
+    top = max((float(np.max(d.freqs)) for d in setup.datasets if isinstance(d, FrfData)), default=None)
     text = ""
-    for a in accepted if tops else []:
+    for a in accepted if top is not None else []:
         f = a.candidate.mode_hz(a.values, setup.reference, values)
-        if f is not None and f > OUT_OF_BAND * max(tops):
+        if f is not None and f > OUT_OF_BAND * top:
             text += (f". {a.candidate.title}: its own mode ({f:.0f} Hz) lies above the measured FRFs (to "
-                     f"{max(tops):.0f} Hz), so only the time series saw it, and it may stand in for something else "
+                     f"{top:.0f} Hz), so only the time series saw it, and it may stand in for something else "
                      f"there: an FRF measured to ~{float(f'{1.5 * f:.2g}'):.0f} Hz would show that mode or not")
     return text
 

@@ -294,7 +294,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         effects = [(c, {p.name: start.get(f"{c.name}.{p.name}", v[p.name]) for p in c.parameters}, True)
                    for c, v, _ in accepted_effects] + [(chosen.candidate, chosen.values, True)]
         ev, st = structures.get(effects)
-        start_unc = {k: chosen._start.get(k, unc_values[k]) for k in unc}
+        start_unc = {k: start.get(k, unc_values[k]) for k in unc}
         pr = Problem(ev, sigmas, {}, parameter_bounds(ref, unc, start_unc), effects, st)
         th, sl = pr.fit(max_nfev=40)
         n_evals += pr.nfev
