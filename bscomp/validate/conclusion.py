@@ -108,6 +108,8 @@ def conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effe
 
 def _out_of_band(accepted, setup, values) -> str:
     """A sentence per accepted effect whose own mode lies above every measured FRF (module docstring)."""
+    if setup is None:
+        return ""
     top = max((float(np.max(d.freqs)) for d in setup.datasets if isinstance(d, FrfData)), default=None)
     text = ""
     for a in accepted if top is not None else []:
