@@ -55,6 +55,15 @@ from bscomp.linear.frf_engine import dense, modal_frf
 from bscomp.linear.linearization import second_order
 from bscomp.model import ModelSpec, as_system
 from bscomp.simulation.compiled_checks import check_frf
+from bscomp.simulation.compiled_sensitivity import (
+    affine,
+    block_sensitivity,
+    damped_beyond_static,
+    dense_sens,
+    flatten_sensitivity,
+    probe_values,
+    verify,
+)
 from bscomp.simulation.compiled_time import CompiledModelError, TimeSeriesMixin
 from bscomp.simulation.harmonic_balance import HarmonicBalance
 
@@ -110,19 +119,6 @@ class _Element:
             self.comp._values.clear()
             self.comp._values.update(old)
         return {} if lin is None else {k: float(v) for k, v in lin._values.items() if v is not None}
-
-
-def _affine(A0, A1, A2, rtol) -> bool:
-    """True if the matrices at ``v0``, ``1.1 v0`` and ``0.9 v0`` lie on a line: ``(A1 + A2)/2 = A0`` to
-    ``rtol`` of ``max |A0|``."""
-    mid = sp.csr_matrix(0.5 * (sp.csr_matrix(A1) + sp.csr_matrix(A2)) - sp.csr_matrix(A0))
-    return not (mid.nnz and abs(mid).max() > rtol * max(abs(sp.csr_matrix(A0)).max(), 1e-300))
-
-
-def _dense_sens(sens):
-    """``(v0, dM, dK, dC)`` with the matrices dense: :meth:`CompiledModel._modal` sums them densely."""
-    v0, dM, dK, dC = sens
-    return v0, dense(dM, float), dense(dK, float), dense(dC, float)
 
 
 def _cut_nonlinear(system, elements):
@@ -264,91 +260,21 @@ class CompiledModel(TimeSeriesMixin):
         if name not in dae.structural_parameters:
             return
         v0 = float(dae.p0[dae.p_names.index(name)])
-        sens = self._block_sensitivity(name, v0)
+        sens = block_sensitivity(self, name, v0)
         key = None
         if sens is not None:
             path = name.rpartition(".")[0]
             key = (type(self.linear_system.component(path)).__name__, name.rpartition(".")[2])
             if key not in _VERIFIED:
-                _VERIFIED[key] = self._verify(name, v0, sens)
+                _VERIFIED[key] = verify(self, name, v0, sens)
             if not _VERIFIED[key]:
                 sens = None
         if sens is None:
-            sens = self._flatten_sensitivity(name, v0)
+            sens = flatten_sensitivity(self, name, v0)
         if sens is None:
             self._reflatten.add(name)
         else:
-            self._sens[name] = _dense_sens(sens)
-
-    def _block_sensitivity(self, name, v0):
-        """``(v0, dM, dK, dC)`` on the reduced coordinates from the component's ``structure()`` block."""
-        path, _, pname = name.rpartition(".")
-        comp = self.linear_system.component(path)
-        m = self.dae.mech
-        blocks = []
-        old = comp._values[pname]
-        try:
-            for f in (1.0, 1.1, 0.9):
-                comp._values[pname] = v0 * f
-                blocks.append(comp.structure())
-        finally:
-            comp._values[pname] = old
-        if any(b is None for b in blocks):
-            return None
-        try:
-            rows = [m.port_coordinates[f"{path}.{d}"] for d in blocks[0].dofs]
-        except KeyError:
-            return None
-        P = sp.csr_matrix(m.T)[rows]
-        out = []
-        for attr in ("M", "K", "C"):
-            A0, A1, A2 = (sp.csr_matrix(getattr(b, attr)) if getattr(b, attr) is not None
-                          else sp.csr_matrix((len(rows), len(rows))) for b in blocks)
-            if not _affine(A0, A1, A2, 1e-9):
-                return None                                   # not affine in the parameter
-            out.append(sp.csr_matrix(P.T @ ((A1 - A2) / (0.2 * v0)) @ P))
-        dM, dK, dC = out
-        return (v0, dM, dK, dC)
-
-    def _verify(self, name, v0, sens) -> bool:
-        ref = self._flatten_sensitivity(name, v0, steps=(1.1,))
-        if ref is None:
-            return False
-        _, dM, dK, dC = sens
-        ok = True
-        for a, b in ((dM, ref[1]), (dK, ref[2]), (dC, ref[3])):
-            d = (a - b).tocsr()
-            scale = max(abs(b).max() if b.nnz else 0.0, abs(a).max() if a.nnz else 0.0, 1e-300)
-            ok &= bool(d.nnz == 0 or abs(d).max() <= 1e-6 * scale)
-        return ok
-
-    def _flatten_sensitivity(self, name, v0, steps=(1.1, 0.9)):
-        """Sensitivity by re-flattening at ``v0 * step`` (one step: forward difference, used to verify)."""
-        mats = []
-        for f in steps:
-            d = flatten(self.linear_system.with_parameters({name: v0 * f}))
-            so = second_order(d, refresh_damping=False, **self._so_args)
-            if so.coordinates != self.so0.coordinates:
-                return None
-            C = so.C - (sp.csr_matrix(d.system_damping_basis[2]) if self.damping is not None else 0)
-            mats.append((so, sp.csr_matrix(C)))
-        C0 = sp.csr_matrix(self.so0.C - (self._Cadd0 if self._Cadd0 is not None else 0))
-        if len(steps) == 1:
-            (s1, C1), = mats
-            dv = (steps[0] - 1.0) * v0
-            return (v0, sp.csr_matrix((s1.M - self.so0.M) / dv), sp.csr_matrix((s1.K - self.so0.K) / dv),
-                    sp.csr_matrix((C1 - C0) / dv))
-        (s1, C1), (s2, C2) = mats
-        dv = (steps[0] - steps[1]) * v0
-        for A0, A1, A2 in ((self.so0.M, s1.M, s2.M), (self.so0.K, s1.K, s2.K), (C0, C1, C2)):
-            if not _affine(A0, A1, A2, 1e-8):
-                return None
-        for attr in ("B", "Cq", "Cv", "Ca", "D"):
-            diff = sp.csr_matrix(getattr(s1, attr) - getattr(self.so0, attr))
-            if diff.nnz and abs(diff).max() > 1e-10 * max(abs(getattr(self.so0, attr)).max(), 1e-300):
-                return None
-        return (v0, sp.csr_matrix((s1.M - s2.M) / dv), sp.csr_matrix((s1.K - s2.K) / dv),
-                sp.csr_matrix((C1 - C2) / dv))
+            self._sens[name] = dense_sens(sens)
 
     def _split(self, params):
         lin, law, struct = {}, {}, {}
@@ -397,20 +323,21 @@ class CompiledModel(TimeSeriesMixin):
         if name in self._lin_sens:
             return self._lin_sens[name]
         out = None
-        if v0 != 0.0 and np.isfinite(v0):
-            so1, so2 = (second_order(self.dae, refresh_damping=False, params={name: v0 * f}, **self._so_args)
-                        for f in (1.1, 0.9))
+        if np.isfinite(v0):                      # at v0 +- 10 %; a parameter at 0 (a damping left out) at +-1
+            so1, so2 = (second_order(self.dae, refresh_damping=False, params={name: v}, **self._so_args)
+                        for v in probe_values(v0)[1:])
             so0 = self.so0
-            affine = so1.coordinates == so0.coordinates == so2.coordinates
+            is_affine = so1.coordinates == so0.coordinates == so2.coordinates
             for attr in ("M", "K", "C"):
-                affine &= _affine(*(getattr(x, attr) for x in (so0, so1, so2)), 1e-9)
+                is_affine &= affine(*(getattr(x, attr) for x in (so0, so1, so2)), 1e-9)
             for attr in ("B", "Cq", "Cv", "Ca", "D"):
                 for x in (so1, so2):
                     diff = sp.csr_matrix(getattr(x, attr) - getattr(so0, attr))
-                    affine &= not (diff.nnz and abs(diff).max() > 1e-12 * max(abs(getattr(so0, attr)).max(), 1e-300))
-            if affine:
-                dv = 0.2 * v0
-                out = _dense_sens((v0, *(sp.csr_matrix((getattr(so1, a) - getattr(so2, a)) / dv)
+                    is_affine &= not (diff.nnz and abs(diff).max() > 1e-12 * max(abs(getattr(so0, attr)).max(),
+                                                                                   1e-300))
+            if is_affine:
+                dv = 0.2 * v0 if v0 else 2.0
+                out = dense_sens((v0, *(sp.csr_matrix((getattr(so1, a) - getattr(so2, a)) / dv)
                                          for a in ("M", "K", "C"))))
         self._lin_sens[name] = out
         return out
@@ -502,6 +429,7 @@ class CompiledModel(TimeSeriesMixin):
                    + om ** 2 * np.abs(dense(so.Ca, float) @ phi), axis=0) if so.Cq.shape[0] else np.zeros(lam.size)
         seen = (b / max(b.max(), 1e-300)) * (g / max(g.max(), 1e-300)) > self.participation
         keep = np.flatnonzero((lam <= w_keep ** 2) & (seen | (lam == 0.0)))
+        keep = np.union1d(keep, damped_beyond_static(phi, lam, csd, keep, w_keep))
         trunc = np.setdiff1d(np.arange(lam.size), keep)
         pk = phi[:, keep]
         Ckk = np.diag(c[keep]) + pk.T @ csd @ pk
