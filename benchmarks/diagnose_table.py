@@ -25,17 +25,19 @@ import time  # noqa: E402
 from importlib import resources  # noqa: E402
 from pathlib import Path  # noqa: E402
 
+from bscomp.systems.truths import CASES as TRUTH_CASES  # noqa: E402
 from bscomp.validate.conclusion import UNEXPLAINED  # noqa: E402
 from bscomp.validate.diagnostics import diagnose  # noqa: E402
 from bscomp.validate.measurements import load_all  # noqa: E402
 
 MODELS = {"axial_torsional": "testbed_axial_torsional", "full": "testbed"}
-CASES = ["control", "joint", "friction", "backlash", "delay", "joint_friction", "ripple", "housing"]
+CASES = list(TRUTH_CASES)
 #: accepted effect -> (hidden effect, its main parameters as (candidate name, truth name))
 MAIN = {"table_subassembly": ("joint", (("m", "m"), ("k", "k"))), "guideway_friction": ("friction", (("F_c", "F_c"),)),
         "guideway_stribeck": ("friction", (("F_c", "F_c"),)), "screw_nut_backlash": ("backlash", (("b", "b"),)),
         "compliant_backlash": ("backlash", (("b", "b"), ("k", "c"))), "amplifier_delay": ("delay", (("T", "T"),)),
-        "bearing_housing": ("housing", (("m", "m"), ("k", "k")))}
+        "bearing_housing": ("housing", (("m", "m"), ("k", "k"))), "support_damping": ("damping", (("c", "c_axial"),)),
+        "coupling_damping": ("damping", (("d", "d_torsion"),))}
 
 
 def stepped_frfs(model: str, case: str, conditions: dict) -> list:

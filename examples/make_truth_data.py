@@ -71,10 +71,13 @@ def summary(out_dir=DEFAULT_OUT) -> str:
 
 
 _MAIN = {"joint": ("k", "m", "zeta", "f_target"), "friction": ("F_c", "v_s", "d"), "backlash": ("b", "c"),
-         "delay": ("T",), "ripple": ("A", "p", "phi_0"), "housing": ("m", "k", "zeta", "f_target")}
+         "delay": ("T",), "ripple": ("A", "p", "phi_0"), "housing": ("m", "k", "zeta", "f_target"),
+         "damping": ("c_axial", "d_torsion", "zeta_truth")}
 
 
 def _fmt(v) -> str:
+    if isinstance(v, list):
+        return "/".join(_fmt(x) for x in v)
     return f"{v:.4g}" if isinstance(v, float) else str(v)
 
 

@@ -41,6 +41,13 @@ the real drive would differ from the model a user has:
       (inside the FRF band), each spring with a dashpot of 2-5 % of critical (:class:`HeldBodyDamping`: the
       drive's modal damping as with the rigid housing).
 
+  ``damping``
+      the drive is damped more than the model's modal ratios (Tables 4.1/4.2: 6 %, 10 %) say, by two dashpots
+      the model does not have -- axial at the thrust bearing ``b1`` (its ``c_axial``, to the frame) and
+      torsional across the coupling's insert (a ``TorsionalDamper``) -- sized so that the drive's first mode
+      gains 1-4 and its second (the coupling's torsion) 1-5 percentage points of critical damping: a loss
+      by location, not the same ratio on every mode as the ``extra_damping`` candidate adds.
+
   ``control`` has none of them (mis-set parameters, mesh and moving nut only).
 
 Every random value comes from ``numpy.random.default_rng([seed, stream])``: the same seed gives the
@@ -66,24 +73,24 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-import scipy.linalg as sla
 
 from bscomp.components import Damper, Fixed, FixedRotational, Mass, Spring
 
 from .parameters import DATA_DIR, get_value
-from .testbed import drive_fraction, testbed, thesis_parameters
+from .testbed import testbed, thesis_parameters
 from .truth_effects import AtanFriction, HeldBodyDamping, RigidJointDamping, SoftBacklash, TorqueRipple
+from .truth_parts import add_dashpots, add_housing, drive_modes, joint_stiffness
 
 __all__ = ["CASES", "MODELS", "AtanFriction", "SoftBacklash", "RigidJointDamping", "HeldBodyDamping", "draw",
            "truth_system",
            "make_frf", "make_time", "generate_case", "default_seed", "square_wave", "TIME_NOISE", "FRF_NOISE",
            "TorqueRipple"]
 
-CASES = ("control", "joint", "friction", "backlash", "delay", "joint_friction", "ripple", "housing")
+CASES = ("control", "joint", "friction", "backlash", "delay", "joint_friction", "ripple", "housing", "damping")
 MODELS = ("axial_torsional", "full")
 HIDDEN = {"control": (), "joint": ("joint",), "friction": ("friction",), "backlash": ("backlash",),
           "delay": ("delay",), "joint_friction": ("joint", "friction"), "ripple": ("ripple",),
-          "housing": ("housing",)}
+          "housing": ("housing",), "damping": ("damping",)}
 
 #: Ranges of the random draws (uniform; ``log`` = log-uniform).
 RANGES = {
@@ -107,6 +114,8 @@ RANGES = {
     "housing_seat_ratio": (10.0, 30.0),    # seat stiffness / fastener stiffness, log
     "housing_frequency": (400.0, 900.0),   # Hz, the truth's extra mode: inside the FRF band (2 Hz - 1 kHz)
     "housing_zeta": (0.02, 0.05),
+    "damping_mode1": (0.01, 0.04),         # added ratio of the first drive mode (model: 6 %, Table 4.1)
+    "damping_mode2": (0.01, 0.05),         # added ratio of the second, the coupling's torsion (model: 10 %, Table 4.2)
 }
 BACKLASH_WIDTH = 0.05                      # softplus width / b
 
@@ -145,6 +154,7 @@ def draw(seed: int) -> dict:
     d["housing"] = {"m": u("housing_mass"), "seat_fraction": u("housing_seat_fraction"),
                     "seat_ratio": logu("housing_seat_ratio"), "f_target": u("housing_frequency"),
                     "zeta": u("housing_zeta")}
+    d["damping"] = {"mode1": u("damping_mode1"), "mode2": u("damping_mode2")}
     return d
 
 
@@ -179,110 +189,6 @@ def _base(model, x, mesh_C, misset, nut_joint="moving"):
     for k, f in misset.items():
         s.set(k, float(s.get(k)) * f)
     return s
-
-
-def _modes_hz(so):
-
-    lam, phi = sla.eigh(so.K.toarray(), so.M.toarray())
-    return np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi), phi
-
-
-def _drive_modes(s) -> np.ndarray:
-    """Undamped frequencies [Hz] of the first two elastic axial/torsional modes (drive_fraction > 0.5)."""
-    from bscomp import flatten, second_order
-
-    so = second_order(flatten(s), inputs=[], outputs=[])
-    f, phi = _modes_hz(so)
-    el = np.flatnonzero(f > 1.0)                   # elastic: rigid-body modes are at 0 Hz
-    frac = drive_fraction(phi[:, el], so.M, so.coordinates)
-    return f[el][frac > 0.5][:2]
-
-
-def _joint_stiffness(s, m_p, f_target) -> float:
-    """Spring constant of the table part that puts an undamped mode of ``s`` at ``f_target`` [Hz].
-
-    ``s`` has the part on a spring ``part_spring``; K is linear in its constant, so one linearization and
-    a bisection on the number of modes below the target (monotone: every eigenvalue grows with k) do.
-    """
-
-    from bscomp import flatten, second_order
-
-    so = second_order(flatten(s), inputs=[], outputs=[], params={"part_spring.c": 1.0})
-    M, K1 = so.M.toarray(), so.K.toarray()
-    i = so.coordinates.index("table_part.s")
-    row = K1[i].copy()
-    row[i] = 0.0
-    (j,) = np.flatnonzero(row)                     # the table coordinate the part's spring acts on
-    E = np.zeros_like(K1)                          # the unit spring: K(k) = K1 + (k - 1) E
-    E[i, i] = E[j, j] = 1.0
-    E[i, j] = E[j, i] = K1[i, j]                   # -1 or +1 (the flange's direction on the coordinate)
-    return _bisect_mode(K1 - E, E, M, f_target, f"table part {m_p:.1f} kg")
-
-
-def _bisect_mode(K0, E, M, f_target, what) -> float:
-    """The ``k`` that puts an undamped mode of ``K0 + k E`` (mass ``M``) at ``f_target`` [Hz]: a bisection on
-    the number of modes below the target, monotone in k for ``E`` positive semi-definite."""
-
-    def below(k):
-        lam = sla.eigh(K0 + k * E, M, eigvals_only=True)
-        return int(np.sum(np.sqrt(np.clip(lam, 0, None)) / (2 * np.pi) < f_target))
-
-    lo, hi = 1.0e3, 1.0e11
-    n_lo, n_hi = below(lo), below(hi)
-    if n_lo == n_hi:
-        raise RuntimeError(f"truths: no spring puts a mode at {f_target:.1f} Hz ({what})")
-    for _ in range(80):
-        mid = math.sqrt(lo * hi)
-        if below(mid) == n_lo:
-            lo = mid
-        else:
-            hi = mid
-        if hi / lo - 1.0 < 1e-12:
-            break
-    return math.sqrt(lo * hi)
-
-
-def _add_housing(s, h: dict, base_damping) -> dict:
-    """Un-ground the thrust bearing ``b1`` and put its outer ring on a two-body housing (module docstring,
-    ``housing``); returns the hidden values: ``m`` (seat + block) [kg], ``k`` the fastener stiffness and
-    ``k_seat`` [N/m], ``k_static`` (the two in series), the dashpots, ``zeta`` and ``f_target`` [Hz]."""
-    from bscomp import flatten, second_order
-    from bscomp.components import FixedNode, NodeToFlange
-
-    b1 = s.component("b1")
-    s.replace("b1", type(b1)(grounded=False, **{n: getattr(b1, n) for n in ("k_axial", "k_radial", "k_tilt",
-                                                                              "c_axial", "c_radial")}))
-    m_seat = h["seat_fraction"] * h["m"]
-    s.add("housing_hold", FixedNode(dofs=("u", "v", "tx", "ty", "tz")))
-    s.add("housing_ring", NodeToFlange())
-    s.connect("b1.node_b", "housing_hold.node")
-    s.connect("b1.node_b", "housing_ring.node")
-    s.add("housing_seat", Mass(m=m_seat))
-    s.add("housing_block", Mass(m=h["m"] - m_seat))
-    s.add("housing_frame", Fixed())
-    s.connect("housing_ring.flange", "housing_seat.flange_a")
-    for el, a, b in (("seat", "housing_seat.flange_a", "housing_block.flange_a"),
-                     ("fastener", "housing_block.flange_a", "housing_frame.flange")):
-        s.add(f"{el}_spring", Spring(c=1.0))
-        s.add(f"{el}_damper", Damper(d=0.0))
-        for part in (f"{el}_spring", f"{el}_damper"):
-            s.connect(a, f"{part}.flange_a")
-            s.connect(f"{part}.flange_b", b)
-    s.damping = HeldBodyDamping(base_damping, ("b1.node_b.w", "housing_block.s"))
-    ratio = h["seat_ratio"]
-    dae = flatten(s)
-    so = [second_order(dae, inputs=[], outputs=[], params={"fastener_spring.c": k, "seat_spring.c": ratio * k})
-          for k in (1.0, 2.0)]                          # K linear in k (a spring's constant must be > 0)
-    E = so[1].K.toarray() - so[0].K.toarray()
-    f_t = h["f_target"]
-    k = _bisect_mode(so[0].K.toarray() - E, E, so[0].M.toarray(), f_t, f"housing {h['m']:.1f} kg")
-    d_f = 2.0 * h["zeta"] * math.sqrt(k * h["m"])
-    d_s = 2.0 * h["zeta"] * math.sqrt(ratio * k * m_seat)
-    for n, v in (("fastener_spring.c", k), ("seat_spring.c", ratio * k), ("fastener_damper.d", d_f),
-                 ("seat_damper.d", d_s)):
-        s.set(n, v)
-    return {"m": h["m"], "m_seat": m_seat, "k": k, "k_seat": ratio * k, "k_static": k * ratio / (1.0 + ratio),
-            "d": d_f, "d_seat": d_s, "zeta": h["zeta"], "f_target": f_t}
 
 
 def truth_system(case: str, model: str = "axial_torsional", seed: int | None = None, *, linear: bool = False,
@@ -325,7 +231,7 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
     base_damping = s.damping
     if "joint" in HIDDEN[case]:
         j = dr["joint"]
-        f12 = _drive_modes(s)                       # the drive's first two modes, table rigid on the nut
+        f12 = drive_modes(s)                       # the drive's first two modes, table rigid on the nut
         s.set("table.m", m_total - j["m"])
         s.add("table_part", Mass(m=j["m"]))
         s.add("part_spring", Spring(c=1.0))        # k -> 0 first: the table-on-drive mode without the part
@@ -334,10 +240,10 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
             s.connect("table.flange_a", f"{el}.flange_a")
             s.connect(f"{el}.flange_b", "table_part.flange_a")
         s.damping = RigidJointDamping(base_damping, "table_part.s")
-        f0 = _drive_modes(s)[0]
+        f0 = drive_modes(s)[0]
         lo = max(f12[0], f0)
         f_t = lo + j["frequency_position"] * (f12[1] - lo)
-        k = _joint_stiffness(s, j["m"], f_t)
+        k = joint_stiffness(s, j["m"], f_t)
         d = 2.0 * j["zeta"] * math.sqrt(k * j["m"])
         s.set("part_spring.c", k)
         s.set("part_damper.d", d)
@@ -357,7 +263,9 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
         s.damping = RigidJointDamping(base_damping, "table.s")
         hidden["backlash"] = dict(bl)
     if "housing" in HIDDEN[case]:
-        hidden["housing"] = _add_housing(s, dr["housing"], base_damping)
+        hidden["housing"] = add_housing(s, dr["housing"], base_damping)
+    if "damping" in HIDDEN[case]:
+        hidden["damping"] = add_dashpots(s, dr["damping"])
     if "delay" in HIDDEN[case]:
         hidden["delay"] = dict(dr["delay"])
     if "ripple" in HIDDEN[case]:

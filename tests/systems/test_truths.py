@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from bscomp import flatten, second_order
-from bscomp.systems import truths
+from bscomp.systems import truth_parts, truths
 from bscomp.systems.testbed import drive_fraction
 from bscomp.validate.measurements import load, load_all
 
@@ -41,6 +41,7 @@ def test_draws_are_seeded_and_within_the_ranges():
         h = d["housing"]
         assert 15 <= h["m"] <= 60 and 0.05 <= h["seat_fraction"] <= 0.15 and 10 <= h["seat_ratio"] <= 30
         assert 400 <= h["f_target"] <= 900 and 0.02 <= h["zeta"] <= 0.05
+        assert 0.01 <= d["damping"]["mode1"] <= 0.04 and 0.01 <= d["damping"]["mode2"] <= 0.05
         T = d["delay"]["T"]
         assert 1e-4 - 2e-5 <= T <= 1e-3 + 2e-5
         assert abs(T / (truths.DT / truths.FINE) - round(T / (truths.DT / truths.FINE))) < 1e-9
@@ -51,7 +52,7 @@ def test_truths_do_not_use_the_candidates():
 
     from bscomp.systems import truth_effects
 
-    for module in (truths, truth_effects):
+    for module in (truths, truth_effects, truth_parts):
         tree = ast.parse(Path(module.__file__).read_text())
         names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
         names += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
@@ -209,3 +210,26 @@ def test_bundled_delay_time_series_starts_late():
     w = tm.outputs["rotor.w"]
     moving = np.flatnonzero(np.abs(w) > 8 * truths.TIME_NOISE["rotor.w"])[0]
     assert tm.t[moving] >= T and tm.t[moving] <= T + 3 * truths.DT
+
+
+@pytest.mark.parametrize("model", truths.MODELS)
+def test_damping_truth_adds_the_drawn_ratios_by_location_and_keeps_the_frequencies(model):
+    """The damping truth: two dashpots (b1 axial, across the coupling) sized by first-order perturbation; the
+    drive's first two modes gain the drawn ratios to second order (the complex eigenvalues, against the control
+    truth of the same seed), the undamped frequencies are the control's to the bit (a dashpot adds no stiffness),
+    and the gain is not one ratio on every mode (what the extra_damping candidate would add)."""
+    seed = truths.default_seed("damping", model)
+    s, info = truths.truth_system("damping", model, seed)
+    c, _ = truths.truth_system("control", model, seed)
+    h = info["hidden"]["damping"]
+    assert s.get("b1.c_axial") == pytest.approx(h["c_axial"]) and s.get("coupling_loss.d") == pytest.approx(
+        h["d_torsion"]) and c.get("b1.c_axial") == 0.0
+    so, so0 = (second_order(flatten(x), inputs=[], outputs=[]) for x in (s, c))
+    assert np.array_equal(so.K.toarray(), so0.K.toarray()) and np.array_equal(so.M.toarray(), so0.M.toarray())
+    z_truth = truth_parts.damping_ratios(so, so.C.toarray(), h["f_modes"])
+    z_ctrl = truth_parts.damping_ratios(so0, so0.C.toarray(), h["f_modes"])
+    assert np.allclose(z_truth, h["zeta_truth"], rtol=1e-9) and np.allclose(z_ctrl, h["zeta_model"], rtol=1e-9)
+    assert np.allclose(z_ctrl, [0.06, 0.10], atol=1e-3)          # Tables 4.1/4.2 (+ the motor's viscous B)
+    gain = z_truth - z_ctrl
+    assert np.allclose(gain, h["added_target"], rtol=0.05)      # first order: a few per cent of the gain
+    assert abs(gain[0] - gain[1]) > 1e-3                       # the two modes' gains differ
