@@ -38,6 +38,7 @@ from bscomp.validate.candidates.hooks import (
     DetachedBodyDamping,
     ExtraDamping,
 )
+from bscomp.validate.candidates.losses import CouplingDamping, SupportDamping
 from bscomp.validate.candidates.nonlinear import (
     V_REG,
     CompliantBacklash,
@@ -58,12 +59,12 @@ from bscomp.validate.candidates.structural import (
 __all__ = ["CandidateParameter", "Candidate", "NutTableJoint", "TableSubassembly", "BearingHousing",
            "ParameterScale", "CouplingStiffness", "MissingInertia", "MissingMass", "GuidewayFriction",
            "StribeckGuidewayFriction", "ScrewNutBacklash", "CompliantBacklash", "AmplifierDelay", "ExtraDamping",
-           "AddedModalDamping", "AddedDampingOnMatrix", "DetachedBodyDamping", "default_candidates", "V_REG"]
+           "AddedModalDamping", "AddedDampingOnMatrix", "DetachedBodyDamping", "SupportDamping", "CouplingDamping",
+           "default_candidates", "V_REG"]
 
 
 def default_candidates() -> list:
     """The library of missing effects (the thesis's Sec 3.5 guesses), in a fixed order."""
     return [NutTableJoint(), TableSubassembly(), BearingHousing(), CouplingStiffness(), MissingInertia(),
             MissingMass(), GuidewayFriction(), StribeckGuidewayFriction(), ScrewNutBacklash(), CompliantBacklash(),
-            AmplifierDelay(),
-            ExtraDamping()]
+            AmplifierDelay(), ExtraDamping(), SupportDamping(), CouplingDamping()]
