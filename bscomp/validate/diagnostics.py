@@ -24,7 +24,9 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    does not sit at a bound of its prior (a stand-in for something else), and (f) does something the
    parameters already fitted cannot: at least 10 % of its action its own, variance inflation at most 10
    (:mod:`~bscomp.validate.collinearity`; a motor inertia beside a re-calibrated table mass only
-   re-distributes the rigid-body inertia). The report says which of these held. Candidates the data
+   re-distributes the rigid-body inertia) -- unless the fit without it left more than ``UNEXPLAINED`` x the noise
+   floor and it brings every dataset within the floor (its partners, free there, could not). The report says which
+   of these held. Candidates the data
    cannot tell apart (Vuong's test prefers neither, and they remove the same error:
    :mod:`~bscomp.validate.equivalence`) are reported as **one group** with the one accepted
    (``EffectFit.equivalent``, with what to measure to separate them), not one picked by round-off: within
@@ -114,7 +116,10 @@ def _verdict(before, after, dbic, at_bound, worse, thresholds, tradeoff=(1.0, []
     if at_bound:
         why_not.append(f"{', '.join(at_bound)} at a bound of the prior (a stand-in for something else)")
     share, partners = tradeoff
-    if share < MIN_OWN_SHARE:
+    # its partners were free in the fit without it: if that fit left > UNEXPLAINED x the noise floor and this one
+    # reaches the floor, what it does is no re-distribution of theirs, however collinear at the solution (rule f)
+    floor = all(v < 1.0 + tol for v in after["per_dataset"] + after["heldout_per_dataset"])
+    if share < MIN_OWN_SHARE and not (before["error"] > UNEXPLAINED and floor):
         with_ = ", ".join(p for p, _ in partners) or "the parameters already fitted"
         why_not.append(f"trades off against {with_}: only {100 * share:.2g} % of what it does is its own (variance "
                        f"inflation {1 / max(share, 1e-300):.3g} > {1 / MIN_OWN_SHARE:.3g}): a re-distribution, not a "

@@ -57,3 +57,21 @@ def test_the_rule_rejects_a_trade_off_and_says_with_what():
     assert not ok and why.startswith("trades off against table.m: only 0.06 % of what it does is its own")
     assert "variance inflation 1.67e+03 > 10" in why
     assert MIN_OWN_SHARE == 0.1
+
+
+def test_the_rule_yields_when_the_partners_alone_left_far_more_than_the_candidate():
+    """The damping truth, seed 2203 (docs/validation.md, rule f): the coupling damping took 14.5 -> 1.01, every dataset
+    within its noise, at an own share of 3.1 % -- its partners (k_T, the bearing's damping) were free in the fit
+    without it and left 14.5. Not rejected then; at 1.6 before (the motor inertia's case) the rule holds, and it holds
+    when the candidate stops above the floor however far it started."""
+    thresholds = (10.0, 0.5, 0.25, 0.5)
+    partners = (0.031, [("coupling.k_T", 0.68), ("support_damping.c", 0.63)])
+    before = {"error": 14.5, "per_dataset": [14.5], "heldout": None, "heldout_per_dataset": []}
+    after = {"error": 1.01, "per_dataset": [1.01], "heldout": None, "heldout_per_dataset": []}
+    assert _verdict(before, after, -16000.0, [], [], thresholds, partners) == (True, "")
+    short = dict(after, error=1.7, per_dataset=[1.7])                     # not within 1 + 0.5 of the floor
+    ok, why = _verdict(before, short, -16000.0, [], [], thresholds, partners)
+    assert not ok and why.startswith("trades off against coupling.k_T, support_damping.c: only 3.1 %")
+    near = dict(before, error=1.6, per_dataset=[1.6])                     # the motor inertia's case: started near
+    ok, why = _verdict(near, after, -500.0, [], [], thresholds, partners)
+    assert not ok and "trades off" in why
