@@ -323,7 +323,7 @@ class CompiledModel(TimeSeriesMixin):
         if name in self._lin_sens:
             return self._lin_sens[name]
         out = None
-        if np.isfinite(v0):                      # at v0 +- 10 %; a parameter at 0 (a damping left out) at +-1
+        if v0 != 0.0 and np.isfinite(v0):        # a parameter at 0: re-linearized (its bound forbids a probe below)
             so1, so2 = (second_order(self.dae, refresh_damping=False, params={name: v}, **self._so_args)
                         for v in probe_values(v0)[1:])
             so0 = self.so0
@@ -336,7 +336,7 @@ class CompiledModel(TimeSeriesMixin):
                     is_affine &= not (diff.nnz and abs(diff).max() > 1e-12 * max(abs(getattr(so0, attr)).max(),
                                                                                    1e-300))
             if is_affine:
-                dv = 0.2 * v0 if v0 else 2.0
+                dv = 0.2 * v0
                 out = dense_sens((v0, *(sp.csr_matrix((getattr(so1, a) - getattr(so2, a)) / dv)
                                          for a in ("M", "K", "C"))))
         self._lin_sens[name] = out
