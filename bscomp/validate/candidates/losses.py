@@ -30,7 +30,15 @@ from bscomp.validate.candidates.base import Candidate, CandidateParameter
 __all__ = ["SupportDamping", "CouplingDamping"]
 
 
-class SupportDamping(Candidate):
+class _AddedDashpot(Candidate):
+    """A dashpot added to an existing component's damping parameter: ``_edit`` returns that parameter and its own
+    value (``{"parameter", "base"}``); the one free parameter is added to it."""
+
+    def _overrides(self, values, state):
+        return {state["parameter"]: state["base"] + values[self.parameters[0].name]}
+
+
+class SupportDamping(_AddedDashpot):
     """Axial viscous loss at the screw's thrust support (module docstring)."""
 
     def __init__(self):
@@ -49,11 +57,8 @@ class SupportDamping(Candidate):
                                 f"6-DOF bearing with an axial damping 'c_axial' ({type(comp).__name__})")
         return {"parameter": f"{bearing}.c_axial", "base": float(e.s.get(f"{bearing}.c_axial"))}
 
-    def _overrides(self, values, state):
-        return {state["parameter"]: state["base"] + values["c"]}
 
-
-class CouplingDamping(Candidate):
+class CouplingDamping(_AddedDashpot):
     """Torsional viscous loss across the coupling's insert (module docstring)."""
 
     def __init__(self):
@@ -73,6 +78,3 @@ class CouplingDamping(Candidate):
             raise NotApplicable(f"{self.name}: the coupling '{comp}' has no torsional damping parameter 'd' "
                                 "(a coupling.Coupling has one)") from None
         return {"parameter": f"{comp}.d", "base": base}
-
-    def _overrides(self, values, state):
-        return {state["parameter"]: state["base"] + values["d"]}
