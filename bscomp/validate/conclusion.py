@@ -92,7 +92,7 @@ def conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effe
     left = "" if rest is None or rest["within_noise"] or max_effects == 0 else _left(rest, bool(accepted), unc_values)
     if accepted:
         return (f"{len(accepted)} missing effect(s) found: " + ", ".join(titles(a) for a in accepted) + left
-                + _out_of_band(accepted, setup, unc_values) + _overdamped(accepted))
+                + _together(accepted) + _out_of_band(accepted, setup, unc_values) + _overdamped(accepted))
     if unconfirmed:
         u = unconfirmed[0]
         return (f"no missing effect confirmed: {u.candidate.title} would explain the FRFs (error "
@@ -128,6 +128,19 @@ def _out_of_band(accepted, setup, values) -> str:
             text += (f". {a.candidate.title}: its own mode ({f:.0f} Hz) lies above the measured FRFs (to "
                      f"{top:.0f} Hz), so only the time series saw it, and it may stand in for something else "
                      f"there: an FRF measured to ~{float(f'{1.5 * f:.2g}'):.0f} Hz would show that mode or not")
+    return text
+
+
+def _together(accepted) -> str:
+    """A sentence per pair accepted together (:mod:`~bscomp.validate.pairs`): neither member passed alone."""
+    text, seen = "", set()
+    for a in accepted:
+        if getattr(a, "together", "") and a.together not in seen:
+            seen.add(a.name)
+            other = next((b for b in accepted if b.name == a.together), None)
+            text += (f". {a.candidate.title} and {other.candidate.title if other else a.together} were found "
+                     "together: neither alone explains the data (each stood in for both and failed a rule, see the "
+                     "table), the two do within the rules, each needed beside the other")
     return text
 
 

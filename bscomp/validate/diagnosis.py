@@ -61,6 +61,9 @@ class EffectFit:
         (:func:`~bscomp.validate.collinearity.own_share`; None where not judged).
     trades_with : list
         The parameters its most independent direction is most aligned with (``|cos| >= 0.5``).
+    together : str
+        The candidate it was fitted and accepted together with, when neither passed alone
+        (:mod:`bscomp.validate.pairs`); "" otherwise.
     """
 
     candidate: object
@@ -83,6 +86,7 @@ class EffectFit:
     compared: dict = field(default_factory=dict)
     own_share: float | None = None
     trades_with: list = field(default_factory=list)
+    together: str = ""
     _start: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -107,7 +111,8 @@ class EffectFit:
                 "accepted": self.accepted, "verdict": self.verdict, "refined": self.refined, "round": self.round,
                 "evidence": self.evidence, "signature": self.candidate.signature,
                 "user_before": self.user_before, "user_after": self.user_after, "equivalent": self.equivalent,
-                "compared": self.compared, "own_share": self.own_share, "trades_with": self.trades_with}
+                "compared": self.compared, "own_share": self.own_share, "trades_with": self.trades_with,
+                "together": self.together}
 
     def equivalence_lines(self, indent: str = "     ", skip=()) -> list:
         """The candidates this one cannot be told apart from (but those in ``skip``), with the numbers and
@@ -173,6 +178,9 @@ class Diagnosis:
         angle, :class:`~bscomp.validate.periodicity.AngleOrder`: an effect no candidate has), ``frf_values`` (the
         uncertain parameters fitted to the FRFs alone, when the error left is above
         :data:`~bscomp.validate.conclusion.UNEXPLAINED`).
+    pairs : list of dict
+        Candidates fitted in pairs after a round that accepted none alone (:mod:`bscomp.validate.pairs`): per pair
+        ``members``, ``round``, ``values``, ``error``, ``heldout``, ``delta_bic``, ``accepted``, ``verdict``.
     message : str
     """
 
@@ -193,6 +201,7 @@ class Diagnosis:
     amplitude: list = field(default_factory=list)
     unconfirmed: list = field(default_factory=list)
     remainder: dict = field(default_factory=dict)
+    pairs: list = field(default_factory=list)
 
     @property
     def found(self) -> bool:
@@ -223,6 +232,7 @@ class Diagnosis:
                 lines.append(f"  {r.name:<26} error {r.error_after:.4g}{held}; {vals}")
                 if r.verdict and not r.accepted:
                     lines.append(f"     not accepted: {r.verdict}")
+        lines += self._pair_lines()
         if self.skipped:
             lines += ["", "not tried:"] + [f"  {s.name:<26} {s.reason}" for s in self.skipped]
         if self.recalibrated:
@@ -253,6 +263,18 @@ class Diagnosis:
             lines += ["", "errors as measured (magnitude: mean |log10 error| [decades], phase rms, fit %):"]
             lines += [f"  {lbl}: {_fmt_user(u)}" for lbl, u in self.user_errors]
         return "\n".join(lines)
+
+    def _pair_lines(self) -> list:
+        lines = []
+        for rnd in sorted({p["round"] for p in self.pairs}):
+            lines += ["", f"round {rnd}: no candidate passed alone; the best fitted in pairs:"]
+            for p in (p for p in self.pairs if p["round"] == rnd):
+                vals = ", ".join(f"{k}={v:.4g}" for k, v in p["values"].items())
+                held = f", held-out {p['heldout']:.4g}" if p["heldout"] is not None else ""
+                lines.append(f"  {' + '.join(p['members']):<40} error {p['error']:.4g}{held}; {vals}")
+                if not p["accepted"]:
+                    lines.append(f"     not accepted: {p['verdict']}")
+        return lines
 
     def __str__(self):
         return self.table()
@@ -296,6 +318,7 @@ class Diagnosis:
                 "user_errors": [[lbl, u] for lbl, u in self.user_errors], "noise": self.noise,
                 "amplitude": [a.to_dict() for a in self.amplitude],
                 "unconfirmed": [r.to_dict() for r in self.unconfirmed], "code": self.code(), "stats": self.stats,
+                "pairs": self.pairs,
                 "remainder": {**self.remainder, "orders": [o.to_dict() for o in self.remainder.get("orders", [])]}}
 
     def to_json(self, path=None) -> str:

@@ -31,6 +31,10 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    :mod:`~bscomp.validate.equivalence`) are reported as **one group** with the one accepted
    (``EffectFit.equivalent``, with what to measure to separate them), not one picked by round-off: within
    a group the lower BIC (the same fit with fewer parameters) is named first.
+   When none passes alone, at least two effects may still be added and the error left is above ``UNEXPLAINED`` x
+   the noise floor, the round's best refined candidates are fitted **in pairs** (:mod:`~bscomp.validate.pairs`: two
+   effects missing at once, each of which stands in for both when fitted alone and fails a rule); a pair passes the
+   same rules and each member must be needed beside the other.
    Repeat (greedy) up to ``max_effects``. FRF files that state their sine amplitude are compared with the
    model at that amplitude (the describing function of its friction and backlash,
    :class:`~bscomp.validate.evaluation.Evaluator`). With FRFs at an amplitude and no time series
@@ -59,87 +63,20 @@ from scipy.optimize import minimize_scalar
 from threadpoolctl import threadpool_limits
 
 from bscomp.kernel.interface import NotApplicable
+from bscomp.validate.acceptance import choose, evidence, score
 from bscomp.validate.amplitude import amplitude_dependence, amplitude_note, frf_confirmation
 from bscomp.validate.arguments import check_diagnose, load_datasets, resolve_candidates
 from bscomp.validate.calibration import FitSetup, fit_uncertain, parameter_bounds, user_summary
 from bscomp.validate.candidates import default_candidates
-from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
 from bscomp.validate.conclusion import UNEXPLAINED, conclusion, remainder
 from bscomp.validate.datasets import FrfData, warn_amplitude_fit
 from bscomp.validate.diagnosis import Diagnosis, EffectFit, Skipped
 from bscomp.validate.equivalence import mark_equivalent, simpler_first
 from bscomp.validate.evaluation import Problem
+from bscomp.validate.pairs import pair_round, wants_pairs
 from bscomp.validate.refinement import job_base, refine_candidate, refine_task
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
-
-
-# ---- acceptance -------------------------------------------------------------------------------------------
-def _clearly_worse(before: dict, after: dict) -> list:
-    """User-visible errors that got clearly worse (magnitude/phase of an FRF pair, fit % of a channel)."""
-    worse = []
-    for ub, ua in zip(before.get("per_dataset", []), after.get("per_dataset", [])):
-        for b, a in zip(ub.get("frf", []), ua.get("frf", [])):
-            if a["mag_mean_abs_dlog10"] > 1.2 * b["mag_mean_abs_dlog10"] + 0.005:
-                worse.append(f"{b['pair'][0]}->{b['pair'][1]} magnitude error {b['mag_mean_abs_dlog10']:.3g} -> "
-                             f"{a['mag_mean_abs_dlog10']:.3g} decades")
-            if a["phase_deg_rms"] > 1.2 * b["phase_deg_rms"] + 1.0:
-                worse.append(f"{b['pair'][0]}->{b['pair'][1]} phase error {b['phase_deg_rms']:.3g} -> "
-                             f"{a['phase_deg_rms']:.3g} deg")
-        for b, a in zip(ub.get("time", []), ua.get("time", [])):
-            if a["fit_percent"] < b["fit_percent"] - 2.0:
-                worse.append(f"{b['channel']} fit {b['fit_percent']:.1f} -> {a['fit_percent']:.1f} %")
-    return worse
-
-
-def _verdict(before, after, dbic, at_bound, worse, thresholds, tradeoff=(1.0, [])):
-    """(accepted?, words) for one candidate fit against the acceptance rules of the module docstring;
-    ``tradeoff``: (own share of its action, partners), :func:`~bscomp.validate.collinearity.own_share`."""
-    bic_thr, min_drop, min_held, tol = thresholds
-    why_not = []
-    excess = max(before["error"] - 1.0, 1e-12)
-    drop = (before["error"] - after["error"]) / excess
-    if dbic >= -bic_thr:
-        why_not.append(f"BIC not lower by {bic_thr:g} ({dbic:+.1f})")
-    if drop < min_drop:
-        why_not.append(f"removes only {100 * drop:.0f} % of the error above the noise floor (needs "
-                       f"{100 * min_drop:.0f} %)")
-    hb, ha = before["heldout"], after["heldout"]
-    if hb is not None:
-        hdrop = (hb - ha) / max(hb - 1.0, 1e-12)
-        if hb > 1.0 + tol and hdrop < min_held:
-            why_not.append(f"not confirmed on held-out data (error {hb:.3g} -> {ha:.3g})")
-    for i, (b, a) in enumerate(zip(before["per_dataset"] + before["heldout_per_dataset"],
-                                   after["per_dataset"] + after["heldout_per_dataset"])):
-        if a > 1.1 * b + 0.1:
-            why_not.append(f"dataset {i + 1} worse ({b:.3g} -> {a:.3g})")
-    if at_bound:
-        why_not.append(f"{', '.join(at_bound)} at a bound of the prior (a stand-in for something else)")
-    share, partners = tradeoff
-    # its partners were free in the fit without it: if that fit left > UNEXPLAINED x the noise floor and this one
-    # reaches the floor, what it does is no re-distribution of theirs, however collinear at the solution (rule f)
-    floor = all(v < 1.0 + tol for v in after["per_dataset"] + after["heldout_per_dataset"])
-    if share < MIN_OWN_SHARE and not (before["error"] > UNEXPLAINED and floor):
-        with_ = ", ".join(p for p, _ in partners) or "the parameters already fitted"
-        why_not.append(f"trades off against {with_}: only {100 * share:.2g} % of what it does is its own (variance "
-                       f"inflation {1 / max(share, 1e-300):.3g} > {1 / MIN_OWN_SHARE:.3g}): a re-distribution, not a "
-                       "missing part")
-    why_not += [f"{w} (clearly worse)" for w in worse]
-    return (not why_not), "; ".join(why_not)
-
-
-def _score(r):
-    return r.error_after if r.heldout_after is None else 0.5 * (r.error_after + r.heldout_after)
-
-
-def _evidence(before, after, datasets, cand):
-    parts = []
-    for i, (d, b, a) in enumerate(zip(datasets, before["per_dataset"], after["per_dataset"])):
-        what = "FRF" if isinstance(d, FrfData) else "time series (first half, fitted)"
-        parts.append(f"{what} {i + 1}: error {b:.3g} -> {a:.3g}")
-    if before["heldout"] is not None:
-        parts.append(f"held-out second halves: {before['heldout']:.3g} -> {after['heldout']:.3g}")
-    return "; ".join(parts) + f". Signature: {cand.signature}"
 
 
 class _Progress:
@@ -261,7 +198,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         vals = st["per_dataset"] + st["heldout_per_dataset"]
         return all(v < 1.0 + noise_tolerance for v in vals)
 
-    accepted_effects, accepted, rounds = [], [], []
+    accepted_effects, accepted, rounds, pairs = [], [], [], []
     message = ""
     for rnd in range(1, max_effects + 1):
         if within_noise(current):
@@ -284,45 +221,31 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                    n_screen=n_screen, n_refine=n_refine, prog=prog, skipped=skipped, remote=remote)
         results, n = _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, **ctx)
         n_evals += n
-        results.sort(key=lambda r: (not r.refined, _score(r), r.delta_bic))
+        results.sort(key=lambda r: (not r.refined, score(r), r.delta_bic))
         mark_equivalent(results, current, datasets, sigmas, ref)   # one group where the data cannot tell
         simpler_first(results)                                     # ... the lower BIC named first in it
         rounds.append(results)
         log(f"round {rnd}: " + ", ".join(f"{r.name} {r.error_after:.3g} dBIC {r.delta_bic:.0f}" for r in results))
-        chosen = _choose(results, current, datasets, thresholds, unconfirmed_why, unconfirmed)
-        if chosen is None:
+        chosen = choose(results, current, datasets, thresholds, unconfirmed_why, unconfirmed)
+        new_fits = None if chosen is None else [chosen]
+        if chosen is None and wants_pairs(current, max_effects - len(accepted)):
+            new_fits, tried, n = pair_round(rnd, results, current, fixed_effects, k_now, unc_nominal, thresholds,
+                                            structures=structures, sigmas=sigmas, ref=ref, unc=unc,
+                                            datasets=datasets, prog=prog)
+            pairs += tried
+            n_evals += n
+        if not new_fits:
             break
-        # accept and polish: the uncertain parameters and every accepted effect re-fitted together, from where the
-        # round's joint fit left them (the effects accepted before moved in it: started from their previous values
-        # instead, the polish of a rattling clearance's round-2 fit at 1.26 ended at 101, seed 2202)
-        start = chosen._start
-        effects = [(c, {p.name: start.get(f"{c.name}.{p.name}", v[p.name]) for p in c.parameters}, True)
-                   for c, v, _ in accepted_effects] + [(chosen.candidate, chosen.values, True)]
-        ev, st = structures.get(effects)
-        start_unc = {k: start.get(k, unc_values[k]) for k in unc}
-        pr = Problem(ev, sigmas, {}, parameter_bounds(ref, unc, start_unc), effects, st)
-        th, sl = pr.fit(max_nfev=40)
-        n_evals += pr.nfev
-        new = pr.summary(th, len(pr.free))
-        vals_all, std_all = pr.values(th), pr.uncertainty(th, sl)
-        unc_values = {k: vals_all[k] for k in unc}
-        unc_std = {k: std_all.get(k, float("nan")) for k in unc}
-        accepted_effects = [(c, {p.name: vals_all[f"{c.name}.{p.name}"] for p in c.parameters}, True)
-                            for c, _, _ in effects]
-        chosen.values = dict(accepted_effects[-1][1])
-        chosen.std = {p.name: std_all.get(f"{chosen.name}.{p.name}", float("nan"))
-                      for p in chosen.candidate.parameters}
-        chosen.error_after, chosen.heldout_after = new["error"], new["heldout"]
-        chosen.delta_bic = new["bic"] - current["bic"]
-        chosen.accepted = True
-        chosen.evidence = _evidence(current, new, datasets, chosen.candidate)
-        for a in accepted:
-            a.values = dict(next(v for c, v, _ in accepted_effects if c is a.candidate))
-            a.std = {p.name: std_all.get(f"{a.name}.{p.name}", float("nan")) for p in a.candidate.parameters}
-        accepted.append(chosen)
-        staircase.append((f"+ {chosen.name}", new["error"]))
-        user_errs.append((f"+ {chosen.name}", user_summary(new["outputs"], datasets)))
+        accepted_effects, new, unc_values, unc_std, n = _polish(new_fits, accepted, accepted_effects, current,
+                                                                 unc_values, structures, sigmas, ref, unc, datasets)
+        n_evals += n
+        accepted += new_fits
+        label = "+ " + " + ".join(f.name for f in new_fits)
+        staircase.append((label, new["error"]))
+        user_errs.append((label, user_summary(new["outputs"], datasets)))
         current = new
+        if len(accepted) >= max_effects:
+            break
     prog.done()
     ranked = list(rounds[0]) if rounds else []
     for r in ranked:
@@ -346,7 +269,36 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                      stats={"wall_s": time.perf_counter() - t_start, "evaluations": n_evals,
                             "conditions": len(setup.systems), "unconverged": _unconverged(structures)},
                      calibration=calibration, amplitude=amplitude,
-                     unconfirmed=unconfirmed, remainder=rest)
+                     unconfirmed=unconfirmed, remainder=rest, pairs=pairs)
+
+
+def _polish(new_fits, accepted, accepted_effects, current, unc_values, structures, sigmas, ref, unc, datasets):
+    """Accept ``new_fits`` (one candidate, or a pair fitted together) and polish: the uncertain parameters and every
+    accepted effect re-fitted together, from where the round's joint fit left them (the effects accepted before
+    moved in it: started from their previous values instead, the polish of a rattling clearance's round-2 fit at
+    1.26 ended at 101, seed 2202). Updates the fits' values, errors and evidence (and the earlier accepted ones'
+    values); returns ``(accepted_effects, summary, uncertain values, their std, evaluations)``."""
+    start = new_fits[-1]._start
+    effects = [(c, {p.name: start.get(f"{c.name}.{p.name}", v[p.name]) for p in c.parameters}, True)
+               for c, v, _ in accepted_effects] + [(f.candidate, f.values, True) for f in new_fits]
+    ev, st = structures.get(effects)
+    start_unc = {k: start.get(k, unc_values[k]) for k in unc}
+    pr = Problem(ev, sigmas, {}, parameter_bounds(ref, unc, start_unc), effects, st)
+    th, sl = pr.fit(max_nfev=40)
+    new = pr.summary(th, len(pr.free))
+    vals_all, std_all = pr.values(th), pr.uncertainty(th, sl)
+    accepted_effects = [(c, {p.name: vals_all[f"{c.name}.{p.name}"] for p in c.parameters}, True)
+                        for c, _, _ in effects]
+    for f in [*accepted, *new_fits]:
+        f.values = dict(next(v for c, v, _ in accepted_effects if c is f.candidate))
+        f.std = {p.name: std_all.get(f"{f.name}.{p.name}", float("nan")) for p in f.candidate.parameters}
+    for f in new_fits:
+        f.error_after, f.heldout_after = new["error"], new["heldout"]
+        f.delta_bic = new["bic"] - current["bic"]
+        f.accepted = True
+        f.evidence = (f"{f.evidence}. " if f.together else "") + evidence(current, new, datasets, f.candidate)
+    return (accepted_effects, new, {k: vals_all[k] for k in unc},
+            {k: std_all.get(k, float("nan")) for k in unc}, pr.nfev)
 
 
 def _unconverged(structures) -> dict:
@@ -470,40 +422,6 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
     # refined candidates by their predictive error: the mean of the fitted and the held-out error (a
     # candidate that only fits the fitted half, e.g. by absorbing noise or a smoothing detail, drops)
     return results, n_evals
-
-
-def _choose(results, current, datasets, thresholds, unconfirmed_why=("", ""), unconfirmed=None):
-    """The first refined candidate (in ranking order) that passes every acceptance rule; each gets its
-    verdict and evidence in words. With ``unconfirmed_why``
-    (:func:`~bscomp.validate.amplitude.frf_confirmation`: for linear, for nonlinear candidates) a candidate
-    that passes every rule but is not confirmed is appended to ``unconfirmed``, not accepted."""
-    user_now = user_summary(current["outputs"], datasets)
-    for r in results:
-        if not r.refined:
-            r.verdict = "screened only"
-            continue
-        bound = r._problem.at_bound(r._theta, [f"{r.name}.{p.name}" for p in r.candidate.parameters])
-        r.user_before, r.user_after = user_now, user_summary(r._after["outputs"], datasets)
-        tradeoff = (1.0, [])
-        if r.__dict__.get("_jac") is not None:
-            labels = [f.label for f in r._problem.free]
-            mine = [i for i, lbl in enumerate(labels) if lbl.startswith(r.name + ".")]
-            tradeoff = own_share(r._jac, mine, labels)
-            r.own_share, r.trades_with = tradeoff[0], [p for p, _ in tradeoff[1]]
-        ok, why = _verdict(current, r._after, r.delta_bic, bound, _clearly_worse(user_now, r.user_after),
-                           thresholds, tradeoff)
-        why_not_confirmed = unconfirmed_why[1 if r.candidate.nonlinear else 0] if unconfirmed_why else ""
-        if ok and why_not_confirmed:
-            r.verdict = f"passes every rule but is not confirmed: {why_not_confirmed}"
-            r.evidence = _evidence(current, r._after, datasets, r.candidate)
-            if unconfirmed is not None:
-                unconfirmed.append(r)
-            continue
-        r.verdict = "accepted" if ok else why
-        r.evidence = _evidence(current, r._after, datasets, r.candidate)
-        if ok:
-            return r
-    return None
 
 
 def _screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen, base=None):

@@ -4,8 +4,8 @@ Jacobians with known geometry, and the acceptance rule it feeds."""
 import numpy as np
 import pytest
 
+from bscomp.validate.acceptance import verdict as _verdict
 from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
-from bscomp.validate.diagnostics import _verdict
 
 
 def _columns(n=500, k=3, seed=0):
