@@ -231,7 +231,7 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         if chosen is None and wants_pairs(current, max_effects - len(accepted)):
             new_fits, tried, n = pair_round(rnd, results, current, fixed_effects, k_now, unc_nominal, thresholds,
                                             structures=structures, sigmas=sigmas, ref=ref, unc=unc,
-                                            datasets=datasets, prog=prog)
+                                            datasets=datasets, prog=prog, unconfirmed_why=unconfirmed_why)
             pairs += tried
             n_evals += n
         if not new_fits:

@@ -50,12 +50,14 @@ def wants_pairs(current: dict, slots: int) -> bool:
 
 
 def pair_round(rnd, results, current, fixed_effects, k_now, unc_nominal, thresholds, *, structures, sigmas, ref,
-               unc, datasets, prog=None):
+               unc, datasets, prog=None, unconfirmed_why=("", "")):
     """The pairs of the round's best refined candidates fitted together (module docstring).
 
     Returns ``(accepted, tried, evaluations)``: the two members' :class:`EffectFit` of the pair accepted (or None)
     and a dict per pair fitted (``members``, ``round``, ``values``, ``error``, ``heldout``, ``delta_bic``, ``accepted``,
-    ``verdict``), in the order fitted."""
+    ``verdict``), in the order fitted. ``unconfirmed_why`` (:func:`~bscomp.validate.amplitude.frf_confirmation`: for
+    linear, for nonlinear candidates): a pair that passes every rule but has a member nothing confirms (FRFs at one
+    stated amplitude, no time series) is not accepted, as a single is not."""
     bic_thr = thresholds[0]
     members = [r for r in results if r.refined and r.delta_bic < -bic_thr][:PAIR_MEMBERS]
     user_now = user_summary(current["outputs"], datasets)
@@ -78,6 +80,7 @@ def pair_round(rnd, results, current, fixed_effects, k_now, unc_nominal, thresho
         n_evals += pr.nfev
         after = pr.summary(th, k_now + len(a.candidate.parameters) + len(b.candidate.parameters))
         fits, why = _judge(a, b, pr, th, sl, after, current, user_now, datasets, thresholds, rnd)
+        why = why or _unconfirmed(a, b, unconfirmed_why)
         tried.append({"members": [a.name, b.name], "round": rnd, "values": {f"{r.name}.{k}": v for r in fits
                                                                for k, v in r.values.items()},
                       "error": after["error"], "heldout": after["heldout"],
@@ -122,6 +125,12 @@ def _judge(a, b, pr, th, sl, after, current, user_now, datasets, thresholds, rnd
         f.verdict = "accepted" if not why else why
         f.evidence = f"fitted together with {f.together}; neither passed alone ({alone})"
     return fits, why
+
+
+def _unconfirmed(a, b, unconfirmed_why) -> str:
+    """Why a pair that passes every rule is still not accepted: a member nothing confirms, or ""."""
+    why = [w for w in (unconfirmed_why[1 if r.candidate.nonlinear else 0] for r in (a, b)) if w]
+    return f"passes every rule but is not confirmed: {why[0]}" if why else ""
 
 
 def _needed(r, other, after, thresholds) -> str:

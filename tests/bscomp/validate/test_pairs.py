@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import pytest
 
 from bscomp.validate.conclusion import UNEXPLAINED, conclusion
-from bscomp.validate.pairs import PAIR_MEMBERS, _needed, wants_pairs
+from bscomp.validate.pairs import PAIR_MEMBERS, _needed, _unconfirmed, wants_pairs
 
 THRESHOLDS = (10.0, 0.5, 0.25, 0.5)          # bic, min_drop, min_heldout_drop, noise tolerance (diagnose's defaults)
 
@@ -67,3 +67,15 @@ def test_the_conclusion_says_a_pair_was_found_together(together):
     said = "torsional damping in the coupling and axial damping at the thrust bearing were found together"
     assert (said in msg) is together
     assert msg.count("found together") == int(together)                 # once per pair, not per member
+
+
+def test_a_pair_nothing_confirms_is_not_accepted():
+    """FRFs at one stated amplitude and no time series confirm no linear effect and no nonlinear one (as for a single,
+    bscomp.validate.amplitude.frf_confirmation): a pair with such a member is not accepted."""
+    lin = SimpleNamespace(candidate=SimpleNamespace(nonlinear=False))
+    nonlin = SimpleNamespace(candidate=SimpleNamespace(nonlinear=True))
+    assert _unconfirmed(lin, lin, ("", "")) == ""
+    assert _unconfirmed(lin, nonlin, ("", "only a time series confirms friction")) == (
+        "passes every rule but is not confirmed: only a time series confirms friction")
+    assert _unconfirmed(lin, lin, ("", "only a time series")) == ""          # linear members: the linear reason
+    assert _unconfirmed(lin, lin, ("one amplitude", "x")).endswith("one amplitude")
