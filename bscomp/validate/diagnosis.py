@@ -302,7 +302,8 @@ class Diagnosis:
         for k, (v, _) in self.recalibrated.items():
             s.set(k, v)
         for r in self.accepted:
-            lines.append(f"# {r.candidate.title} (error -{100 * r.drop:.0f} %)")
+            lines.append(f"# {r.candidate.title} (error -{100 * r.drop:.0f} %"
+                         + (f"; found together with {r.together})" if r.together else ")"))
             lines += r.candidate.code_lines(r.values, s)
             s = r.candidate.apply(s, **r.values)
         if not self.accepted:

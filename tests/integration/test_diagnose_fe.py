@@ -177,6 +177,7 @@ def test_two_losses_neither_of_which_passes_alone_are_found_together():
     assert abs(fit["coupling_damping"]["d"] / h["d_torsion"] - 1) < 0.03, (fit, h)
     assert diag.staircase[-1][1] < 1.5 and diag.staircase[-1][0] == "+ coupling_damping + support_damping"
     assert [p["accepted"] for p in diag.pairs].count(True) == 1 and "found together" in diag.message
+    assert diag.code().count("; found together with") == 2 and 's.set("coupling.d",' in diag.code()
 
 
 def _relative_errors(case, seed, name):
