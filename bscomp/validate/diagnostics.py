@@ -371,7 +371,7 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
         # the same result)
         sets = [unc_start] if cand.nonlinear and rnd > 1 else [unc_nominal, unc_start]
         scores, n = _screen(cand, effects, ev, st, sigmas, sets, has_frf and rnd > 1,
-                            n_scan, n_screen, base)
+                            n_scan, n_screen, base, ref)
         n_evals += n
         screened.append((scores[0][0], cand, effects, scores))  # (error, theta, uncertain values)
     screened.sort(key=lambda x: x[0])
@@ -424,7 +424,7 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
     return results, n_evals
 
 
-def _screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen, base=None):
+def _screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen, base=None, ref=None):
     """Scores ``[(error, log-theta, uncertain values)]`` of a candidate over its prior, best first.
 
     Each start is scored with the uncertain parameters at each of ``unc_sets`` (nominal and re-calibrated:
@@ -460,7 +460,7 @@ def _screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen,
             # grid over the first two priors -- evaluations are cheap and the cost is far from convex -- the rest
             # (a sub-assembly's damping ratio) at their medians, left to the refinement
             starts = [(a, b, *meds[2:]) for a in grid for b in cand.parameters[1].starts(n_screen)]
-            starts += cand.mode_starts(meds)
+            starts += cand.mode_starts(meds, ref)
         elif len(cand.parameters) > 1 and not use_lin:
             starts += list(zip(*[p.starts(n_screen) for p in cand.parameters]))[1:3]
         pr0 = Problem(ev, sigmas, dict(unc), [], effects, st)

@@ -225,9 +225,10 @@ class Candidate:
                                    f"{self.parameter_names}")
         return out
 
-    def mode_starts(self, medians) -> list:
+    def mode_starts(self, medians, system=None) -> list:
         """Extra screening points of a linear effect that adds a lightly damped mode: ``[]`` here; a mass on a
-        spring gives points along the mode's frequency (:func:`mass_spring_starts`)."""
+        spring gives points along the mode's frequency (:func:`mass_spring_starts`). ``system``: the nominal model
+        (where the mode depends on its values)."""
         return []
 
     def mode_hz(self, values: dict, system, known: dict | None = None) -> float | None:
@@ -300,17 +301,18 @@ def _legacy_interface(system):
 MODE_BAND, MODE_POINTS_PER_DECADE = (20.0, 2000.0), 24
 
 
-def mass_spring_starts(cand, medians) -> list:
+def mass_spring_starts(cand, medians, k_parallel: float = 0.0) -> list:
     """Screening points of a mass ``m`` on a spring ``k`` (the first two parameters) along its frequency
     ``sqrt(k/m) / 2 pi`` over :data:`MODE_BAND`, the mass at ``medians[0]`` (the refinement fits it; the frequency
     is what an FRF sees first), the rest at ``medians``: the 5 x 5 grid over both priors steps the frequency by
     ~1.8x, so a lightly damped part's mode between two of its points improved nothing and the refinement started
     from a rigid part (a 38 kg part at 205 Hz, ``benchmarks/diagnose_table.py --seed 2203 --case
-    joint_friction``). Inside the spring's prior bounds."""
+    joint_friction``). Inside the spring's prior bounds. ``k_parallel``: a stiffness in parallel with ``k`` on the
+    mass (a housing's bearing), so the frequency is ``sqrt((k + k_parallel) / m) / 2 pi``."""
     pk = cand.parameters[1]
     m = medians[0]
     n = int(round(MODE_POINTS_PER_DECADE * math.log10(MODE_BAND[1] / MODE_BAND[0]))) + 1
-    ks = [m * (2.0 * math.pi * f) ** 2 for f in np.geomspace(*MODE_BAND, n)]
+    ks = [m * (2.0 * math.pi * f) ** 2 - k_parallel for f in np.geomspace(*MODE_BAND, n)]
     return [(m, k, *medians[2:]) for k in ks if pk.lower <= k <= pk.upper]
 
 
