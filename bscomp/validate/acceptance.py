@@ -8,7 +8,7 @@ from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
 from bscomp.validate.conclusion import UNEXPLAINED
 from bscomp.validate.datasets import FrfData
 
-__all__ = ["clearly_worse", "verdict", "score", "evidence", "choose"]
+__all__ = ["clearly_worse", "verdict", "score", "evidence", "choose", "excess_drop"]
 
 
 def clearly_worse(before: dict, after: dict) -> list:
@@ -28,13 +28,17 @@ def clearly_worse(before: dict, after: dict) -> list:
     return worse
 
 
+def excess_drop(before: float, after: float) -> float:
+    """Share of the error above the noise floor (1) removed: ``(before - after) / (before - 1)``."""
+    return (before - after) / max(before - 1.0, 1e-12)
+
+
 def verdict(before, after, dbic, at_bound, worse, thresholds, tradeoff=(1.0, [])):
     """(accepted?, words) for one candidate fit against the acceptance rules of the module docstring;
     ``tradeoff``: (own share of its action, partners), :func:`~bscomp.validate.collinearity.own_share`."""
     bic_thr, min_drop, min_held, tol = thresholds
     why_not = []
-    excess = max(before["error"] - 1.0, 1e-12)
-    drop = (before["error"] - after["error"]) / excess
+    drop = excess_drop(before["error"], after["error"])
     if dbic >= -bic_thr:
         why_not.append(f"BIC not lower by {bic_thr:g} ({dbic:+.1f})")
     if drop < min_drop:
@@ -42,7 +46,7 @@ def verdict(before, after, dbic, at_bound, worse, thresholds, tradeoff=(1.0, [])
                        f"{100 * min_drop:.0f} %)")
     hb, ha = before["heldout"], after["heldout"]
     if hb is not None:
-        hdrop = (hb - ha) / max(hb - 1.0, 1e-12)
+        hdrop = excess_drop(hb, ha)
         if hb > 1.0 + tol and hdrop < min_held:
             why_not.append(f"not confirmed on held-out data (error {hb:.3g} -> {ha:.3g})")
     for i, (b, a) in enumerate(zip(before["per_dataset"] + before["heldout_per_dataset"],

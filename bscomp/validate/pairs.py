@@ -30,7 +30,7 @@ from itertools import combinations
 import numpy as np
 
 from bscomp.kernel.interface import NotApplicable
-from bscomp.validate.acceptance import clearly_worse, score, verdict
+from bscomp.validate.acceptance import clearly_worse, excess_drop, score, verdict
 from bscomp.validate.calibration import parameter_bounds, user_summary
 from bscomp.validate.collinearity import own_share
 from bscomp.validate.conclusion import UNEXPLAINED
@@ -140,11 +140,11 @@ def _needed(r, other, after, thresholds) -> str:
     why = []
     if after["bic"] - alone["bic"] >= -bic_thr:
         why.append(f"BIC not lower by {bic_thr:g} than {other.name} alone ({after['bic'] - alone['bic']:+.1f})")
-    drop = (alone["error"] - after["error"]) / max(alone["error"] - 1.0, 1e-12)
+    drop = excess_drop(alone["error"], after["error"])
     if drop < min_drop:
         why.append(f"removes only {100 * drop:.0f} % of the excess error {other.name} alone left (needs "
                    f"{100 * min_drop:.0f} %)")
     hb, ha = alone["heldout"], after["heldout"]
-    if hb is not None and hb > 1.0 + tol and (hb - ha) / (hb - 1.0) < min_held:
+    if hb is not None and hb > 1.0 + tol and excess_drop(hb, ha) < min_held:
         why.append(f"not confirmed beside {other.name} on held-out data ({hb:.3g} -> {ha:.3g})")
     return f"{r.name} not needed beside {other.name}: " + ", ".join(why) if why else ""
