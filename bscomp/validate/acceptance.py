@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from bscomp.validate.calibration import user_summary
 from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
-from bscomp.validate.conclusion import UNEXPLAINED
+from bscomp.validate.conclusion import UNEXPLAINED, excess_drop
 from bscomp.validate.datasets import FrfData
 
 __all__ = ["clearly_worse", "verdict", "score", "evidence", "choose", "excess_drop"]
@@ -26,11 +26,6 @@ def clearly_worse(before: dict, after: dict) -> list:
             if a["fit_percent"] < b["fit_percent"] - 2.0:
                 worse.append(f"{b['channel']} fit {b['fit_percent']:.1f} -> {a['fit_percent']:.1f} %")
     return worse
-
-
-def excess_drop(before: float, after: float) -> float:
-    """Share of the error above the noise floor (1) removed: ``(before - after) / (before - 1)``."""
-    return (before - after) / max(before - 1.0, 1e-12)
 
 
 def verdict(before, after, dbic, at_bound, worse, thresholds, tradeoff=(1.0, [])):

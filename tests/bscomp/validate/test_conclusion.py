@@ -1,0 +1,44 @@
+"""The conclusion's lead when nothing is accepted (bscomp.validate.conclusion._closest), on the fit summaries of
+truths drawn anew (docs/validation.md, "Seeds 2206 and 2207"): a clearance rattling in its gap, whose time series
+no candidate law follows closely enough to pass the rules, is named as the closest lead; a torque ripple, which
+no candidate lowers, and a stand-in that makes the held-out halves worse are not."""
+
+from types import SimpleNamespace
+
+from bscomp.validate.conclusion import CLOSEST, conclusion, excess_drop
+
+LEFT = {"error": 406.4, "within_noise": False, "orders": []}
+
+
+def _best(title, before, after, held_before, held_after, dbic):
+    cand = SimpleNamespace(title=title, nonlinear=False)
+    return SimpleNamespace(candidate=cand, refined=True, error_before=before, error_after=after,
+                           heldout_before=held_before, heldout_after=held_after, delta_bic=dbic)
+
+
+def _message(best):
+    return conclusion("", [], [], ("", ""), [best], 2, None, {}, LEFT)
+
+
+def test_the_best_candidate_is_named_as_a_lead_when_it_removes_a_quarter_of_the_excess():
+    """Seed 2205's backlash (34.8 um on 2.1e9 N/m): compliant_backlash 406 -> 200 fitted (51 % of the excess),
+    1040 -> 859 held-out (17 %, 25 % needed), dBIC -2.5e6."""
+    msg = _message(_best("backlash at the screw-nut with a compliant contact", 406.4, 200.0, 1040.0, 858.6, -2.5e6))
+    assert msg.startswith("an effect outside the candidates is missing")
+    assert ("The closest is backlash at the screw-nut with a compliant contact: it takes the fitted error 406.4 -> "
+            "200 (51 % of the excess), the held-out halves 1.04e+03 -> 859 (17 % of theirs)") in msg
+    assert "a lead, not a finding" in msg
+    assert excess_drop(406.4, 200.0) > CLOSEST > excess_drop(406.4, 406.4 - 0.2 * 405.4)
+
+
+def test_no_lead_where_the_best_candidate_does_not_help_or_makes_the_held_out_data_worse():
+    ripple = _best("amplifier delay", 33.46, 36.54, 60.0, 59.1, 3.1e4)                  # seed 2207's ripple
+    assert "closest" not in _message(ripple)
+    stand_in = _best("a nut-table joint", 7724.0, 2724.0, 1000.0, 4000.0, -6.0e6)       # 65 % fitted, held-out worse
+    assert "closest" not in _message(stand_in)
+    small = _best("a bearing housing", 406.4, 406.4 - 0.2 * 405.4, 1040.0, 1000.0, -50.0)   # 20 % of the excess
+    assert "closest" not in _message(small)
+    lead = _best("a bearing housing", 406.4, 406.4 - 0.3 * 405.4, None, None, -50.0)      # FRFs only: no held-out
+    assert "The closest is a bearing housing: it takes the fitted error 406.4 -> 284.8 (30 % of the excess), short" \
+        in _message(lead)
+    assert "closest" not in conclusion("", [], [], ("", ""), [lead], 2, None, {}, dict(LEFT, error=4.0))
