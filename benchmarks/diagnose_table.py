@@ -10,6 +10,7 @@ hidden values (relative error), the error after re-calibration and at the end (m
 with the drop, and the wall clock.
 
     python benchmarks/diagnose_table.py [--model axial_torsional|full] [--case joint ...] [--json out.json] [--stepped]
+                                        [--seed N ...] [--channels rotor.phi,table.s]
 """
 
 from __future__ import annotations
@@ -99,10 +100,29 @@ def hidden_pairs(d, truth) -> list:
     return out
 
 
-def run(model: str, case: str, stepped: bool = False, seed: int | None = None) -> dict:
+def keep_channels(data, channels) -> list:
+    """The datasets with only ``channels`` of each time series (a drive's own sensors: e.g. ``rotor.phi``,
+    ``table.s``, an encoder and a linear scale, without the motor speed and the accelerometer)."""
+    import dataclasses
+
+    out = []
+    for d in data:
+        if hasattr(d, "t"):
+            missing = sorted(set(channels) - set(d.outputs))
+            if missing:
+                raise SystemExit(f"--channels: {missing} not among the time series' {sorted(d.outputs)}")
+            d = dataclasses.replace(d, outputs={k: v for k, v in d.outputs.items() if k in channels},
+                                    units={k: v for k, v in d.units.items() if k in channels or k in d.inputs})
+        out.append(d)
+    return out
+
+
+def run(model: str, case: str, stepped: bool = False, seed: int | None = None, channels=None) -> dict:
     truth, data = load_case(model, case, seed)
     if stepped:                     # the stepped sines at two amplitudes instead of the small-signal FRF
         data = stepped_frfs(model, case, data[1].conditions) + [data[1]]
+    if channels:
+        data = keep_channels(data, channels)
     t0 = time.perf_counter()
     d = diagnose(MODELS[model], data, max_effects=2)
     wall = time.perf_counter() - t0
@@ -148,7 +168,10 @@ def main(argv=None) -> int:
                     "amplitude) instead of the bundled small-signal FRF, beside the same time series")
     ap.add_argument("--seed", type=int, action="append", help="a truth drawn anew with this seed (generated once, "
                     "cached in benchmarks/.cache/truths) instead of the bundled one; repeat for several")
+    ap.add_argument("--channels", help="keep only these time-series channels, comma-separated (e.g. "
+                    "rotor.phi,table.s: positions only, an encoder and a linear scale)")
     args = ap.parse_args(argv)
+    channels = args.channels.split(",") if args.channels else None
     rows = []
     print("| model | case | seed | named first | runner-up (Vuong z, shared) | accepted | main parameters vs truth | "
           "error re-calibrated -> final | left | wall |\n|---|---|---:|---|---|---|---|---|---|---:|")
@@ -156,7 +179,7 @@ def main(argv=None) -> int:
                               for c in args.case or CASES):
         if args.stepped and case == "delay":        # the truth's delay is applied to its data, not a System
             continue
-        r = run(model, case, args.stepped, seed)
+        r = run(model, case, args.stepped, seed, channels)
         rows.append(r)
         print(f"| {model} | {case} | {r['seed']} | {r['first']} | {r['runner_up']} | "
               f"{', '.join(r['accepted']) or 'nothing'} | "
