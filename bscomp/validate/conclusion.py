@@ -99,15 +99,18 @@ def _orders(outputs, datasets, note) -> dict:
 
 
 def conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effects, setup, unc_values,
-               rest=None) -> str:
+               rest=None, last=None) -> str:
     """The diagnosis's conclusion (``message`` already set: the model is within its noise; ``rest``:
-    :func:`remainder`). When nothing was accepted and the best candidate is a friction or backlash fitted to FRFs
+    :func:`remainder`; ``last``: the fits of the last round when it accepted none after effects were found, for the
+    lead of :func:`_closest`). When nothing was accepted and the best candidate is a friction or backlash fitted to FRFs
     at stated amplitudes, where its fitted element stays at its slope at rest is said whatever its verdict
     (:func:`~bscomp.validate.amplitude.stuck_note`): an FRF below breakaway measures the slope, not the level,
     and a fit there can land on either of two near-equal minima (``docs/validation.md``)."""
     left = "" if rest is None or rest["within_noise"] or max_effects == 0 else _left(rest, bool(accepted), unc_values)
+    outside = rest is not None and not rest["within_noise"] and rest["error"] > UNEXPLAINED and max_effects > 0
     if accepted:
         return (f"{len(accepted)} missing effect(s) found: " + ", ".join(titles(a) for a in accepted) + left
+                + (_closest(last, "The closest further candidate") if outside else "")
                 + _together(accepted) + _out_of_band(accepted, setup, unc_values) + _overdamped(accepted))
     if unconfirmed:
         u = unconfirmed[0]
@@ -118,9 +121,9 @@ def conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effe
         return "no effect searched (max_effects=0): the uncertain parameters were only re-calibrated"
     if message:
         return message
-    if rest is not None and not rest["within_noise"] and rest["error"] > UNEXPLAINED:
+    if outside:
         message = ("an effect outside the candidates is missing: none of them explains the remaining error (see why "
-                   "each was not accepted)") + _closest(ranked)
+                   "each was not accepted)") + _closest(ranked, "The closest")
     else:
         message = ("no missing effect found: no candidate explains the remaining error well enough (see why each "
                    "was not accepted)")
@@ -132,24 +135,22 @@ def conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effe
     return message + left
 
 
-def _closest(ranked) -> str:
-    """The sentence naming the best-ranked candidate as a lead when nothing was accepted (module docstring): it
-    lowers the BIC, removes at least :data:`CLOSEST` of the fitted error above the noise floor, and the held-out
-    halves (if any) do not get worse."""
-    best = ranked[0] if ranked else None
+def _closest(fits, lead: str) -> str:
+    """The sentence naming the best-ranked of ``fits`` (a round that accepted none) as a lead (module docstring):
+    refined, it lowers the BIC and removes at least :data:`CLOSEST` of the fitted error above the noise floor; what
+    the held-out halves did is said, better or worse."""
+    best = fits[0] if fits else None
     if best is None or not best.refined or not best.delta_bic < 0.0:
         return ""
     drop = excess_drop(best.error_before, best.error_after)
+    if drop < CLOSEST:
+        return ""
     held = ""
     if best.heldout_before is not None and best.heldout_after is not None:
         hdrop = excess_drop(best.heldout_before, best.heldout_after)
-        if hdrop <= 0.0:
-            return ""
-        held = (f", the held-out halves {best.heldout_before:.3g} -> {best.heldout_after:.3g} ({100 * hdrop:.0f} % "
-                "of theirs)")
-    if drop < CLOSEST:
-        return ""
-    return (f". The closest is {best.candidate.title}: it takes the fitted error {best.error_before:.4g} -> "
+        held = (f", the held-out halves {best.heldout_before:.3g} -> {best.heldout_after:.3g} "
+                + (f"({100 * hdrop:.0f} % of theirs)" if hdrop > 0.0 else "(worse)"))
+    return (f". {lead} is {best.candidate.title}: it takes the fitted error {best.error_before:.4g} -> "
             f"{best.error_after:.4g} ({100 * drop:.0f} % of the excess){held}, short of the rules (see the table) -- "
             "a lead, not a finding: the missing effect may be of its kind with a law its candidate cannot follow, or "
             "something it stands in for")

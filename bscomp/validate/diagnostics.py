@@ -258,8 +258,9 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
     within = within_noise(current)
     view = _frf_view(setup) if not within and max_effects and current["error"] > UNEXPLAINED else None
     rest = remainder(current, setup.datasets, within, view)
+    last = rounds[-1] if accepted and rounds and not any(r.accepted for r in rounds[-1]) else None
     message = conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effects, setup, unc_values,
-                         rest) + (amplitude_note(amplitude, datasets)
+                         rest, last) + (amplitude_note(amplitude, datasets)
            if accepted or not unconfirmed or unconfirmed[0].candidate.nonlinear else "")  # else the linear reason
     return Diagnosis(system=ref, uncertain=list(unc),
                      recalibrated={k: (unc_values[k], unc_std.get(k, float("nan"))) for k in unc},
