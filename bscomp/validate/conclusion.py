@@ -54,7 +54,7 @@ __all__ = ["conclusion", "titles", "remainder", "UNEXPLAINED", "OUT_OF_BAND", "O
 
 #: Error left (mean chi^2, 1 = the noise floor) above which an effect outside the candidates is called missing.
 UNEXPLAINED = 5.0
-#: Nothing accepted: the best-ranked candidate removing this share of the fitted excess error is named as a lead.
+#: A round that accepted nothing: its best candidate removing this share of the fitted excess is named as a lead.
 CLOSEST = 0.25
 #: An accepted effect's own mode above this many times the highest measured FRF frequency is said to be out of band.
 OUT_OF_BAND = 1.5
