@@ -8,7 +8,7 @@ from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
 from bscomp.validate.conclusion import UNEXPLAINED, excess_drop
 from bscomp.validate.datasets import FrfData
 
-__all__ = ["clearly_worse", "verdict", "score", "evidence", "choose", "excess_drop"]
+__all__ = ["clearly_worse", "verdict", "score", "evidence", "choose"]
 
 
 def clearly_worse(before: dict, after: dict) -> list:

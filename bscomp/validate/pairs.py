@@ -30,10 +30,10 @@ from itertools import combinations
 import numpy as np
 
 from bscomp.kernel.interface import NotApplicable
-from bscomp.validate.acceptance import clearly_worse, excess_drop, score, verdict
+from bscomp.validate.acceptance import clearly_worse, score, verdict
 from bscomp.validate.calibration import parameter_bounds, user_summary
 from bscomp.validate.collinearity import own_share
-from bscomp.validate.conclusion import UNEXPLAINED
+from bscomp.validate.conclusion import UNEXPLAINED, excess_drop
 from bscomp.validate.diagnosis import EffectFit
 from bscomp.validate.evaluation import Problem
 
