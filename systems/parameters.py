@@ -9,6 +9,8 @@ The top-level ``[meta]`` table is free-form. See ``docs/testbed-parameters.md``.
 from __future__ import annotations
 
 import math
+import os
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -20,7 +22,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - exercised only on Python 3.10
     import tomli as tomllib
 
-__all__ = ["DATA_DIR", "load_parameters", "get_value", "flatten"]
+__all__ = ["DATA_DIR", "load_parameters", "get_value", "flatten", "write_variant"]
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
 
@@ -188,3 +190,65 @@ def flatten(params: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
     walk("", params)
     return out
+
+
+_NUMBER = r"[-+]?[0-9][0-9_.eE+-]*"
+
+
+def _toml_number(value) -> str:
+    """A TOML number: an int stays an int (element counts), anything else a float."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return str(int(value))
+    return repr(float(value))
+
+
+def _replace_value(text: str, key: str, value: float) -> str:
+    """``text`` with the numeric value of the entry at dotted ``key`` set to ``value`` (an inline entry
+    ``name = { value = x, ... }`` in its group's table, or a table ``[key]`` with a ``value = x`` line); the old
+    value is kept in a comment on the line."""
+    group, _, name = key.rpartition(".")
+    forms = ((group, rf"^({re.escape(name)}\s*=\s*\{{\s*value\s*=\s*)({_NUMBER})(.*)$"),
+             (key, rf"^(value\s*=\s*)({_NUMBER})(.*)$"))
+    for table, line in forms:
+        head = re.search(rf"^\[{re.escape(table)}\]\s*$", text, flags=re.M) if table else None
+        start = head.end() if head else (0 if not table else None)
+        if start is None:
+            continue
+        nxt = re.search(r"^\[", text[start:], flags=re.M)
+        end = start + nxt.start() if nxt else len(text)
+        body, n = re.subn(line, lambda m: f"{m[1]}{_toml_number(value)}{m[3]}  # variant: was {m[2]}", text[start:end],
+                          count=1, flags=re.M)
+        if n:
+            return text[:start] + body + text[end:]
+    raise UnknownNameError(f"write_variant: no numeric parameter entry '{key}' in the parameter file (an inline "
+                           "'name = { value = ... }' in its group or a '[key]' table with a 'value' line)")
+
+
+def write_variant(changes: dict[str, float], path: str | Path, base: str | Path = "fadal_vmc2216_x") -> Path:
+    """Write a copy of parameter set ``base`` with the values of ``changes`` (``{dotted key: value}``) to ``path``.
+
+    Another drive built from the same components -- a heavier table, a larger motor, a softer bearing -- without
+    editing the bundled file: each changed line keeps its unit and source and gets a comment with the old value.
+    The copy is loaded back and each changed value checked; an existing file with the same text is not rewritten
+    (several processes may ask for the same variant).
+
+    Raises
+    ------
+    bscomp.errors.UnknownNameError
+        A key that names no numeric entry of ``base`` (also a ``KeyError``).
+    """
+    text = _resolve(base).read_text(encoding="utf-8")
+    for key, value in changes.items():
+        text = _replace_value(text, key, value)
+    path = Path(path)
+    if not path.is_file() or path.read_text(encoding="utf-8") != text:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")   # one per process: no shared temp file
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(path)                      # whole or not at all: no half-written file for a reader
+    params = load_parameters(path)
+    for key, value in changes.items():
+        if get_value(params, key) != float(value):
+            raise ParameterFileError(f"write_variant: {path}: '{key}' reads {get_value(params, key)!r} after "
+                                     f"writing {value!r}")
+    return path

@@ -184,3 +184,30 @@ def test_chapter4_numbers_reproduce(params):
     d1, d2 = pair(v("control.notch_zeta_D"))
     kn = (1 + d1 + d2) / (1 + n1 + n2)
     assert [n1, n2, d1, d2, kn] == pytest.approx(v("control.notch_coefficients"), abs=1.5e-4)
+
+
+def test_write_variant_changes_only_the_named_values_and_keeps_their_sources(tmp_path, params):
+    from bscomp.systems.parameters import write_variant
+
+    changes = {"table.mass": 450.0, "coupling.kT": 45940.0, "screw.sections.C.n_elements": 30}
+    path = write_variant(changes, tmp_path / "other.toml")
+    other = load_parameters(path)
+    base, new = flatten(params), flatten(other)
+    assert set(base) == set(new)
+    assert {k for k in base if base[k]["value"] != new[k]["value"]} == set(changes)
+    for k, v in changes.items():
+        assert new[k]["value"] == v and type(new[k]["value"]) is type(v)      # 30 stays an int (element count)
+        assert new[k]["source"] == base[k]["source"] and new[k]["unit"] == base[k]["unit"]
+    text = path.read_text()
+    assert "# variant: was 250.0" in text and "# variant: was 3938.0" in text
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["other.toml"]        # no temporary file left
+
+
+def test_write_variant_names_a_key_it_cannot_find(tmp_path):
+    from bscomp.systems.parameters import write_variant
+
+    with pytest.raises(KeyError, match="'table.weight'"):
+        write_variant({"table.weight": 1.0}, tmp_path / "bad.toml")
+    with pytest.raises(KeyError, match="'screw.sections'"):              # a group, not an entry
+        write_variant({"screw.sections": 1.0}, tmp_path / "bad.toml")
+    assert not (tmp_path / "bad.toml").exists()                           # nothing written
