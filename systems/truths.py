@@ -66,7 +66,6 @@ from __future__ import annotations
 import inspect
 import json
 import math
-import re
 import tempfile
 import time as _time
 from dataclasses import replace
@@ -76,14 +75,15 @@ import numpy as np
 
 from bscomp.components import Damper, Fixed, FixedRotational, Mass, Spring
 
-from .parameters import DATA_DIR, get_value
+from .parameters import get_value, load_parameters, write_variant
 from .testbed import testbed, thesis_parameters
 from .truth_effects import AtanFriction, HeldBodyDamping, RigidJointDamping, SoftBacklash, TorqueRipple
 from .truth_parts import add_dashpots, add_housing, drive_modes, joint_stiffness
 
 __all__ = ["CASES", "MODELS", "AtanFriction", "SoftBacklash", "RigidJointDamping", "HeldBodyDamping", "draw",
            "truth_system",
-           "make_frf", "make_time", "generate_case", "default_seed", "square_wave", "TIME_NOISE", "FRF_NOISE",
+           "make_frf", "make_time", "generate_case", "DRIVES", "drive_overrides",
+           "default_seed", "square_wave", "TIME_NOISE", "FRF_NOISE",
            "TorqueRipple"]
 
 CASES = ("control", "joint", "friction", "backlash", "delay", "joint_friction", "ripple", "housing", "damping")
@@ -117,6 +117,15 @@ RANGES = {
     "damping_mode1": (0.01, 0.04),         # added ratio of the first drive mode (model: 6 %, Table 4.1)
     "damping_mode2": (0.01, 0.05),         # added ratio of the second, the coupling's torsion (model: 10 %, Table 4.2)
 }
+#: The drives truths are made of (``drive=``): parameter-file changes and build options. ``"other"`` is a drive
+#: that is not the thesis's, built from the same components, to try a diagnosis on a drive whose numbers none of
+#: its rules, starts or bounds were ever checked on: a table with a fixture (450 kg instead of 250), a larger motor
+#: (rotor 1.1e-2 instead of 5.98e-3 kg m^2), one angular-contact bearing instead of the pair (1.35e8 N/m axial,
+#: Sec B.5's single-bearing value, instead of 2.7e8) and the bellows coupling (45 940 N m/rad, Sec 4.4.1) -- its
+#: first axial and torsional modes move from ~111 / 268 Hz to (see docs/validation.md, "Another drive").
+DRIVES = {"thesis": {"params": {}, "build": {}},
+          "other": {"params": {"table.mass": 450.0, "rotor.Izz": 1.1e-2, "bearings.b1_k_axial": 1.35e8},
+                    "build": {"coupling": "bellows"}}}
 BACKLASH_WIDTH = 0.05                      # softplus width / b
 
 FRF_NOISE = 0.02                           # complex multiplicative, relative standard deviation
@@ -159,40 +168,50 @@ def draw(seed: int) -> dict:
 
 
 # ---- the truth system --------------------------------------------------------------------------------
-def _mesh_params(n_C: int) -> Path:
-    """A copy of the thesis parameter file with ``n_C`` elements in section C (in a temporary folder)."""
-    src = (DATA_DIR / "fadal_vmc2216_x.toml").read_text()
-    head, sep, tail = src.partition("[screw.sections.C]")
-    body, nxt, rest = tail.partition("\n[")
-    body, n = re.subn(r"n_elements = \{ value = \d+,", f"n_elements = {{ value = {int(n_C)},", body)
-    if n != 1:
-        raise RuntimeError("truths: could not find n_elements of [screw.sections.C] in the parameter file")
+def _mesh_params(n_C: int, drive: str = "thesis") -> Path:
+    """A copy of the parameter file of ``drive`` (:data:`DRIVES`) with ``n_C`` elements in section C (in a
+    temporary folder)."""
+    changes, _ = _drive(drive)
     total = 1 + 1 + int(n_C) + 2 + 2 + 2
-    head = re.sub(r"(\nn_elements = \{ value = )47,", rf"\g<1>{total},", head)
     folder = Path(tempfile.gettempdir()) / "bscomp_truths"
-    folder.mkdir(exist_ok=True)
-    path = folder / f"fadal_vmc2216_x_C{int(n_C)}.toml"
-    text = head + sep + body + nxt + rest
-    if not path.is_file() or path.read_text() != text:
-        path.write_text(text)
-    return path
+    name = "fadal_vmc2216_x" if drive == "thesis" else f"{drive}_drive"
+    return write_variant({**changes, "screw.sections.C.n_elements": int(n_C), "screw.n_elements": total},
+                         folder / f"{name}_C{int(n_C)}.toml")
+
+
+def _drive(drive: str) -> tuple[dict, dict]:
+    if drive not in DRIVES:
+        raise ValueError(f"truths: unknown drive {drive!r}; use one of {sorted(DRIVES)}")
+    return DRIVES[drive]["params"], DRIVES[drive]["build"]
+
+
+def drive_overrides(drive: str = "thesis") -> dict:
+    """The build arguments of the *model* of ``drive`` (:data:`DRIVES`): its parameter file with the model's own
+    mesh and its build options -- ``diagnose(..., overrides=drive_overrides("other"))`` on a test bed name, or the
+    CLI's ``--set params=... --set coupling=...``."""
+    changes, build = _drive(drive)
+    if not changes:
+        return dict(build)
+    folder = Path(tempfile.gettempdir()) / "bscomp_truths"
+    return {"params": str(write_variant(changes, folder / f"{drive}_drive.toml")), **build}
 
 
 def _voltage_input() -> bool:
     return "drive_input" in inspect.signature(testbed).parameters
 
 
-def _base(model, x, mesh_C, misset, nut_joint="moving"):
+def _base(model, x, mesh_C, misset, nut_joint="moving", drive="thesis"):
     """The test bed at nut position ``x`` with the truth's mesh and mis-set parameters (no hidden effect)."""
     kw = {"drive_input": "voltage"} if _voltage_input() else {}
-    s = testbed(model, nut_position=x, nut_joint=nut_joint, params=str(_mesh_params(mesh_C)), **kw)
+    kw.update(_drive(drive)[1])
+    s = testbed(model, nut_position=x, nut_joint=nut_joint, params=str(_mesh_params(mesh_C, drive)), **kw)
     for k, f in misset.items():
         s.set(k, float(s.get(k)) * f)
     return s
 
 
 def truth_system(case: str, model: str = "axial_torsional", seed: int | None = None, *, linear: bool = False,
-                 nut_joint: str = "moving"):
+                 nut_joint: str = "moving", drive: str = "thesis"):
     """The truth of ``case`` on the test bed ``model``, drawn with ``seed``.
 
     Parameters
@@ -206,6 +225,9 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
         Return :meth:`System.linear_equivalent` (friction: its viscous part; backlash: the contact spring).
     nut_joint : {"moving", "point"}
         The nut joint of the truth (the bundled time series use ``"moving"``; linearized at rest both agree).
+    drive : str
+        Which drive (:data:`DRIVES`): ``"thesis"``, the test bed of the bundled data, or ``"other"``, another drive
+        built from the same components; its model is the test bed with :func:`drive_overrides`.
 
     Returns
     -------
@@ -223,10 +245,11 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
     seed = default_seed(case, model) if seed is None else int(seed)
     dr = draw(seed)
     x = dr["nut_position"]
-    p = thesis_parameters()
+    p = load_parameters(_mesh_params(dr["mesh_C"], drive))
     m_total = get_value(p, "table.mass") * dr["table_mass_factor"]
     misset = {"table.m": dr["table_mass_factor"], "coupling.k_T": dr["coupling_factor"]}
-    s = _base(model, x, dr["mesh_C"], misset, nut_joint)
+    s = _base(model, x, dr["mesh_C"], misset, nut_joint, drive)
+    coupling_truth = float(s.get("coupling.k_T"))
     hidden = {}
     base_damping = s.damping
     if "joint" in HIDDEN[case]:
@@ -279,11 +302,11 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
         hidden["ripple"] = {"A": A, "p": rp["p"], "phi_0": rp["phase"], "fraction_of_peak_torque": rp["fraction"]}
     s.name = f"truth_{case}_{model}"
     info = {"case": case, "model": model, "seed": seed, "nut_position": x, "nut_joint": nut_joint,
+            "drive": {"name": drive, "parameters": _drive(drive)[0], "build": _drive(drive)[1]},
             "mesh": {"section_C_elements": dr["mesh_C"],
-                     "model_section_C_elements": int(get_value(p, "screw.sections.C.n_elements"))},
+                     "model_section_C_elements": int(get_value(thesis_parameters(), "screw.sections.C.n_elements"))},
             "misset": {"table.m": {"factor": dr["table_mass_factor"], "truth": m_total},
-                       "coupling.k_T": {"factor": dr["coupling_factor"],
-                                        "truth": get_value(p, "coupling.kT") * dr["coupling_factor"]}},
+                       "coupling.k_T": {"factor": dr["coupling_factor"], "truth": coupling_truth}},
             "hidden": hidden, "input": "amp.u" if _voltage_input() else "motor.tau"}
     return (s.linear_equivalent() if linear else s), info
 
@@ -303,7 +326,7 @@ def _source(seed: int, what: str) -> str:
 
 
 def make_frf(case: str, model: str = "axial_torsional", seed: int | None = None, *, freqs=None,
-             noise: float = FRF_NOISE):
+             noise: float = FRF_NOISE, drive: str = "thesis"):
     """FRF data of a truth: ``amp.u`` -> ``rotor.w`` and -> ``table.a`` at the truth's nut position.
 
     From the truth's linear equivalent (:func:`bscomp.linear.response.frf`), times ``e^{-j omega T}`` for a hidden
@@ -319,7 +342,7 @@ def make_frf(case: str, model: str = "axial_torsional", seed: int | None = None,
     from bscomp.linear.response import frf
     from bscomp.validate.measurements import FrfData
 
-    s, info = truth_system(case, model, seed, linear=True)
+    s, info = truth_system(case, model, seed, linear=True, drive=drive)
     seed = info["seed"]
     f = np.logspace(np.log10(2.0), 3.0, 300) if freqs is None else np.asarray(freqs, float)
     inp = info["input"]
@@ -356,7 +379,7 @@ def square_wave(n: int, dt: float = DT, amplitude: float = AMPLITUDE, frequency:
 
 def make_time(case: str, model: str = "axial_torsional", seed: int | None = None, *, duration: float = DURATION,
               dt: float = DT, fine: int = FINE, method: str = "idas", rtol: float = 1e-7, atol: float = 1e-10,
-              noise: dict | None = None, nut_joint: str = "moving", progress: bool = False):
+              noise: dict | None = None, nut_joint: str = "moving", progress: bool = False, drive: str = "thesis"):
     """Square-wave time series of a truth (Sec 5.3.1: +-2.125 V, 5 Hz) from rest at the nut position.
 
     The truth (moving nut) is integrated by :func:`bscomp.simulation.simulate` on a grid ``fine`` times the
@@ -373,7 +396,7 @@ def make_time(case: str, model: str = "axial_torsional", seed: int | None = None
     from bscomp.simulation.dispatch import simulate
     from bscomp.validate.measurements import TimeData
 
-    s, info = truth_system(case, model, seed, nut_joint=nut_joint)
+    s, info = truth_system(case, model, seed, nut_joint=nut_joint, drive=drive)
     seed = info["seed"]
     n = int(round(duration / dt))
     t = np.round(np.arange(n + 1) * dt, 12)
@@ -423,9 +446,10 @@ def _jsonable(x):
 
 
 def generate_case(case: str, model: str, out_dir, seed: int | None = None, *, time: bool = True,
-                  **time_kw) -> dict:
-    """Write ``frf.csv``, ``time.csv`` (unless ``time=False``) and ``truth.json`` of one truth into
-    ``out_dir/model/case``; returns ``{"frf": path, "time": path, "truth": path, "info": info}``."""
+                  drive: str = "thesis", **time_kw) -> dict:
+    """Write ``frf.csv``, ``time.csv`` (unless ``time=False``) and ``truth.json`` of one truth of ``drive``
+    (:data:`DRIVES`) into ``out_dir/model/case``; returns ``{"frf": path, "time": path, "truth": path,
+    "info": info}``."""
 
     from bscomp.validate.measurements import write_frf_csv, write_time_csv
 
@@ -433,7 +457,7 @@ def generate_case(case: str, model: str, out_dir, seed: int | None = None, *, ti
     folder.mkdir(parents=True, exist_ok=True)
     out = {}
     t0 = _time.perf_counter()
-    frf_data, info = make_frf(case, model, seed)
+    frf_data, info = make_frf(case, model, seed, drive=drive)
     frf_wall = _time.perf_counter() - t0
     info.pop("frf_noise_free")
     frf_data = replace(frf_data, H={k: _rounded(v.real, 9) + 1j * _rounded(v.imag, 9) for k, v in frf_data.H.items()})
@@ -441,7 +465,7 @@ def generate_case(case: str, model: str, out_dir, seed: int | None = None, *, ti
     info["frf"]["wall_s"] = frf_wall
     info["files"] = {"frf": "frf.csv"}
     if time:
-        time_data, tinfo = make_time(case, model, info["seed"], **time_kw)
+        time_data, tinfo = make_time(case, model, info["seed"], drive=drive, **time_kw)
         info["time"] = tinfo["time"]
         time_data = replace(time_data, outputs={k: _rounded(v, 8) for k, v in time_data.outputs.items()})
         out["time"] = write_time_csv(time_data, folder / "time.csv")

@@ -208,6 +208,32 @@ def test_bundled_data_load_with_their_conditions(case):
             assert np.mean(tm.outputs["table.s"][200:300]) > 0          # positive command, table forward
 
 
+def test_another_drive_is_built_from_its_own_parameters_and_its_model_from_the_same_ones():
+    """``drive="other"``: the truth's table and coupling are the other drive's (mis-set from those), its first two
+    modes differ from the thesis drive's, and :func:`drive_overrides` builds the model from the same changed file
+    (with the model's mesh) -- the drive a diagnosis of these data must be given."""
+    from bscomp.systems.parameters import get_value, load_parameters
+    from bscomp.systems.testbed import testbed
+
+    s0, info0 = truths.truth_system("control", AT, 2301)
+    s1, info1 = truths.truth_system("control", AT, 2301, drive="other")
+    assert info1["drive"]["name"] == "other" and info0["drive"]["parameters"] == {}
+    f = truths.RANGES["table_mass_factor"]
+    assert f[0] * 450.0 <= float(s1.get("table.m")) <= f[1] * 450.0
+    assert float(s1.get("table.m")) == pytest.approx(info1["misset"]["table.m"]["truth"])
+    kt = info1["misset"]["coupling.k_T"]
+    assert kt["truth"] == pytest.approx(45940.0 * kt["factor"])
+    f0, f1 = truth_parts.drive_modes(s0), truth_parts.drive_modes(s1)
+    assert f1[0] < 0.7 * f0[0] and f1[1] > 1.5 * f0[1]        # heavier table and softer bearing; bellows coupling
+    over = truths.drive_overrides("other")
+    assert over["coupling"] == "bellows" and get_value(load_parameters(over["params"]), "table.mass") == 450.0
+    model = testbed(AT, nut_position=info1["nut_position"], **over)
+    assert float(model.get("table.m")) == 450.0 and float(model.get("coupling.k_T")) == 45940.0
+    assert truths.drive_overrides() == {}
+    with pytest.raises(ValueError, match="unknown drive 'mine'"):
+        truths.truth_system("control", AT, 2301, drive="mine")
+
+
 @pytest.mark.parametrize("model, case", [(AT, "control"), (AT, "joint"), (AT, "delay"), ("full", "control")])
 def test_bundled_frf_reproduces_from_its_seed(model, case):
     folder = DATA / model / case
