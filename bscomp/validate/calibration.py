@@ -25,9 +25,11 @@ method (:meth:`~bscomp.validate.evaluation.Problem.uncertainty`).
 
 from __future__ import annotations
 
+import functools
 import json
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -36,6 +38,7 @@ from bscomp.errors import ArgumentTypeError, UsageError, check_number
 from bscomp.files import atomic_write, json_default
 from bscomp.kernel.interface import interface_of
 from bscomp.kernel.system import System
+from bscomp.model import ModelSpec, split_overrides
 from bscomp.plotting.validate import calibration_plot
 from bscomp.simulation.harmonic_balance import check_harmonics
 from bscomp.validate.arguments import check_fit, check_uncertain_names, load_datasets
@@ -56,19 +59,36 @@ def _condition_key(data, overrides):
 
 def _systems(model, datasets, overrides):
     """``({key: System}, keys)``: the nominal model built at each dataset's conditions (a condition the model
-    refuses is an error naming its file and line)."""
+    refuses is an error naming its file and line). The caller's ``overrides`` are not file conditions: its build
+    keywords (a parameter file, a coupling variant) build the model, its dotted values are applied last."""
     keys = [_condition_key(d, overrides) for d in datasets]
+    build_kw, dotted_kw = split_overrides(overrides)
+    model_kw = _with_build_keywords(model, build_kw)
     systems = {}
     for key in dict.fromkeys(keys):
-        cond = dict(key)
+        cond = {k: v for k, v in key if k not in (overrides or {})}         # the file's own conditions
         d = datasets[keys.index(key)]
-        locs = {k: v for (kind, k), v in d.locations.items() if kind == "condition" and k not in (overrides or {})}
+        locs = {k: v for (kind, k), v in d.locations.items() if kind == "condition" and k in cond}
         if isinstance(model, System):
             dotted = {k: v for k, v in cond.items() if "." in k}
-            systems[key] = build_for(model, dotted, source=data_label(d), locations=locs) if dotted else model
+            systems[key] = (build_for(model, dotted, dotted_kw or None, source=data_label(d), locations=locs)
+                            if dotted or dotted_kw else model)
         else:
-            systems[key] = build_for(model, cond, source=data_label(d), locations=locs)
+            systems[key] = build_for(model_kw, cond, dotted_kw or None, source=data_label(d), locations=locs)
     return systems, keys
+
+
+def _with_build_keywords(model, build_kw: dict):
+    """The model with the caller's build keywords bound: a name or path as a :class:`~bscomp.model.ModelSpec`, a
+    spec with them added, a build function partially applied (a built System takes none: they are dropped, as
+    before)."""
+    if not build_kw or isinstance(model, System):
+        return model
+    if isinstance(model, ModelSpec):
+        return model.with_overrides(build_kw)
+    if isinstance(model, (str, Path)):
+        return ModelSpec(str(model), build_kw)
+    return functools.partial(model, **build_kw)
 
 
 def _uncertain(system, uncertain, default_spread):

@@ -76,3 +76,22 @@ def test_calibrate_with_a_given_parameter_list_and_a_file():
     cal = calibrate("testbed_axial_torsional", str(ROOT / "frf.csv"), uncertain={"table.m": 0.3})
     assert list(cal.values) == ["table.m"] and cal.bounds["table.m"][1] == pytest.approx(1.3 * 250.0)
     assert cal.heldout_before is None and cal.error_after < cal.error_before
+
+
+def test_calibrate_another_drive_given_its_parameter_file_and_coupling_as_overrides():
+    """Data of another drive than the thesis's (``truths.DRIVES["other"]``: 450 kg table, larger motor, one bearing,
+    the bellows coupling) against the test bed built from that drive's parameter file: the caller's ``params`` and
+    ``coupling`` are build keywords, not the file's conditions (which may never name a file), and the fit finds that
+    drive's mis-set table mass and coupling stiffness (not the thesis's 250 kg and 3938 N m/rad)."""
+    from bscomp.systems import truths
+
+    data, info = truths.make_frf("control", "axial_torsional", 2301, drive="other")
+    over = truths.drive_overrides("other")
+    cal = calibrate("testbed_axial_torsional", [data], overrides=over)
+    assert cal.nominal["table.m"] == 450.0 and cal.nominal["coupling.k_T"] == 45940.0
+    assert cal.error_after < 1.5 < 10 * 1.5 < cal.error_before
+    assert abs(cal.values["table.m"] / info["misset"]["table.m"]["truth"] - 1) < 0.01
+    assert abs(cal.values["coupling.k_T"] / info["misset"]["coupling.k_T"]["truth"] - 1) < 0.03
+    data.conditions["params"] = "fadal_vmc2216_x"                     # a file may still not choose one
+    with pytest.raises(bscomp.validate.MeasurementFileError, match="condition 'params' is not allowed"):
+        calibrate("testbed_axial_torsional", [data])
