@@ -10,7 +10,11 @@ hidden values (relative error), the error after re-calibration and at the end (m
 with the drop, and the wall clock.
 
     python benchmarks/diagnose_table.py [--model axial_torsional|full] [--case joint ...] [--json out.json] [--stepped]
-                                        [--seed N ...] [--channels rotor.phi,table.s]
+                                        [--seed N ...] [--channels rotor.phi,table.s] [--drive other]
+
+``--drive other`` (with ``--seed``): truths of another drive than the thesis's, built from the same components
+(:data:`bscomp.systems.truths.DRIVES`), diagnosed with that drive's model (``overrides`` =
+:func:`bscomp.systems.truths.drive_overrides`).
 """
 
 from __future__ import annotations
@@ -73,17 +77,21 @@ def stepped_frfs(model: str, case: str, conditions: dict) -> list:
     return out
 
 
-def load_case(model: str, case: str, seed: int | None = None) -> tuple:
+def load_case(model: str, case: str, seed: int | None = None, drive: str = "thesis") -> tuple:
     """``(truth, [FRF data, time data])`` of a bundled truth case, or with ``seed`` of a truth drawn anew
-    (:func:`bscomp.systems.truths.generate_case`, written once to ``benchmarks/.cache/truths/<seed>``)."""
+    (:func:`bscomp.systems.truths.generate_case`, written once to ``benchmarks/.cache/truths/<seed>``, another
+    drive's to ``benchmarks/.cache/truths/<drive>/<seed>``)."""
     root = resources.files("bscomp.systems") / "data" / "truths" / model / case
+    if drive != "thesis" and seed is None:
+        raise SystemExit(f"--drive {drive}: its truths are drawn anew, give --seed")
     if seed is not None:
         from bscomp.systems.truths import generate_case
 
-        base = Path(__file__).resolve().parent / ".cache" / "truths" / str(seed)
+        base = Path(__file__).resolve().parent / ".cache" / "truths"
+        base = (base if drive == "thesis" else base / drive) / str(seed)
         root = base / model / case
         if not (root / "truth.json").exists():
-            generate_case(case, model, base, seed)
+            generate_case(case, model, base, seed, drive=drive)
     truth = json.loads((root / "truth.json").read_text())
     return truth, load_all([str(root / "frf.csv"), str(root / "time.csv")])
 
@@ -117,14 +125,17 @@ def keep_channels(data, channels) -> list:
     return out
 
 
-def run(model: str, case: str, stepped: bool = False, seed: int | None = None, channels=None) -> dict:
-    truth, data = load_case(model, case, seed)
+def run(model: str, case: str, stepped: bool = False, seed: int | None = None, channels=None,
+        drive: str = "thesis") -> dict:
+    from bscomp.systems.truths import drive_overrides
+
+    truth, data = load_case(model, case, seed, drive)
     if stepped:                     # the stepped sines at two amplitudes instead of the small-signal FRF
         data = stepped_frfs(model, case, data[1].conditions) + [data[1]]
     if channels:
         data = keep_channels(data, channels)
     t0 = time.perf_counter()
-    d = diagnose(MODELS[model], data, max_effects=2)
+    d = diagnose(MODELS[model], data, max_effects=2, overrides=drive_overrides(drive) or None)
     wall = time.perf_counter() - t0
     stairs = dict(d.staircase)
     recal, final = stairs["re-calibrated"], d.staircase[-1][1]
@@ -170,7 +181,11 @@ def main(argv=None) -> int:
                     "cached in benchmarks/.cache/truths) instead of the bundled one; repeat for several")
     ap.add_argument("--channels", help="keep only these time-series channels, comma-separated (e.g. "
                     "rotor.phi,table.s: positions only, an encoder and a linear scale)")
+    ap.add_argument("--drive", default="thesis", help="whose truths: 'thesis' (default) or 'other', another drive "
+                    "from the same components (bscomp.systems.truths.DRIVES; needs --seed)")
     args = ap.parse_args(argv)
+    if args.stepped and args.drive != "thesis":
+        raise SystemExit("--stepped uses the thesis drive's truths; leave out --drive")
     channels = args.channels.split(",") if args.channels else None
     rows = []
     print("| model | case | seed | named first | runner-up (Vuong z, shared) | accepted | main parameters vs truth | "
@@ -179,7 +194,7 @@ def main(argv=None) -> int:
                               for c in args.case or CASES):
         if args.stepped and case == "delay":        # the truth's delay is applied to its data, not a System
             continue
-        r = run(model, case, args.stepped, seed, channels)
+        r = run(model, case, args.stepped, seed, channels, args.drive)
         rows.append(r)
         print(f"| {model} | {case} | {r['seed']} | {r['first']} | {r['runner_up']} | "
               f"{', '.join(r['accepted']) or 'nothing'} | "
