@@ -122,7 +122,7 @@ RANGES = {
 #: its rules, starts or bounds were ever checked on: a table with a fixture (450 kg instead of 250), a larger motor
 #: (rotor 1.1e-2 instead of 5.98e-3 kg m^2), one angular-contact bearing instead of the pair (1.35e8 N/m axial,
 #: Sec B.5's single-bearing value, instead of 2.7e8) and the bellows coupling (45 940 N m/rad, Sec 4.4.1) -- its
-#: first axial and torsional modes move from ~111 / 268 Hz to (see docs/validation.md, "Another drive").
+#: first axial and torsional modes move from ~122 / 284 Hz to ~75 / 507 Hz (docs/validation.md, "Another drive").
 DRIVES = {"thesis": {"params": {}, "build": {}},
           "other": {"params": {"table.mass": 450.0, "rotor.Izz": 1.1e-2, "bearings.b1_k_axial": 1.35e8},
                     "build": {"coupling": "bellows"}}}
