@@ -19,7 +19,10 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    removes at least ``min_drop`` of the *excess* error over the noise floor on the fitted data, (c)
    confirms on held-out data -- the second halves of the time series, which the fit did not see, lose at
    least ``min_heldout_drop`` of their excess (a linear effect fitted to FRFs must also explain the
-   time series), (d) makes no dataset clearly worse (normalised error up more than 10 %) and no error
+   time series) -- or, where its evidence is in the FRFs, at least
+   :data:`~bscomp.validate.acceptance.CARRIED` and no less than the fitted halves of the same records lost
+   (the fit carries over; an accepted effect's law shape can hold the time series' error up), (d) makes no
+   dataset clearly worse (normalised error up more than 10 %) and no error
    the user reads clearly worse (FRF magnitude or phase error of a pair, fit % of a channel), (e)
    does not sit at a bound of its prior (a stand-in for something else), and (f) does something the
    parameters already fitted cannot: at least 10 % of its action its own, variance inflation at most 10

@@ -270,8 +270,9 @@ class Problem:
     def summary(self, theta, k: int) -> dict:
         r"""Errors of one parameter vector with ``k`` fitted parameters: ``error`` (mean chi^2 of the fitted
         parts), ``per_dataset``, ``heldout`` (mean over the held-out halves, None without any),
-        ``heldout_per_dataset``, ``bic`` (:math:`\sum r^2 + k \ln n` on the fitted residuals) and the model
-        ``outputs`` per dataset."""
+        ``heldout_per_dataset``, ``fitted_split`` (the fitted first halves of the datasets that have a held-out
+        half, in its order), ``bic`` (:math:`\sum r^2 + k \ln n` on the fitted residuals) and the model ``outputs``
+        per dataset."""
         ov, hooks = self.overrides(theta)
         outs = self.ev.outputs(ov, hooks)
         blocks = [residual_blocks(y, d, s) for y, d, s in zip(outs, self.ev.datasets, self.sigmas)]
@@ -283,8 +284,10 @@ class Problem:
             ss += sum(float(np.sum(np.where(np.isfinite(x), x, 1e6) ** 2)) for x in fb)
             if cut:
                 held_d.append(block_stats([x[cut:] for x in b]))
+        split_fit = [f for f, cut in zip(fit_d, self.ev.split) if cut]
         return {"error": float(np.mean(fit_d)), "per_dataset": fit_d,
                 "heldout": float(np.mean(held_d)) if held_d else None, "heldout_per_dataset": held_d,
+                "fitted_split": split_fit,
                 "bic": ss + k * math.log(max(n_fit, 2)), "outputs": outs}
 
     def near_bounds(self, theta, tol=BOUND_TOL) -> np.ndarray:
