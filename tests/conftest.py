@@ -18,6 +18,14 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 _LIMITS = threadpool_limits(1)   # for libraries already loaded by plugins
 
 
+def pytest_collection_modifyitems(config, items):
+    """Files holding a long test (marked ``slow``) run first, each file's tests in their order (module fixtures
+    stay together): the two xdist workers (``--dist worksteal``) then end on short tests and stay busy to the
+    end, instead of one idling while the other finishes a diagnose it took last."""
+    slow = {it.nodeid.split("::")[0] for it in items if it.get_closest_marker("slow")}
+    items.sort(key=lambda it: it.nodeid.split("::")[0] not in slow)      # stable: False (slow files) first
+
+
 @pytest.fixture(scope="session")
 def small_drive():
     """The 5-coordinate lumped drive of ``systems/small_drive.py`` (do not mutate: copy first)."""

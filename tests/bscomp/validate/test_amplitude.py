@@ -31,6 +31,8 @@ from bscomp.validate.candidates import (
 )
 from bscomp.validate.noise import robust_sigma
 
+pytestmark = pytest.mark.slow      # three diagnoses per test on stepped-sine FRFs: 10-30 s each
+
 FREQS = np.geomspace(10.0, 200.0, 14)
 VOLTS = (0.2, 2.0)
 
