@@ -200,11 +200,11 @@ def _voltage_input() -> bool:
     return "drive_input" in inspect.signature(testbed).parameters
 
 
-def _base(model, x, mesh_C, misset, nut_joint="moving", drive="thesis"):
-    """The test bed at nut position ``x`` with the truth's mesh and mis-set parameters (no hidden effect)."""
+def _base(model, x, params: Path, build: dict, misset, nut_joint="moving"):
+    """The test bed at nut position ``x`` from the truth's parameter file (its drive and mesh) and build options,
+    with its mis-set parameters (no hidden effect)."""
     kw = {"drive_input": "voltage"} if _voltage_input() else {}
-    kw.update(_drive(drive)[1])
-    s = testbed(model, nut_position=x, nut_joint=nut_joint, params=str(_mesh_params(mesh_C, drive)), **kw)
+    s = testbed(model, nut_position=x, nut_joint=nut_joint, params=str(params), **kw, **build)
     for k, f in misset.items():
         s.set(k, float(s.get(k)) * f)
     return s
@@ -245,10 +245,12 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
     seed = default_seed(case, model) if seed is None else int(seed)
     dr = draw(seed)
     x = dr["nut_position"]
-    p = load_parameters(_mesh_params(dr["mesh_C"], drive))
+    changes, build = _drive(drive)
+    path = _mesh_params(dr["mesh_C"], drive)
+    p = load_parameters(path)
     m_total = get_value(p, "table.mass") * dr["table_mass_factor"]
     misset = {"table.m": dr["table_mass_factor"], "coupling.k_T": dr["coupling_factor"]}
-    s = _base(model, x, dr["mesh_C"], misset, nut_joint, drive)
+    s = _base(model, x, path, build, misset, nut_joint)
     coupling_truth = float(s.get("coupling.k_T"))
     hidden = {}
     base_damping = s.damping
@@ -302,7 +304,7 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
         hidden["ripple"] = {"A": A, "p": rp["p"], "phi_0": rp["phase"], "fraction_of_peak_torque": rp["fraction"]}
     s.name = f"truth_{case}_{model}"
     info = {"case": case, "model": model, "seed": seed, "nut_position": x, "nut_joint": nut_joint,
-            "drive": {"name": drive, "parameters": _drive(drive)[0], "build": _drive(drive)[1]},
+            "drive": {"name": drive, "parameters": changes, "build": build},
             "mesh": {"section_C_elements": dr["mesh_C"],
                      "model_section_C_elements": int(get_value(thesis_parameters(), "screw.sections.C.n_elements"))},
             "misset": {"table.m": {"factor": dr["table_mass_factor"], "truth": m_total},

@@ -38,7 +38,7 @@ from bscomp.errors import ArgumentTypeError, UsageError, check_number
 from bscomp.files import atomic_write, json_default
 from bscomp.kernel.interface import interface_of
 from bscomp.kernel.system import System
-from bscomp.model import ModelSpec, split_overrides
+from bscomp.model import ModelSpec, spec_of, split_overrides
 from bscomp.plotting.validate import calibration_plot
 from bscomp.simulation.harmonic_balance import check_harmonics
 from bscomp.validate.arguments import check_fit, check_uncertain_names, load_datasets
@@ -79,15 +79,13 @@ def _systems(model, datasets, overrides):
 
 
 def _with_build_keywords(model, build_kw: dict):
-    """The model with the caller's build keywords bound: a name or path as a :class:`~bscomp.model.ModelSpec`, a
-    spec with them added, a build function partially applied (a built System takes none: they are dropped, as
-    before)."""
+    """The model with the caller's build keywords bound: a name, path or spec as a :class:`~bscomp.model.ModelSpec`
+    (:func:`~bscomp.model.spec_of`), a build function partially applied (a built System takes none: they are dropped,
+    as before)."""
     if not build_kw or isinstance(model, System):
         return model
-    if isinstance(model, ModelSpec):
-        return model.with_overrides(build_kw)
-    if isinstance(model, (str, Path)):
-        return ModelSpec(str(model), build_kw)
+    if isinstance(model, (str, Path, ModelSpec)):
+        return spec_of(model, build_kw)
     return functools.partial(model, **build_kw)
 
 
