@@ -340,3 +340,36 @@ def test_a_newton_that_never_converges_warns_naming_the_elements(monkeypatch):
         warnings.simplefilter("error")                  # warn=False: said in stats only (diagnose counts it)
         cm.simulate({}, t, {"amp.u": _square(t, 2.0)}, n_newton=1, max_sub=4, warn=False)
     assert not cm.stats["newton_converged"], cm.stats
+
+
+def test_the_block_filter_recursion_is_the_step_by_step_one():
+    """``_recursion`` (a first-/second-order filter per block of the real modal form, a loop for larger blocks)
+    against ``x_{k+1} = P x_k + d_k`` stepped one sample at a time: a decaying real mode, a lightly damped and a
+    slow oscillating one, an undamped rigid body (double pole at 1) and a 3 x 3 block."""
+    from bscomp.simulation.compiled_time import _recursion
+
+    rng = np.random.default_rng(7)
+
+    def osc(w, z, h=1e-4):
+        s = -z * w + 1j * w * np.sqrt(1 - z * z)
+        return np.exp(s.real * h) * np.array([[np.cos(s.imag * h), np.sin(s.imag * h)],
+                                              [-np.sin(s.imag * h), np.cos(s.imag * h)]])
+
+    blocks = [np.array([[0.97]]), osc(2 * np.pi * 800, 0.01), osc(2 * np.pi * 3, 0.002),
+              np.array([[1.0, 1e-4], [0.0, 1.0]]), 0.3 * rng.standard_normal((3, 3))]
+    n = sum(b.shape[0] for b in blocks)
+    P = np.zeros((n, n))
+    i = 0
+    for b in blocks:
+        P[i:i + b.shape[0], i:i + b.shape[0]] = b
+        i += b.shape[0]
+    d = rng.standard_normal((n, 3000))
+    X = np.zeros_like(d)
+    x = np.zeros(n)
+    for k in range(d.shape[1]):
+        x = P @ x + d[:, k]
+        X[:, k] = x
+    Y = _recursion(P, d, tuple(b.shape[0] for b in blocks))
+    scale = np.max(np.abs(X), axis=1)
+    assert np.all(np.max(np.abs(Y - X), axis=1) <= 1e-11 * scale), np.max(np.abs(Y - X), axis=1) / scale
+    assert np.array_equal(_recursion(P, d, (n,)), X)       # one dense block: the loop itself
