@@ -173,10 +173,14 @@ def _mesh_params(n_C: int, drive: str = "thesis") -> Path:
     temporary folder)."""
     changes, _ = _drive(drive)
     total = 1 + 1 + int(n_C) + 2 + 2 + 2
-    folder = Path(tempfile.gettempdir()) / "bscomp_truths"
     name = "fadal_vmc2216_x" if drive == "thesis" else f"{drive}_drive"
     return write_variant({**changes, "screw.sections.C.n_elements": int(n_C), "screw.n_elements": total},
-                         folder / f"{name}_C{int(n_C)}.toml")
+                         _variant_path(f"{name}_C{int(n_C)}.toml"))
+
+
+def _variant_path(name: str) -> Path:
+    """Where the truths' parameter-file variants are written (a temporary folder shared by the processes)."""
+    return Path(tempfile.gettempdir()) / "bscomp_truths" / name
 
 
 def _drive(drive: str) -> tuple[dict, dict]:
@@ -192,8 +196,7 @@ def drive_overrides(drive: str = "thesis") -> dict:
     changes, build = _drive(drive)
     if not changes:
         return dict(build)
-    folder = Path(tempfile.gettempdir()) / "bscomp_truths"
-    return {"params": str(write_variant(changes, folder / f"{drive}_drive.toml")), **build}
+    return {"params": str(write_variant(changes, _variant_path(f"{drive}_drive.toml"))), **build}
 
 
 def _voltage_input() -> bool:
