@@ -10,6 +10,7 @@ edge in bscomp's result and after it in FMPy's).
 
 import os
 import shutil
+import tempfile
 import time
 import zipfile
 from ctypes import POINTER, c_double
@@ -253,7 +254,7 @@ def test_start_values_and_derivatives_consistent(fmus, case):
     dae = bscomp.flatten(get("small_drive" if case == "small" else "testbed_axial_torsional"))
     md = read_model_description(str(path))
     v = {x.name: x for x in md.modelVariables}
-    fmu = FMU3Model(guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.modelExchange.modelIdentifier,
+    fmu = FMU3Model(guid=md.guid, unzipDirectory=_unzipped(path), modelIdentifier=md.modelExchange.modelIdentifier,
                     instanceName="check")
     fmu.instantiate()
     fmu.enterInitializationMode()
@@ -279,9 +280,14 @@ def test_start_values_and_derivatives_consistent(fmus, case):
     np.testing.assert_allclose(y_fmu, y, rtol=1e-9, atol=1e-12)
 
 
+def _unzipped(path):
+    """The FMU unpacked beside it (in pytest's temporary folder), not in a /tmp folder nobody removes."""
+    return extract(str(path), unzipdir=tempfile.mkdtemp(prefix="unzipped-", dir=os.path.dirname(path)))
+
+
 def _instance(path, name="check"):
     md = read_model_description(str(path))
-    fmu = FMU3Model(guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.modelExchange.modelIdentifier,
+    fmu = FMU3Model(guid=md.guid, unzipDirectory=_unzipped(path), modelIdentifier=md.modelExchange.modelIdentifier,
                     instanceName=name)
     fmu.instantiate()
     fmu.enterInitializationMode()
