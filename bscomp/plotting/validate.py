@@ -247,7 +247,8 @@ def order_plot(orders, path=None, title=None):
 
 
 def plot_diagnosis(diag, directory):
-    """The error staircase and the round-1 candidate ranking of a Diagnosis, as two PNGs in ``directory``."""
+    """The error staircase and the candidates of every round of a Diagnosis (one panel per round), as two PNGs in
+    ``directory``."""
     plt = _plt()
     d = figure_folder(directory, "Diagnosis.plot: directory")
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -267,13 +268,16 @@ def plot_diagnosis(diag, directory):
     p1 = d / "error_staircase.png"
     save_figure(fig, p1, dpi=110)
     plt.close(fig)
-    fig, ax = plt.subplots(figsize=(7, 4))
-    names = [r.name for r in diag.ranked][::-1]
-    drops = [100 * r.drop for r in diag.ranked][::-1]
-    colors = ["tab:green" if any(a.name == n for a in diag.accepted) else "tab:gray" for n in names]
-    ax.barh(names, drops, color=colors)
-    ax.set_xlabel("error reduction in round 1 [%]")
-    ax.set_title("candidate effects (green: accepted)")
+    rounds = [rr for rr in (diag.rounds or [diag.ranked]) if rr]
+    heights = [0.9 + 0.28 * len(rr) for rr in rounds] or [1.5]
+    fig, axes = plt.subplots(len(heights), 1, figsize=(7.5, sum(heights) + 0.6), squeeze=False,
+                             gridspec_kw={"height_ratios": heights})
+    for k, (ax, fits) in enumerate(zip(axes[:, 0], rounds), 1):
+        _round_bars(ax, fits, {a.name for a in diag.accepted if getattr(a, "round", 1) == k}, k)
+    if not rounds:
+        axes[0, 0].text(0.5, 0.5, "no candidate tried (max_effects=0)", ha="center", va="center")
+        axes[0, 0].set_axis_off()
+    fig.suptitle("candidate effects per round (green: accepted; grey: fitted, not accepted)", fontsize=10)
     fig.tight_layout()
     p2 = d / "candidates.png"
     save_figure(fig, p2, dpi=110)
@@ -284,6 +288,34 @@ def plot_diagnosis(diag, directory):
         order_plot(orders, p3, title="left by the diagnosis, periodic in the motor angle (no candidate has it)")
         return [p1, p2, p3]
     return [p1, p2]
+
+
+#: Error increases below this share [%] are drawn to it, with their value written beside the bar.
+CLIP_PERCENT = -50.0
+
+
+def _round_bars(ax, fits, accepted, k):
+    """One round of a diagnosis: each fitted candidate's error reduction [%] against the model of that round (its
+    effects accepted before), best-ranked on top; worse than :data:`CLIP_PERCENT` clipped and labelled. A candidate
+    only screened has no bar: its screening error was taken at other start values (in round 2 the nominal uncertain
+    parameters too), not comparable with the round's fits."""
+    fits = list(fits)[::-1]
+    drops = np.array([100.0 * f.drop if f.refined else 0.0 for f in fits])
+    colors = ["tab:green" if f.name in accepted else "tab:gray" for f in fits]
+    y = np.arange(len(fits))
+    ax.barh(y, np.maximum(drops, CLIP_PERCENT), color=colors)
+    for yi, v in zip(y, drops):
+        if v < CLIP_PERCENT:
+            ax.text(CLIP_PERCENT, yi, f" {v:.0f} %", va="center", ha="left", fontsize=7)
+    ax.set_yticks(y)
+    ax.set_yticklabels([f.name if f.refined else f"{f.name} (screened only)" for f in fits], fontsize=8)
+    for yl, f in zip(ax.get_yticklabels(), fits):
+        yl.set_color("k" if f.refined else "0.5")
+    ax.axvline(0.0, color="k", lw=0.5)
+    ax.set_xlim(max(float(drops.min(initial=0.0)), CLIP_PERCENT) - 5.0, 105.0)
+    before = fits[0].error_before if fits else float("nan")
+    ax.set_xlabel(f"round {k}: error reduction [%] from {before:.4g} (1 = noise floor)", fontsize=8)
+    ax.grid(True, axis="x", alpha=0.3)
 
 
 def calibration_plot(changes, spreads, channels, before, after, path=None, title=None):

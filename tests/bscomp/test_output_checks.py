@@ -187,6 +187,43 @@ def test_diagnosis_plot_twice_into_the_same_folder(diagnosis, tmp_path):
     assert _listing(tmp_path / "figs") == ["candidates.png", "error_staircase.png"]
 
 
+def test_the_candidates_figure_has_a_panel_per_round_with_what_each_round_accepted(tmp_path):
+    """Round 2's accepted effect is drawn in its own round (the round-1 chart alone showed a table part at its
+    7 % screening value, green, beside the 99 % it removed in round 2); a screened-only candidate has no bar; an
+    error increase beyond CLIP_PERCENT is clipped and its value written."""
+    from types import SimpleNamespace
+
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    from bscomp.plotting.validate import CLIP_PERCENT, _round_bars
+    from bscomp.validate.diagnosis import EffectFit
+
+    def fit(name, before, after, refined=True, rnd=1):
+        return EffectFit(SimpleNamespace(name=name), {}, {}, before, after, -1.0, refined=refined, round=rnd)
+
+    round1 = [fit("friction", 1e6, 100.0), fit("inertia", 1e6, 2e5), fit("part", 1e6, 9.3e5, refined=False)]
+    round2 = [fit("part", 100.0, 1.3, rnd=2), fit("joint", 100.0, 800.0, rnd=2), fit("delay", 100.0, 1e5, False, 2)]
+    fig, ax = plt.subplots()
+    _round_bars(ax, round2, {"part"}, 2)
+    widths = [b.get_width() for b in ax.patches][::-1]                  # best-ranked first
+    colors = [matplotlib.colors.to_hex(b.get_facecolor()) for b in ax.patches][::-1]
+    labels = [t.get_text() for t in ax.get_yticklabels()][::-1]
+    texts = [t.get_text() for t in ax.texts]
+    plt.close(fig)
+    assert widths == pytest.approx([98.7, CLIP_PERCENT, 0.0])
+    assert colors[0] == matplotlib.colors.to_hex("tab:green") and colors[1] == matplotlib.colors.to_hex("tab:gray")
+    assert labels == ["part", "joint", "delay (screened only)"]
+    assert texts == [" -700 %"]
+    part = round2[0]
+    diag = Diagnosis(system=None, uncertain=[], recalibrated={}, ranked=round1, accepted=[round1[0], part],
+                     rounds=[round1, round2], staircase=[("nominal", 1e6), ("+ friction", 100.0), ("+ part", 1.3)],
+                     message="2 found")
+    paths = diag.plot(tmp_path)
+    assert [p.name for p in paths] == ["error_staircase.png", "candidates.png"]
+    assert all(p.stat().st_size > 0 for p in paths)
+
+
 # ---- write_report ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("obj, error, match", [
     ("hello", ArgumentTypeError, r"write_report: got str 'hello', not a result to report: give a Comparison"),
