@@ -50,8 +50,9 @@ def frf_comparison_plot(fc, path=None, title=None):
             if m.model_f is not None:
                 am.axvline(m.model_f, color="C0" if m.measured is not None else "r", ls=":", lw=0.8)
             if m.measured is not None and p in m.measured.pairs:
-                r = m.measured
-                am.plot([r.f], [20 * np.log10(r.amplitude)], "x", color="k" if m.model_f is not None else "r", ms=8)
+                r = m.measured         # its fitted amplitude is of its own pair; on the others, the measured |H| there
+                amp = r.amplitude if tuple(p) == tuple(r.pair) else float(np.interp(r.f, f, np.abs(hm)))
+                am.plot([r.f], [20 * np.log10(amp)], "x", color="k" if m.model_f is not None else "r", ms=8)
         am.set_title(f"{p[1]} / {p[0]} [{fc.units.get(p, '')}]", fontsize=9)
         am.set_ylabel("magnitude [dB]")
         ap.set_ylabel("phase [deg]")

@@ -417,3 +417,30 @@ def test_report_renders_other_results(tmp_path):
 
     html = write_report([Dummy()], tmp_path).read_text()
     assert "backlash   90 %" in html and "Backlash(b=1e-5)" in html
+
+
+def test_a_measured_resonance_is_marked_on_each_pairs_own_curve():
+    """A resonance seen in two FRF pairs is marked on each at that pair's measured |H| (its fitted amplitude is of
+    one pair only: on the FE truth's table.a the 122.8 Hz mark sat 17 dB below the curve, at -2.7 dB: the motor speed pair's amplitude)."""
+    from importlib import resources
+
+    import matplotlib.pyplot as plt
+
+    from bscomp.plotting.validate import frf_comparison_plot
+    from bscomp.validate.measurements import load_all
+
+    root = resources.files("bscomp.systems") / "data" / "truths" / "axial_torsional" / "joint_friction"
+    fc = compare("testbed_axial_torsional", load_all([str(root / "frf.csv")])).frf[0]
+    fig = frf_comparison_plot(fc)
+    shared = [m.measured for m in fc.modes if m.measured is not None and len(m.measured.pairs) > 1]
+    assert shared, "the truth's first mode is seen in both pairs"
+    checked = 0
+    for j, p in enumerate(fc.measured):
+        marks = [ln for ln in fig.axes[j].lines if ln.get_marker() == "x"]     # row 0: the magnitudes
+        for r in shared:
+            mark = next(ln for ln in marks if ln.get_xdata()[0] == r.f)
+            level = 20 * np.log10(np.interp(r.f, fc.freqs, np.abs(fc.measured[p])))
+            assert mark.get_ydata()[0] == pytest.approx(level, abs=1.0), (p, r.f)
+            checked += 1
+    plt.close(fig)
+    assert checked >= 2
