@@ -421,7 +421,8 @@ def test_report_renders_other_results(tmp_path):
 
 def test_a_measured_resonance_is_marked_on_each_pairs_own_curve():
     """A resonance seen in two FRF pairs is marked on each at that pair's measured |H| (its fitted amplitude is of
-    one pair only: on the FE truth's table.a the 122.8 Hz mark sat 17 dB below the curve, at -2.7 dB: the motor speed pair's amplitude)."""
+    one pair only: on the FE truth's table.a the 122.8 Hz mark sat at -2.7 dB, the motor speed pair's amplitude,
+    17 dB below the curve)."""
     from importlib import resources
 
     import matplotlib.pyplot as plt
