@@ -25,6 +25,13 @@ def _slug(text):
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", Path(str(text)).name)[:60] or "data"
 
 
+def _wrapped(text: str, width: int) -> str:
+    """A title broken into lines of at most ``width`` characters (a data file's source can be a long sentence)."""
+    import textwrap
+
+    return "\n".join(textwrap.wrap(str(text), width)) or str(text)
+
+
 def frf_comparison_plot(fc, path=None, title=None):
     """Measured and model magnitude [dB] and phase [deg] per pair, resonances marked (x measured,
     dotted lines model modes, red: unpaired); dashed, the model at the measured excitation amplitude when the
@@ -60,7 +67,7 @@ def frf_comparison_plot(fc, path=None, title=None):
         for ax in (am, ap):
             ax.grid(True, which="both", alpha=0.3)
         am.legend(fontsize=8)
-    fig.suptitle(title or f"{fc.source}: measured vs model")
+    fig.suptitle(_wrapped(title or f"{fc.source}: measured vs model", int(10 * 6.5 * len(pairs))))
     return _finish(fig, plt, path)
 
 
@@ -105,14 +112,16 @@ def time_comparison_plot(tc, path=None, title=None):
         ay.set_ylabel(f"{ch} [{tc.units.get(ch, '')}]", fontsize=8)
         ay.legend(fontsize=8, loc="upper right")
         ae.plot(tc.t, tc.residual[ch], "C3-", lw=0.8)
-        ae.set_ylabel("residual", fontsize=8)
+        unit = tc.units.get(ch, "")
+        ae.set_ylabel(f"residual [{unit}]" if unit else "residual", fontsize=8)
         for w in worst:
             for ax in (ay, ae):
                 ax.axvspan(w["t0"], w["t1"], color="orange", alpha=0.15)
         for ax in (ay, ae):
             ax.grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("time [s]")
-    axes[0, 0].set_title(title or f"{tc.source}: measured vs model (shaded: windows carrying most error)")
+    axes[0, 0].set_title(_wrapped(title or f"{tc.source}: measured vs model (shaded: windows carrying most error)",
+                                  90), fontsize=9)
     return _finish(fig, plt, path)
 
 
@@ -133,7 +142,7 @@ def resid_plot(tc, path=None, title=None):
         for ax in (a, b):
             ax.set_xlabel("lag [samples]")
             ax.grid(True, alpha=0.3)
-    fig.suptitle(title or f"{tc.source}: residual tests (99 % confidence)")
+    fig.suptitle(_wrapped(title or f"{tc.source}: residual tests (99 % confidence)", 85))
     return _finish(fig, plt, path)
 
 
