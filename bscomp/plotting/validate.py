@@ -32,6 +32,11 @@ def _wrapped(text: str, width: int) -> str:
     return "\n".join(textwrap.wrap(str(text), width)) or str(text)
 
 
+def _hz(f: float) -> str:
+    """A frequency for a tick: three significant digits below 100 Hz, whole hertz above (1000, not 1e+03)."""
+    return f"{f:.3g}" if f < 100 else f"{f:.0f}"
+
+
 def frf_comparison_plot(fc, path=None, title=None):
     """Measured and model magnitude [dB] and phase [deg] per pair, resonances marked (x measured,
     dotted lines model modes, red: unpaired); dashed, the model at the measured excitation amplitude when the
@@ -89,12 +94,12 @@ def band_error_plot(fc, path=None, title=None):
     a1.set_ylabel("share of error [%]")
     a2.set_ylabel("rms magnitude error [dB]")
     a2.set_xticks(x)
-    a2.set_xticklabels([f"{np.sqrt(lo * hi):.3g}" for lo, hi in bands], rotation=45)
+    a2.set_xticklabels([_hz(np.sqrt(lo * hi)) for lo, hi in bands], rotation=45)
     a2.set_xlabel("band centre [Hz]")
     for ax in (a1, a2):
         ax.grid(True, alpha=0.3)
     a1.legend(fontsize=8)
-    a1.set_title(title or f"{fc.source}: where the FRF error is")
+    a1.set_title(_wrapped(title or f"{fc.source}: where the FRF error is", 90), fontsize=9)
     return _finish(fig, plt, path)
 
 

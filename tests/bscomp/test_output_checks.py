@@ -271,3 +271,15 @@ def test_every_result_writer_checks_its_suffix(tmp_path, write, name):
     with pytest.raises(BscompError, match=name):
         write(tmp_path)
     assert not list(tmp_path.iterdir())
+
+
+def test_figure_titles_fit_and_band_ticks_read_in_hertz():
+    """A data file's source can be a long sentence: titles are wrapped to the figure (the time overlay's was cut at
+    both ends); band centres read 125, 250, 500, 1000 Hz, not 1e+03."""
+    from bscomp.plotting.validate import _hz, _wrapped
+
+    src = "synthetic square-wave run of an FE test-bed truth (bscomp.systems.truths, seed 1305; see truth.json)"
+    lines = _wrapped(src + ": measured vs model (shaded: windows carrying most error)", 90).split("\n")
+    assert len(lines) == 2 and max(map(len, lines)) <= 90 and " ".join(lines).startswith(src)
+    assert [_hz(f) for f in (1.953, 15.63, 62.5, 125.0, 999.7, 1000.0)] == ["1.95", "15.6", "62.5", "125", "1000",
+                                                                           "1000"]
