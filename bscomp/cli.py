@@ -174,16 +174,35 @@ def _diagnose(args) -> int:
         if args.apply:
             print("\nlines to add to the system file:\n" + diag.code())
     if args.report:
-        from bscomp.files import atomic_dir
-
-        out = Path(args.report)
-        with atomic_dir(out) as tmp:              # complete or absent
-            paths = diag.plot(tmp)
-            diag.to_json(tmp / "diagnosis.json")
-            (tmp / "diagnosis.txt").write_text(diag.table() + "\n\n" + diag.code() + "\n")
-        if not args.json:
-            print(f"report written to {out} ({', '.join(p.name for p in paths)}, diagnosis.json, diagnosis.txt)")
+        _diagnosis_report(args, datasets, overrides, diag)
     return 0
+
+
+def _diagnosis_report(args, datasets, overrides: dict, diag) -> None:
+    """``diagnose --report DIR``: an HTML report -- the model compared with the data, the diagnosis, and (when it
+    found effects) the model with them compared again at every dataset's conditions -- with diagnosis.json and
+    diagnosis.txt; complete or absent."""
+    from bscomp.files import atomic_dir
+    from bscomp.model import ModelSpec
+    from bscomp.validate import compare, write_report
+
+    plain = {k: v for k, v in overrides.items() if "." not in k}      # build arguments, as `compare` takes them
+    dotted = {k: v for k, v in overrides.items() if "." in k}
+    build = ModelSpec(args.system, plain) if plain else args.system
+    with ck.build_guard(args.system):
+        items = [compare(build, datasets, params=dotted or None), diag]
+        if diag.accepted:                 # the user's --set values, except those the diagnosis re-calibrated
+            kept = {k: v for k, v in dotted.items() if k not in diag.recalibrated}
+            items.append(compare(diag.updated(build), datasets, params=kept or None))
+    out = Path(args.report)
+    with atomic_dir(out) as tmp:
+        write_report(items, tmp, title=f"bscomp diagnose: {args.system}")
+        diag.to_json(tmp / "diagnosis.json")
+        (tmp / "diagnosis.txt").write_text(diag.table() + "\n\n" + diag.code() + "\n")
+    if not args.json:
+        print(f"report written to {out / 'index.html'} (the model compared with the data, the diagnosis"
+              + (", the model with the effects found compared again" if diag.accepted else "")
+              + "; diagnosis.json, diagnosis.txt)")
 
 
 def _systems(args) -> int:
@@ -366,7 +385,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--max-effects", type=ck.number("--max-effects", 0, 20, integer=True, open_low=False), default=3,
                    help="most effects accepted one after another")
     p.add_argument("--apply", action="store_true", help="print the lines to add to the system file")
-    p.add_argument("--report", metavar="DIR", help="write the staircase figure, JSON and text to DIR")
+    p.add_argument("--report", metavar="DIR", help="write an HTML report to DIR: the model compared with the data, the "
+                   "diagnosis (staircase, candidates), the model with the effects found compared again; JSON, text")
     p.add_argument("--json", action="store_true", help="print the diagnosis as JSON")
     p.add_argument("--verbose", action="store_true", help="print each round's fits (debug lines)")
     p.set_defaults(func=_diagnose)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import inspect
 import json
 import math
 from dataclasses import dataclass, field
 
 from bscomp.files import atomic_write, json_default
+from bscomp.model import as_system, build_keywords, model_name
 from bscomp.plotting.validate import plot_diagnosis
 from bscomp.validate.equivalence import Z_CRIT
 from bscomp.validate.evaluation import BOUND_TOL, FIT_MAX_SUB
@@ -293,6 +295,13 @@ class Diagnosis:
             s = r.candidate.apply(s, **r.values)
         return s
 
+    def updated(self, model):
+        """``model`` (the name, ``.py`` path, build function or ModelSpec the diagnosis ran on) as a build function
+        with this diagnosis's changes: built at each dataset's conditions (its nut position...), then
+        :meth:`apply` -- for ``compare(diag.updated(model), datasets)``, the error after the effects are added, at
+        every measured condition (a built System would be compared at the first one only)."""
+        return _UpdatedBuild(model, self)
+
     def code(self) -> str:
         """Python lines to add to a system file (``s`` is the System being built)."""
         lines = ["# --- changes found by bscomp diagnose ---"]
@@ -333,6 +342,25 @@ class Diagnosis:
         """Write ``error_staircase.png``, ``candidates.png`` (and ``orders.png`` when the remainder holds a component
         periodic in the motor angle) to ``directory``; returns the paths."""
         return plot_diagnosis(self, directory)
+
+
+class _UpdatedBuild:
+    """:meth:`Diagnosis.updated`: a build function taking the model's own build keywords (its signature says which,
+    for :func:`bscomp.model.build_keywords`), named after the model and the effects found."""
+
+    def __init__(self, model, diagnosis):
+        self.model, self.diagnosis = model, diagnosis
+        keys = build_keywords(model)
+        kind = inspect.Parameter.KEYWORD_ONLY
+        self.__signature__ = inspect.Signature(
+            [inspect.Parameter("kwargs", inspect.Parameter.VAR_KEYWORD)] if keys is None
+            else [inspect.Parameter(k, kind, default=None) for k in sorted(keys)])
+        self.__name__ = " + ".join([model_name(model)] + [a.name for a in diagnosis.accepted])
+
+    def __call__(self, **build):
+        s = self.diagnosis.apply(as_system(self.model, build))
+        s.name = self.__name__
+        return s
 
 
 def _bound_note(fit, name, value, tol=BOUND_TOL) -> str:

@@ -284,3 +284,34 @@ def test_simulate_reports_the_nut_travel_and_refuses_a_nut_off_the_screw(capsys)
     err = capsys.readouterr().err
     assert "NutOffScrewError" in err and "left the screw at t = 1.5" in err and "[0, 0.9205] m" in err
     assert "Traceback" not in err
+
+
+def test_diagnose_report_compares_the_model_again_with_the_effects_found(tmp_path, capsys):
+    """``bscomp diagnose --report DIR`` (its report step, on a diagnosis that found the bundled validation data's
+    friction): an HTML report with the model compared, the diagnosis, and the model with the friction compared again
+    -- its cost lower -- plus diagnosis.json and diagnosis.txt."""
+    import os
+    import re
+    from types import SimpleNamespace
+
+    from bscomp.cli import _diagnosis_report
+    from bscomp.systems import get
+    from bscomp.validate.candidates import GuidewayFriction
+    from bscomp.validate.diagnosis import Diagnosis, EffectFit
+    from bscomp.validate.measurements import load_all
+
+    here = os.path.join(os.path.dirname(__file__), "..", "..", "systems", "data", "validation")
+    datasets = load_all([os.path.join(here, "frf.csv"), os.path.join(here, "time.csv")])
+    fit = EffectFit(GuidewayFriction(), {"F_c": 2066.0, "d": 100.0}, {}, 50.0, 1.1, -9.0, accepted=True)
+    diag = Diagnosis(system=get("validation_drive"), uncertain=[], recalibrated={}, ranked=[fit], accepted=[fit],
+                     rounds=[[fit]], staircase=[("nominal", 50.0), ("+ guideway_friction", 1.1)], message="1 found")
+    args = SimpleNamespace(system="validation_drive", report=str(tmp_path / "rep"), json=False)
+    _diagnosis_report(args, datasets, {}, diag)
+    assert "report written to" in capsys.readouterr().out
+    html = (tmp_path / "rep" / "index.html").read_text()
+    heads = re.findall(r"<h2>(Comparison|Diagnosis) (\d)(?::  ?model '([^']*)', cost ([0-9.e+-]+))?</h2>", html)
+    assert [(h[0], h[1], h[2]) for h in heads] == [("Comparison", "1", "validation_drive"), ("Diagnosis", "2", ""),
+                                                  ("Comparison", "3", "validation_drive + guideway_friction")], heads
+    assert float(heads[2][3]) < 0.5 * float(heads[0][3]), heads   # measured 0.916 -> 0.200 (the joint still missing)
+    assert {p.name for p in (tmp_path / "rep").iterdir()} >= {"diagnosis.json", "diagnosis.txt", "comparison1",
+                                                              "diagnosis2", "comparison3"}

@@ -255,3 +255,23 @@ def test_a_fit_time_series_whose_newton_did_not_converge_is_counted_and_reported
             and "guideway_friction + screw_nut_backlash: 2 of 149 evaluations" in d.table()), d.table()
 
 
+
+
+def test_updated_builds_at_each_condition_with_the_changes_found():
+    """``Diagnosis.updated(model)``: the model built with a dataset's build keywords, then the re-calibrated values
+    and the accepted effects -- what compare needs to see the error after the effects at every measured condition
+    (a built System is compared at one; its plain conditions are dropped with a warning)."""
+    from bscomp.model import build_keywords
+    from bscomp.validate.candidates import GuidewayFriction
+    from bscomp.validate.diagnosis import Diagnosis, EffectFit
+
+    fit = EffectFit(GuidewayFriction(), {"F_c": 321.0, "d": 12.0}, {}, 50.0, 1.1, -9.0, accepted=True)
+    diag = Diagnosis(system=None, uncertain=["coupling.c"], recalibrated={"coupling.c": (4321.0, 5.0)}, ranked=[fit],
+                     accepted=[fit], rounds=[[fit]], staircase=[], message="1 found")
+    build = diag.updated("validation_drive")
+    assert build_keywords(build) == build_keywords("validation_drive") == {"k_axial"}
+    s = build(k_axial=1.23e8)
+    assert s.name == "validation_drive + guideway_friction"
+    assert s.get("axial.c") == 1.23e8 and s.get("coupling.c") == 4321.0
+    friction = [path for path, comp in s.leaves() if type(comp).__name__ == "CoulombFriction"]
+    assert len(friction) == 1 and s.get(f"{friction[0]}.F_c_pos") == 321.0
