@@ -119,16 +119,23 @@ def _frf(args) -> int:
     return 0
 
 
-def _compare(args) -> int:
+def _model_and_parameters(system: str, overrides: dict):
+    """``(model, build arguments, dotted parameters)`` of ``--set`` values: the build arguments (no dot, as modes
+    and diagnose take them) go into the model (a ModelSpec), the parameters to compare's ``params``."""
     from bscomp.model import ModelSpec
+
+    plain = {k: v for k, v in overrides.items() if "." not in k}
+    dotted = {k: v for k, v in overrides.items() if "." in k}
+    return (ModelSpec(system, plain) if plain else system), plain, dotted
+
+
+def _compare(args) -> int:
     from bscomp.validate import compare, load_all, write_report
 
     if args.report:
         ck.output_folder(args.report, "--report")
     overrides = _parse_set(args.set)
-    plain = {k: v for k, v in overrides.items() if "." not in k}       # build arguments, as modes/diagnose take
-    dotted = {k: v for k, v in overrides.items() if "." in k}
-    build = ModelSpec(args.system, plain) if plain else args.system
+    build, plain, dotted = _model_and_parameters(args.system, overrides)
     ck.check_file_system(args.system, plain)
     datasets = load_all(args.data)
     with ck.build_guard(args.system):
@@ -183,12 +190,9 @@ def _diagnosis_report(args, datasets, overrides: dict, diag) -> None:
     found effects) the model with them compared again at every dataset's conditions -- with diagnosis.json and
     diagnosis.txt; complete or absent."""
     from bscomp.files import atomic_dir
-    from bscomp.model import ModelSpec
     from bscomp.validate import compare, write_report
 
-    plain = {k: v for k, v in overrides.items() if "." not in k}      # build arguments, as `compare` takes them
-    dotted = {k: v for k, v in overrides.items() if "." in k}
-    build = ModelSpec(args.system, plain) if plain else args.system
+    build, _, dotted = _model_and_parameters(args.system, overrides)
     with ck.build_guard(args.system):
         items = [compare(build, datasets, params=dotted or None), diag]
         if diag.accepted:                 # the user's --set values, except those the diagnosis re-calibrated
