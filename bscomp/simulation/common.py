@@ -19,6 +19,7 @@ import numpy as np
 
 from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_number
 from bscomp.kernel.dae import Dae
+from bscomp.kernel.signal_meta import unit_of
 from bscomp.model import as_dae, run_overrides
 from bscomp.simulation.result import SimulationResult
 
@@ -337,6 +338,11 @@ class Progress:
                 sys.stderr.write("\n")
 
 
+def result_units(dae, outputs) -> dict:
+    """:attr:`SimulationResult.units`: the declared unit of each output and input of ``dae`` that has one."""
+    return {n: u for n in [*outputs, *dae.u_names] if (u := unit_of(dae, n)) and u != "1"}
+
+
 def finish(problem, X, XD, Z, Uh, stats, t_wall) -> SimulationResult:
     """The :class:`SimulationResult` of a run: the outputs evaluated, ``wall_s`` (from ``t_wall``, a
     ``time.perf_counter()`` reading) and ``real_time_factor`` added to the method's ``stats``."""
@@ -346,4 +352,4 @@ def finish(problem, X, XD, Z, Uh, stats, t_wall) -> SimulationResult:
     stats = {"wall_s": wall, **stats, "real_time_factor": (t[-1] - t[0]) / wall if wall > 0 else np.inf}
     return SimulationResult(t=t, x=X, xd=np.ascontiguousarray(XD), z=np.ascontiguousarray(Z), u=Uh,
                             x_names=list(dae.x_names), z_names=list(dae.z_names), u_names=list(dae.u_names),
-                            outputs=out, stats=stats)
+                            outputs=out, stats=stats, units=result_units(dae, out))

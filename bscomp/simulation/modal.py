@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 
 from bscomp.errors import ArgumentTypeError, UsageError, check_number
-from bscomp.simulation.common import Progress, SampledLoop, evaluate_mapped
+from bscomp.simulation.common import Progress, SampledLoop, evaluate_mapped, result_units
 from bscomp.simulation.modal_driver import ModalSimulator
 from bscomp.simulation.modal_steps import block
 from bscomp.simulation.result import SimulationResult
@@ -259,7 +259,8 @@ def simulate_modal(problem, options):
     stats = dict(sim.stats, wall_s=wall, method="modal", step=float(np.min(np.diff(ti))), options=opts,
                  real_time_factor=(t[-1] - t[0]) / wall if wall > 0 else np.inf)
     return ModalResult(lambda: _states(sim, XI, G, segs, Uh), t=t, u=Uh, x_names=list(dae.x_names),
-                       z_names=list(dae.z_names), u_names=list(dae.u_names), outputs=y, stats=stats)
+                       z_names=list(dae.z_names), u_names=list(dae.u_names), outputs=y, stats=stats,
+                       units=result_units(dae, y))
 
 
 def _thin_segments(segs, every):

@@ -32,6 +32,8 @@ class SimulationResult:
     outputs : dict name -> ndarray (nt,)
     stats : dict
         What the method reports: ``wall_s``, ``real_time_factor``, ``method`` and its own counters.
+    units : dict name -> str
+        The declared unit of each output and input, for people to read (``m/s^2``; absent: none declared).
     """
 
     t: np.ndarray
@@ -44,6 +46,7 @@ class SimulationResult:
     u_names: list
     outputs: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
+    units: dict = field(default_factory=dict)
 
     def __getitem__(self, name):
         if not isinstance(name, str):
@@ -94,4 +97,5 @@ class SimulationResult:
         if path is not None:
             check_path_type(path, "SimulationResult.plot: path")
         names = self._names(names, "SimulationResult.plot: names", list(self.outputs) or self.x_names[:4], False)
-        return time_plot(self.t, [self[n] for n in names], names, title=title, path=path)
+        labels = [f"{n} [{self.units[n]}]" if self.units.get(n) else n for n in names]
+        return time_plot(self.t, [self[n] for n in names], labels, title=title, path=path)

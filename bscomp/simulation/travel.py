@@ -115,4 +115,4 @@ def _truncated(res, k):
     return SimulationResult(t=res.t[:k], x=res.x[:k], xd=res.xd[:k], z=res.z[:k], u=res.u[:k],
                             x_names=res.x_names, z_names=res.z_names, u_names=res.u_names,
                             outputs={n: v[:k] for n, v in res.outputs.items()},
-                            stats=dict(res.stats, truncated_at=float(res.t[k])))
+                            stats=dict(res.stats, truncated_at=float(res.t[k])), units=dict(res.units))

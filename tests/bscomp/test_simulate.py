@@ -312,3 +312,16 @@ def test_lti_on_the_test_bed_with_a_current_limit():
     assert r.stats["linearization_error"] < 1e-9
     with pytest.warns(ModelLimitationWarning, match=r"amp \(CurrentAmplifier\).*leaves it by t = 0\.1\d* s"):
         simulate(dae, t, inputs={"amp.u": square(10.0)}, outputs=["table.a"], method="lti")
+
+
+@pytest.mark.parametrize("method", ["idas", "lti", "modal", "fixed"])
+def test_a_result_carries_the_declared_units_and_its_plot_shows_them(method):
+    """Every method's result knows its outputs' and inputs' declared units (the CLI's time plot had bare names)."""
+    import matplotlib.pyplot as plt
+
+    r = simulate("small_drive", np.linspace(0.0, 0.002, 3), inputs={"motor.tau": 1.0}, outputs=["table.a", "table.s"],
+                 method=method)
+    assert r.units == {"table.a": "m/s^2", "table.s": "m", "motor.tau": "N m"}
+    fig = r.plot()
+    assert [ax.get_ylabel() for ax in fig.axes] == ["table.a [m/s^2]", "table.s [m]"]
+    plt.close(fig)
