@@ -154,14 +154,15 @@ def frf_overlay_plot(freqs_hz, H, labels=None, title="", path=None):
     return _finish(fig, plt, path)
 
 
-def time_plot(t, signals, names, title="", path=None):
-    """Signals against time, one axis each."""
+def time_plot(t, signals, names, title="", path=None, units=None):
+    """Signals against time, one axis each; ``units`` ``{name: unit}`` label the axes (``table.a [m/s^2]``)."""
     plt = _plt()
     n = len(signals)
     fig, axes = plt.subplots(n, 1, sharex=True, figsize=(8, 1.8 + 1.6 * n), squeeze=False)
     for ax, y, name in zip(axes[:, 0], signals, names, strict=False):
         ax.plot(t, y)
-        ax.set_ylabel(name, fontsize=8)
+        unit = (units or {}).get(name)
+        ax.set_ylabel(f"{name} [{unit}]" if unit and unit != "1" else name, fontsize=8)
         ax.grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("time [s]")
     if title:

@@ -97,5 +97,4 @@ class SimulationResult:
         if path is not None:
             check_path_type(path, "SimulationResult.plot: path")
         names = self._names(names, "SimulationResult.plot: names", list(self.outputs) or self.x_names[:4], False)
-        labels = [f"{n} [{self.units[n]}]" if self.units.get(n) else n for n in names]
-        return time_plot(self.t, [self[n] for n in names], labels, title=title, path=path)
+        return time_plot(self.t, [self[n] for n in names], names, title=title, path=path, units=self.units)

@@ -48,6 +48,11 @@ def test_drive_ocp_from_cold_start_respects_bounds_on_resimulation():
     assert sim["table.s"][-1] == pytest.approx(0.05, abs=2e-4)
     assert np.max(np.abs(sim["table.v"])) < 0.2 * 1.03
     assert dev["table.v"] < 0.05
+    import matplotlib.pyplot as plt
+
+    fig = r.plot()                                                # the axes carry the declared units
+    assert [ax.get_ylabel() for ax in fig.axes] == ["table.v [m/s]", "motor.tau [N m]"]
+    plt.close(fig)
 
 
 def test_infeasible_problem_raises_named_error():
