@@ -122,10 +122,9 @@ def _frf(args) -> int:
 def _model_and_parameters(system: str, overrides: dict):
     """``(model, build arguments, dotted parameters)`` of ``--set`` values: the build arguments (no dot, as modes
     and diagnose take them) go into the model (a ModelSpec), the parameters to compare's ``params``."""
-    from bscomp.model import ModelSpec
+    from bscomp.model import ModelSpec, split_overrides
 
-    plain = {k: v for k, v in overrides.items() if "." not in k}
-    dotted = {k: v for k, v in overrides.items() if "." in k}
+    plain, dotted = split_overrides(overrides)
     return (ModelSpec(system, plain) if plain else system), plain, dotted
 
 

@@ -11,6 +11,7 @@ residual signatures) is passed in by the caller.
 from __future__ import annotations
 
 import re
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -27,8 +28,6 @@ def _slug(text):
 
 def _wrapped(text: str, width: int) -> str:
     """A title broken into lines of at most ``width`` characters (a data file's source can be a long sentence)."""
-    import textwrap
-
     return "\n".join(textwrap.wrap(str(text), width)) or str(text)
 
 
