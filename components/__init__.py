@@ -39,6 +39,7 @@ from .position_sensor import PositionSensor
 from .reduced_substructure import ReducedSubstructure
 from .rigid_body import RigidBody
 from .rotational_backlash import RotationalBacklash  # noqa: E402
+from .rotational_friction import RotationalFriction  # noqa: E402
 from .rst_controller import RSTController  # noqa: E402
 from .saturation import Saturation  # noqa: E402
 from .screw_nut import ScrewNut
@@ -51,6 +52,7 @@ from .stribeck_friction import StribeckFriction  # noqa: E402
 from .structural_block import StructuralBlock
 from .tachometer import Tachometer  # noqa: E402
 from .torque import Torque
+from .torque_between import TorqueBetween
 from .torsional_damper import TorsionalDamper
 from .torsional_spring import TorsionalSpring
 from .velocity_sensor import VelocitySensor
@@ -64,7 +66,7 @@ __all__ = [
     "MovingScrewNut",
     "AccelerationSensor", "AngleSensor", "Damper", "Fixed", "FixedRotational", "Force", "Gain",
     "IdealLeadScrew", "Inertia", "Mass", "PositionSensor", "SpeedSensor", "Spring", "Torque",
-    "TorsionalDamper", "TorsionalSpring", "VelocitySensor", "ForceBetween", "SpringDamper",
+    "TorsionalDamper", "TorsionalSpring", "VelocitySensor", "ForceBetween", "TorqueBetween", "SpringDamper",
     "Ballscrew", "Bearing", "BoltedFastener", "Bushing", "Coupling", "FixedNode", "LinearGuide",
     "NodeToFlange", "NodeToRotFlange", "RigidBody", "ScrewNut",
 ]
@@ -72,5 +74,5 @@ __all__ += [
     "CurrentAmplifier", "PIController", "Saturation", "Tachometer",
     "DigitalPController", "NotchFilter", "RSTController",
 ]
-__all__ += ["Backlash", "CoulombFriction", "RotationalBacklash", "StribeckFriction"]
+__all__ += ["Backlash", "CoulombFriction", "RotationalBacklash", "RotationalFriction", "StribeckFriction"]
 __all__ += ["Housing", "PadeDelay", "Section", "BeamModel", "DofSelection", "assemble_shaft", "select_dofs"]

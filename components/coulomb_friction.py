@@ -28,11 +28,9 @@ opposes the relative sliding. Connect ``flange_a`` to a :class:`~components.fixe
 to ground. Mechanical power dissipated: ``f v_rel >= 0``.
 """
 
-import casadi as ca
-
 from bscomp.kernel.component import Parameter
 
-from ._friction import PartialFriction
+from ._friction import PartialFriction, coulomb_viscous
 
 
 class CoulombFriction(PartialFriction):
@@ -67,6 +65,4 @@ class CoulombFriction(PartialFriction):
 
     def friction_force(self, v):
         """Regularised friction force [N] at sliding velocity ``v`` (CasADi or float)."""
-        sig = ca.tanh(v / self.v_reg)
-        wp, wn = 0.5 * (1 + sig), 0.5 * (1 - sig)
-        return sig * (wp * self.F_c_pos + wn * self.F_c_neg) + (wp * self.d_pos + wn * self.d_neg) * v
+        return coulomb_viscous(v, self.F_c_pos, self.F_c_neg, self.d_pos, self.d_neg, self.v_reg)

@@ -44,9 +44,13 @@ class RotationalBacklash(PartialRotCompliant):
 
         return TorsionalSpring(c=self.c)
 
+    def force_law(self, phi_rel, w_rel):
+        """Element torque ``tau(phi_rel, w_rel)`` (Eq 5.8-5.9 as a contact law), as ``Backlash.force_law``: the
+        compiled simulators (``method="modal"``, diagnose's evaluator) evaluate it with parameters as symbols."""
+        return contact_force(phi_rel - self.phi_rel0, w_rel, self.b, self.c, self.d, self.eps)
+
     def equations(self):
-        delta = self.phi_rel - self.phi_rel0
-        return [self.tau - contact_force(delta, self.w_rel, self.b, self.c, self.d, self.eps)]
+        return [self.tau - self.force_law(self.phi_rel, self.w_rel)]
 
     def observables(self):
         out = super().observables()

@@ -45,10 +45,12 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.components.force_between import ForceBetween
+from bscomp.components.torque_between import TorqueBetween
 from bscomp.errors import ArgumentTypeError, UnknownNameError, check_names, check_number
 from bscomp.kernel.component import _Context
 from bscomp.kernel.dae import Dae
 from bscomp.kernel.flattening import flatten
+from bscomp.kernel.partials import PartialRotCompliant
 from bscomp.kernel.system import System
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import dense, modal_frf
@@ -80,6 +82,17 @@ def nonlinear_elements(system) -> list:
     return [(p, c) for p, c in system.leaves() if hasattr(c, "force_law") and hasattr(c, "linear_equivalent")]
 
 
+def element_coordinates(comp) -> tuple:
+    """The two observables a two-flange element's law reads: ``("s_rel", "v_rel")``, or ``("phi_rel", "w_rel")``
+    for a rotational one (:class:`~bscomp.kernel.partials.PartialRotCompliant`: friction torque, torsional backlash)."""
+    return ("phi_rel", "w_rel") if isinstance(comp, PartialRotCompliant) else ("s_rel", "v_rel")
+
+
+#: The small-signal equivalents an element may have, with the names of their ``(k, s_rel0, d)`` parameters.
+_LINEAR_KINDS = {"Spring": ("c", "s_rel0", None), "Damper": (None, None, "d"), "SpringDamper": ("c", "s_rel0", "d"),
+                 "TorsionalSpring": ("c", "phi_rel0", None), "TorsionalDamper": (None, None, "d")}
+
+
 def _with_params(comp, values: dict):
     """Call-context in which ``comp.<param>`` reads ``values`` (numbers or CasADi symbols)."""
     ctx = _Context()
@@ -101,6 +114,7 @@ class _Element:
 
     def __init__(self, path, comp):
         self.path, self.comp = path, comp
+        self.coords = element_coordinates(comp)
         self.pnames = [n for n, v in comp._values.items() if v is not None and np.ndim(v) == 0]
         self.values = {n: float(comp._values[n]) for n in self.pnames}
         s, v = ca.SX.sym("s"), ca.SX.sym("v")
@@ -128,7 +142,7 @@ def _cut_nonlinear(system, elements):
         path = el.path
         owner = lin.component(path.rpartition(".")[0]) if "." in path else lin
         leaf = path.rpartition(".")[2]
-        owner.replace(leaf, ForceBetween())
+        owner.replace(leaf, TorqueBetween() if isinstance(el.comp, PartialRotCompliant) else ForceBetween())
         if el.lin is not None:
             owner.add(f"{leaf}__lin", el.lin.copy())
             owner.connect(f"{leaf}__lin.flange_a", f"{leaf}.flange_a")
@@ -210,15 +224,15 @@ class CompiledModel(TimeSeriesMixin):
             if name not in dae.u_names or name in self.w_inputs:
                 raise UnknownNameError(f"CompiledModel: '{name}' is not an input of '{dae.name}' (inputs: "
                                        f"{[u for u in dae.u_names if u not in self.w_inputs]})")
-        self.nl_outputs = [f"{el.path}.{q}" for el in self.elements for q in ("s_rel", "v_rel")]
+        self.nl_outputs = [f"{el.path}.{q}" for el in self.elements for q in el.coords]
         cut = [o for o in self.outputs for el in self.elements if o.startswith(el.path + ".")
                and o not in self.nl_outputs]
-        if cut:        # after the cut "<path>" is the ForceBetween of the correction: its f is not the element's
+        if cut:        # after the cut "<path>" is the Force/TorqueBetween of the correction: not the element's force
             raise UnknownNameError(
                 f"CompiledModel: {cut} are signals of the nonlinear elements "
                 f"{sorted({el.path for el in self.elements})}, which the compiled evaluator cuts out (their force "
-                "is carried as a correction, not as the element's force); request their s_rel / v_rel, or use "
-                "bscomp.simulate for the element's own signals")
+                "is carried as a correction, not as the element's force); request their s_rel / v_rel (phi_rel / "
+                "w_rel), or use bscomp.simulate for the element's own signals")
         dae.require_signals(self.outputs, "CompiledModel")
         self._so_args = dict(inputs=self.inputs + self.w_inputs, outputs=self.outputs + self.nl_outputs)
         self.so0 = second_order(dae, refresh_damping=False, **self._so_args)
@@ -357,19 +371,17 @@ class CompiledModel(TimeSeriesMixin):
 
     def law_values(self, law: dict) -> np.ndarray:
         """Packed element parameters: per element its law parameters, then the small-signal equivalent's
-        ``(k, s_rel0, d)`` (a Spring, a Damper or nothing)."""
+        ``(k, s_rel0, d)`` (:data:`_LINEAR_KINDS`: a spring, a damper, both, or nothing)."""
         out = []
         for el in self.elements:
             vals = {n: law.get(f"{el.path}.{n}", el.values[n]) for n in el.pnames}
             lv = el.lin_values(vals)
             kind = type(el.lin).__name__ if el.lin is not None else None
-            if kind not in (None, "Spring", "Damper", "SpringDamper"):
-                raise CompiledModelError(f"{el.path}: small-signal equivalent {kind} is not supported (Spring, "
-                                         "Damper, SpringDamper)")
-            k_lin = lv.get("c", 0.0) if kind in ("Spring", "SpringDamper") else 0.0
-            s0 = lv.get("s_rel0", 0.0) if kind in ("Spring", "SpringDamper") else 0.0
-            d_lin = lv.get("d", 0.0) if kind in ("Damper", "SpringDamper") else 0.0
-            out += [vals[n] for n in el.pnames] + [k_lin, s0, d_lin]
+            if kind is not None and kind not in _LINEAR_KINDS:
+                raise CompiledModelError(f"{el.path}: small-signal equivalent {kind} is not supported "
+                                         f"({', '.join(_LINEAR_KINDS)})")
+            names = _LINEAR_KINDS.get(kind, (None, None, None))
+            out += [vals[n] for n in el.pnames] + [lv.get(n, 0.0) if n else 0.0 for n in names]
         return np.array(out if out else [0.0], float)
 
     # ---- the linear part in modal coordinates --------------------------------------------------------

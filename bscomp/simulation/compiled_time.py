@@ -164,8 +164,8 @@ class TimeSeriesMixin:
 
         Cy, Dyu, Dyw = rows(outputs)
         if r:
-            Cs, Dsu, Dsw = rows([f"{el.path}.s_rel" for el in self.elements])
-            Cvn, _, _ = rows([f"{el.path}.v_rel" for el in self.elements])
+            Cs, Dsu, Dsw = rows([f"{el.path}.{el.coords[0]}" for el in self.elements])
+            Cvn, _, _ = rows([f"{el.path}.{el.coords[1]}" for el in self.elements])
         else:
             Cs = Cvn = np.zeros((1, n2))
             Dsu, Dsw, Dyw = np.zeros((1, nu)), np.zeros((1, 1)), np.zeros((len(outputs), 1))

@@ -150,11 +150,12 @@ class Channels:
         self._element_rows()
 
     def _element_rows(self):
-        """Rows of every element's ``s_rel``, ``v_rel`` at rest, its coordinate row ``D`` and rest slopes."""
+        """Rows of every element's ``s_rel``, ``v_rel`` (a rotational one's ``phi_rel``, ``w_rel``) at rest, its
+        coordinate row ``D`` and rest slopes."""
         dae = self.dae
         m = dae.mech
         real = [el for el in self.elements if not isinstance(el, RigidBodyDamper)]
-        names = [f"{el.path}.{q}" for el in real for q in ("s_rel", "v_rel")]
+        names = [f"{el.path}.{q}" for el in real for q in el.coords]
         self.el_rows = None
         if not self.elements:
             return
