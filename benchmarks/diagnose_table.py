@@ -11,10 +11,13 @@ with the drop, and the wall clock.
 
     python benchmarks/diagnose_table.py [--model axial_torsional|full] [--case joint ...] [--json out.json] [--stepped]
                                         [--seed N ...] [--channels rotor.phi,table.s] [--drive other]
+                                        [--case bearing_friction] [--candidate rotor_friction]
 
 ``--drive other`` (with ``--seed``): truths of another drive than the thesis's, built from the same components
 (:data:`bscomp.systems.truths.DRIVES`), diagnosed with that drive's model (``overrides`` =
-:func:`bscomp.systems.truths.drive_overrides`).
+:func:`bscomp.systems.truths.drive_overrides`). ``--case bearing_friction`` (with ``--seed``): a truth with friction
+at the screw's bearing instead of the guideways (:data:`bscomp.systems.truths.EXTRA_CASES`); ``--candidate NAME``
+adds an optional candidate (:func:`bscomp.validate.candidates.optional_candidates`) to the defaults.
 """
 
 from __future__ import annotations
@@ -31,18 +34,22 @@ from importlib import resources  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from bscomp.systems.truths import CASES as TRUTH_CASES  # noqa: E402
+from bscomp.systems.truths import EXTRA_CASES as TRUTH_EXTRA  # noqa: E402
+from bscomp.validate.candidates import default_candidates  # noqa: E402
 from bscomp.validate.conclusion import UNEXPLAINED  # noqa: E402
 from bscomp.validate.diagnostics import diagnose  # noqa: E402
 from bscomp.validate.measurements import load_all  # noqa: E402
 
 MODELS = {"axial_torsional": "testbed_axial_torsional", "full": "testbed"}
 CASES = list(TRUTH_CASES)
+EXTRA = list(TRUTH_EXTRA)          # drawn by seed only (no bundled data): --case bearing_friction --seed N
 #: accepted effect -> (hidden effect, its main parameters as (candidate name, truth name))
 MAIN = {"table_subassembly": ("joint", (("m", "m"), ("k", "k"))), "guideway_friction": ("friction", (("F_c", "F_c"),)),
         "guideway_stribeck": ("friction", (("F_c", "F_c"),)), "screw_nut_backlash": ("backlash", (("b", "b"),)),
         "compliant_backlash": ("backlash", (("b", "b"), ("k", "c"))), "amplifier_delay": ("delay", (("T", "T"),)),
         "bearing_housing": ("housing", (("m", "m"), ("k", "k"))), "support_damping": ("damping", (("c", "c_axial"),)),
-        "coupling_damping": ("damping", (("d", "d_torsion"),))}
+        "coupling_damping": ("damping", (("d", "d_torsion"),)),
+        "rotor_friction": ("bearing_friction", (("T_c", "T_c"),))}
 
 
 def stepped_frfs(model: str, case: str, conditions: dict) -> list:
@@ -126,7 +133,7 @@ def keep_channels(data, channels) -> list:
 
 
 def run(model: str, case: str, stepped: bool = False, seed: int | None = None, channels=None,
-        drive: str = "thesis") -> dict:
+        drive: str = "thesis", extra=()) -> dict:
     from bscomp.systems.truths import drive_overrides
 
     truth, data = load_case(model, case, seed, drive)
@@ -135,7 +142,8 @@ def run(model: str, case: str, stepped: bool = False, seed: int | None = None, c
     if channels:
         data = keep_channels(data, channels)
     t0 = time.perf_counter()
-    d = diagnose(MODELS[model], data, max_effects=2, overrides=drive_overrides(drive) or None)
+    cands = default_candidates() + list(extra) if extra else None
+    d = diagnose(MODELS[model], data, max_effects=2, overrides=drive_overrides(drive) or None, candidates=cands)
     wall = time.perf_counter() - t0
     stairs = dict(d.staircase)
     recal, final = stairs["re-calibrated"], d.staircase[-1][1]
@@ -173,7 +181,9 @@ def _runner_up(d) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", choices=list(MODELS), action="append")
-    ap.add_argument("--case", choices=CASES, action="append")
+    ap.add_argument("--case", choices=CASES + EXTRA, action="append")
+    ap.add_argument("--candidate", action="append", default=[], help="an optional candidate added to the defaults "
+                    "(bscomp.validate.candidates.optional_candidates, e.g. rotor_friction)")
     ap.add_argument("--json", help="also write the rows to this JSON file")
     ap.add_argument("--stepped", action="store_true", help="stepped-sine FRFs at 0.2 V and 2 V (stating their "
                     "amplitude) instead of the bundled small-signal FRF, beside the same time series")
@@ -194,7 +204,7 @@ def main(argv=None) -> int:
                               for c in args.case or CASES):
         if args.stepped and case == "delay":        # the truth's delay is applied to its data, not a System
             continue
-        r = run(model, case, args.stepped, seed, channels, args.drive)
+        r = run(model, case, args.stepped, seed, channels, args.drive, args.candidate)
         rows.append(r)
         print(f"| {model} | {case} | {r['seed']} | {r['first']} | {r['runner_up']} | "
               f"{', '.join(r['accepted']) or 'nothing'} | "

@@ -158,6 +158,12 @@ def _diagnose(args) -> int:
     from bscomp.validate.measurements import load_all
 
     uncertain = ck.parse_uncertain(args.uncertain)     # the formats and the folder first, then the model
+    candidates = None
+    if args.candidate:                                 # optional candidates beside the defaults, names checked now
+        from bscomp.validate.arguments import resolve_candidates
+        from bscomp.validate.candidates import default_candidates
+
+        candidates = default_candidates() + resolve_candidates(list(args.candidate))
     if args.report:
         ck.output_folder(args.report, "--report")
     overrides = _parse_set(args.set)
@@ -172,7 +178,8 @@ def _diagnose(args) -> int:
     datasets = load_all(args.data)
     with ck.build_guard(args.system):
         diag = diagnose(args.system, datasets, uncertain=uncertain, max_effects=args.max_effects,
-                        verbose=args.verbose, overrides=overrides or None, progress=None if not args.json else False)
+                        candidates=candidates, verbose=args.verbose, overrides=overrides or None,
+                        progress=None if not args.json else False)
     if args.json:
         print(diag.to_json())
     else:
@@ -387,6 +394,9 @@ def _parser() -> argparse.ArgumentParser:
                         "the drive's declared uncertain parameters")
     p.add_argument("--max-effects", type=ck.number("--max-effects", 0, 20, integer=True, open_low=False), default=3,
                    help="most effects accepted one after another")
+    p.add_argument("--candidate", action="append", metavar="NAME",
+                   help="an optional candidate effect tried beside the defaults (repeatable): rotor_friction, a "
+                        "friction torque at the motor (bearings, seals, the nut)")
     p.add_argument("--apply", action="store_true", help="print the lines to add to the system file")
     p.add_argument("--report", metavar="DIR", help="write an HTML report to DIR: the model compared with the data, the "
                    "diagnosis (staircase, candidates), the model with the effects found compared again; JSON, text")

@@ -3,6 +3,7 @@ of :mod:`bscomp.validate.candidates` has (no class of it is imported here), and 
 detached from the drive.
 
 * :class:`AtanFriction` -- guideway friction smoothed by an arc tangent (the candidates use ``tanh``);
+* :class:`AtanTorqueFriction` -- the same law for a friction torque on the screw (its bearings and the nut);
 * :class:`SoftBacklash` -- a clearance with softplus contact corners of finite stiffness;
 * :class:`TorqueRipple` -- a motor's cogging torque, periodic in the motor angle (no candidate has one);
 * :class:`RigidJointDamping` -- the drive's modal damping computed with a detached body joined rigidly.
@@ -16,11 +17,12 @@ import math
 import casadi as ca
 import numpy as np
 
-from bscomp.components import Damper, Spring
+from bscomp.components import Damper, Spring, TorsionalDamper
 from bscomp.kernel.component import Parameter
 from bscomp.kernel.partials import PartialCompliant, PartialRotCompliant
 
-__all__ = ["AtanFriction", "SoftBacklash", "TorqueRipple", "RigidJointDamping", "HeldBodyDamping", "softplus"]
+__all__ = ["AtanFriction", "AtanTorqueFriction", "SoftBacklash", "TorqueRipple", "RigidJointDamping", "HeldBodyDamping",
+           "softplus"]
 
 
 class AtanFriction(PartialCompliant):
@@ -53,6 +55,38 @@ class AtanFriction(PartialCompliant):
     def linear_equivalent(self):
         """For an FRF: the viscous part (the Coulomb part has no tangent while sliding)."""
         return Damper(d=self.d) if self.d > 0 else None
+
+
+class AtanTorqueFriction(PartialRotCompliant):
+    """A friction torque smoothed by an arc tangent: ``tau = T_c (2/pi) atan(w_rel / w_s) + d w_rel``.
+
+    The truths' bearing and nut friction (``bearing_friction``): :class:`AtanFriction`'s law for a torque and the
+    relative angular speed, placed on the screw at the thrust bearing (not at the rotor, where a candidate would put
+    it). The limit ``w_s -> 0`` is Eq (5.7) for a torque.
+
+    # Parameters
+    - ``T_c`` [N.m]: Coulomb torque magnitude (symmetric)
+    - ``w_s`` [rad/s]: smoothing speed (> 0)
+    - ``d`` [N.m.s/rad]: viscous coefficient
+
+    # Connectors
+    - ``flange_a``, ``flange_b`` (``flange_a`` to a :class:`FixedRotational` for friction to ground)
+    """
+
+    T_c = Parameter(unit="N.m", min=0.0, doc="Coulomb torque magnitude")
+    w_s = Parameter(unit="rad/s", positive=True, doc="smoothing speed of atan(w / w_s)")
+    d = Parameter(0.0, unit="N.m.s/rad", min=0.0, doc="viscous coefficient")
+
+    def force_law(self, phi_rel, w_rel):
+        """Friction torque [N.m] at relative angular speed ``w_rel`` (CasADi expression or float)."""
+        return self.T_c * (2.0 / math.pi) * ca.atan(w_rel / self.w_s) + self.d * w_rel
+
+    def equations(self):
+        return [self.tau - self.force_law(self.phi_rel, self.w_rel)]
+
+    def linear_equivalent(self):
+        """For an FRF: the viscous part (the Coulomb part has no tangent while sliding)."""
+        return TorsionalDamper(d=self.d) if self.d > 0 else None
 
 
 def softplus(x, w):

@@ -50,6 +50,13 @@ the real drive would differ from the model a user has:
 
   ``control`` has none of them (mis-set parameters, mesh and moving nut only).
 
+  ``bearing_friction`` (one of :data:`EXTRA_CASES`: drawn by seed, no bundled data)
+      friction that is not at the guideways: a torque on the screw at the thrust bearing ``b1`` (its bearings,
+      seals and the preloaded nut), ``tau = T_c (2/pi) atan(w / w_s) + d w`` (:class:`AtanTorqueFriction`; T_c
+      0.3-1.5 N m, 5-23 % of the square wave's peak motor torque, w_s 0.01-0.06 rad/s, d 5e-4-5e-3 N m s/rad).
+      The thesis keeps friction at the guideways only (Sec 5.2.2.1); on a drive with roller guideways this
+      torque is often the larger part.
+
 Every random value comes from ``numpy.random.default_rng([seed, stream])``: the same seed gives the
 same truth and the same noise. Values are drawn uniformly (the stiffnesses log-uniformly) within
 physical ranges, not at the prior medians of any candidate.
@@ -73,14 +80,22 @@ from pathlib import Path
 
 import numpy as np
 
-from bscomp.components import Damper, Fixed, FixedRotational, Mass, Spring
+from bscomp.components import Damper, Fixed, FixedRotational, Mass, NodeToRotFlange, Spring
 
 from .parameters import get_value, load_parameters, write_variant
 from .testbed import testbed, thesis_parameters
-from .truth_effects import AtanFriction, HeldBodyDamping, RigidJointDamping, SoftBacklash, TorqueRipple
+from .truth_effects import (
+    AtanFriction,
+    AtanTorqueFriction,
+    HeldBodyDamping,
+    RigidJointDamping,
+    SoftBacklash,
+    TorqueRipple,
+)
 from .truth_parts import add_dashpots, add_housing, drive_modes, joint_stiffness
 
-__all__ = ["CASES", "MODELS", "AtanFriction", "SoftBacklash", "RigidJointDamping", "HeldBodyDamping", "draw",
+__all__ = ["CASES", "EXTRA_CASES", "MODELS", "AtanFriction", "SoftBacklash", "RigidJointDamping", "HeldBodyDamping",
+           "draw",
            "truth_system",
            "make_frf", "make_time", "generate_case", "DRIVES", "drive_overrides",
            "default_seed", "square_wave", "TIME_NOISE", "FRF_NOISE",
@@ -90,7 +105,9 @@ CASES = ("control", "joint", "friction", "backlash", "delay", "joint_friction", 
 MODELS = ("axial_torsional", "full")
 HIDDEN = {"control": (), "joint": ("joint",), "friction": ("friction",), "backlash": ("backlash",),
           "delay": ("delay",), "joint_friction": ("joint", "friction"), "ripple": ("ripple",),
-          "housing": ("housing",), "damping": ("damping",)}
+          "housing": ("housing",), "damping": ("damping",), "bearing_friction": ("bearing_friction",)}
+#: Cases drawn by seed only (no bundled data in ``systems/data/truths``; ``benchmarks/diagnose_table.py --case``).
+EXTRA_CASES = ("bearing_friction",)
 
 #: Ranges of the random draws (uniform; ``log`` = log-uniform).
 RANGES = {
@@ -116,6 +133,9 @@ RANGES = {
     "housing_zeta": (0.02, 0.05),
     "damping_mode1": (0.01, 0.04),         # added ratio of the first drive mode (model: 6 %, Table 4.1)
     "damping_mode2": (0.01, 0.05),         # added ratio of the second, the coupling's torsion (model: 10 %, Table 4.2)
+    "bearing_T_c": (0.3, 1.5),             # N m, friction torque on the screw (peak motor torque 6.6 N m)
+    "bearing_w_s": (0.01, 0.06),           # rad/s, log (the guideway v_s range over r_g = 1.6 mm/rad)
+    "bearing_d": (5.0e-4, 5.0e-3),         # N m s/rad (the motor's B: 0.0321)
 }
 #: The drives truths are made of (``drive=``): parameter-file changes and build options. ``"other"`` is a drive
 #: that is not the thesis's, built from the same components, to try a diagnosis on a drive whose numbers none of
@@ -137,8 +157,9 @@ AMPLITUDE, FREQUENCY = 2.125, 5.0          # Sec 5.3.1: 4.25 V peak-to-peak, 5 H
 
 # ---- random draws ------------------------------------------------------------------------------------
 def default_seed(case: str, model: str = "axial_torsional") -> int:
-    """The seed of the bundled data set: ``1300 + 10 * model index + case index``."""
-    return 1300 + 10 * MODELS.index(model) + CASES.index(case)
+    """The seed of the bundled data set: ``1300 + 10 * model index + case index`` (:data:`EXTRA_CASES` after
+    :data:`CASES`)."""
+    return 1300 + 10 * MODELS.index(model) + (CASES + EXTRA_CASES).index(case)
 
 
 def draw(seed: int) -> dict:
@@ -164,6 +185,7 @@ def draw(seed: int) -> dict:
                     "seat_ratio": logu("housing_seat_ratio"), "f_target": u("housing_frequency"),
                     "zeta": u("housing_zeta")}
     d["damping"] = {"mode1": u("damping_mode1"), "mode2": u("damping_mode2")}
+    d["bearing_friction"] = {"T_c": u("bearing_T_c"), "w_s": logu("bearing_w_s"), "d": u("bearing_d")}
     return d
 
 
@@ -220,7 +242,7 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
     Parameters
     ----------
     case : str
-        One of :data:`CASES`.
+        One of :data:`CASES` or :data:`EXTRA_CASES`.
     model : {"axial_torsional", "full"}
     seed : int, optional
         Default :func:`default_seed` ``(case, model)``.
@@ -241,8 +263,8 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
         ``w``; ``delay``: ``T`` [s], not in the system: apply it exactly as :func:`make_frf` and
         :func:`make_time` do) and the input name.
     """
-    if case not in CASES:
-        raise ValueError(f"truths: unknown case {case!r}; use one of {CASES}")
+    if case not in CASES + EXTRA_CASES:
+        raise ValueError(f"truths: unknown case {case!r}; use one of {CASES + EXTRA_CASES}")
     if model not in MODELS:
         raise ValueError(f"truths: unknown model {model!r}; use one of {MODELS}")
     seed = default_seed(case, model) if seed is None else int(seed)
@@ -290,6 +312,15 @@ def truth_system(case: str, model: str = "axial_torsional", seed: int | None = N
                  between=("table_joint.flange", "table.flange_a"))
         s.damping = RigidJointDamping(base_damping, "table.s")
         hidden["backlash"] = dict(bl)
+    if "bearing_friction" in HIDDEN[case]:
+        bf = dr["bearing_friction"]
+        s.add("bearing_frame", FixedRotational())
+        s.add("bearing_node", NodeToRotFlange())
+        s.add("bearing_friction", AtanTorqueFriction(T_c=bf["T_c"], w_s=bf["w_s"], d=bf["d"]))
+        s.connect("bearing_node.node", "screw.b1")
+        s.connect("bearing_frame.flange", "bearing_friction.flange_a")
+        s.connect("bearing_friction.flange_b", "bearing_node.flange")
+        hidden["bearing_friction"] = dict(bf)
     if "housing" in HIDDEN[case]:
         hidden["housing"] = add_housing(s, dr["housing"], base_damping)
     if "damping" in HIDDEN[case]:

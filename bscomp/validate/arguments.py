@@ -16,7 +16,8 @@ from pathlib import Path
 
 from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_number
 from bscomp.simulation.harmonic_balance import check_harmonics
-from bscomp.validate.candidates import Candidate, default_candidates
+from bscomp.validate.candidates import Candidate
+from bscomp.validate.candidates import library as candidate_library
 from bscomp.validate.datasets import FrfData, TimeData, check_points
 from bscomp.validate.readers import load_all
 
@@ -121,7 +122,7 @@ def check_diagnose(legacy: dict, allowed, **numbers) -> dict:
 
 def resolve_candidates(candidates):
     """``candidates`` as Candidate objects: Candidate instances or names of the library's
-    (:func:`~bscomp.validate.candidates.default_candidates`); None keeps the default."""
+    (:func:`~bscomp.validate.candidates.library`: the defaults and the optional ones); None keeps the default."""
     if candidates is None:
         return None
     if isinstance(candidates, (str, Candidate)):
@@ -129,7 +130,7 @@ def resolve_candidates(candidates):
     if not isinstance(candidates, (list, tuple)):
         raise ArgumentTypeError(f"candidates must be a list of candidate names or Candidate objects, got "
                                 f"{type(candidates).__name__} {candidates!r}"[:300])
-    library = {c.name: c for c in default_candidates()}
+    library = candidate_library()
     out = []
     for k, c in enumerate(candidates):
         if isinstance(c, Candidate):

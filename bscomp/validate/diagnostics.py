@@ -119,7 +119,8 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
         Parameters to re-calibrate first; a dict gives each one's relative spread. Default: the drive's
         declared ``validation.uncertain``.
     candidates : list of Candidate or of their names, optional
-        Default :func:`~bscomp.validate.candidates.default_candidates` (a name picks one of those).
+        Default :func:`~bscomp.validate.candidates.default_candidates` (a name picks one of those or of
+        :func:`~bscomp.validate.candidates.optional_candidates`, e.g. ``default_candidates() + ["rotor_friction"]``).
     max_effects : int
         Most effects accepted (greedy rounds, >= 0; 0 re-calibrates the uncertain parameters only).
     n_refine : int

@@ -158,7 +158,9 @@ def generate(hidden: dict | None = None, misset: dict | None = None, seed: int =
 
     # ---- FRF ----
     freqs = np.logspace(np.log10(2.0), 3.0, 300) if freqs is None else np.asarray(freqs, float)
-    lin = truth_system(nominal, hidden, misset, linear=True)
+    # the small-signal equivalent, as compare and diagnose model an FRF: a nominal's own friction or backlash (not
+    # only a hidden candidate's) enters by its viscous part / contact spring, not by its tangent at rest (stuck)
+    lin = truth_system(nominal, hidden, misset, linear=True).linear_equivalent()
     res = model_frf(lin, input=inp, output=["rotor.w", "table.a"], freqs=freqs)
     H = {(inp, o): res.H[:, res.outputs.index(o), 0] for o in ("rotor.w", "table.a")}
     Hm, coh, units = {}, {}, {}

@@ -315,3 +315,14 @@ def test_diagnose_report_compares_the_model_again_with_the_effects_found(tmp_pat
     assert float(heads[2][3]) < 0.5 * float(heads[0][3]), heads   # measured 0.916 -> 0.200 (the joint still missing)
     assert {p.name for p in (tmp_path / "rep").iterdir()} >= {"diagnosis.json", "diagnosis.txt", "comparison1",
                                                               "diagnosis2", "comparison3"}
+
+
+def test_diagnose_takes_an_optional_candidate_by_name_and_names_a_misspelt_one(capsys):
+    """``--candidate`` adds an optional candidate (rotor_friction) to the defaults; a name not in the library is an
+    UnknownNameError that suggests the close one, before any model is built or file read (rc 2, no traceback)."""
+    from bscomp.validate.arguments import resolve_candidates
+
+    assert [c.name for c in resolve_candidates(["rotor_friction"])] == ["rotor_friction"]
+    assert main(["diagnose", "validation_drive", "missing.csv", "--candidate", "rotor_frictio"]) == 2
+    err = capsys.readouterr().err
+    assert "UnknownNameError" in err and "did you mean 'rotor_friction'" in err and "Traceback" not in err

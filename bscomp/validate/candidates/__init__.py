@@ -43,6 +43,7 @@ from bscomp.validate.candidates.nonlinear import (
     V_REG,
     CompliantBacklash,
     GuidewayFriction,
+    RotorFriction,
     ScrewNutBacklash,
     StribeckGuidewayFriction,
 )
@@ -60,7 +61,7 @@ __all__ = ["CandidateParameter", "Candidate", "NutTableJoint", "TableSubassembly
            "ParameterScale", "CouplingStiffness", "MissingInertia", "MissingMass", "GuidewayFriction",
            "StribeckGuidewayFriction", "ScrewNutBacklash", "CompliantBacklash", "AmplifierDelay", "ExtraDamping",
            "AddedModalDamping", "AddedDampingOnMatrix", "DetachedBodyDamping", "SupportDamping", "CouplingDamping",
-           "default_candidates", "V_REG"]
+           "RotorFriction", "default_candidates", "optional_candidates", "library", "V_REG"]
 
 
 def default_candidates() -> list:
@@ -68,3 +69,14 @@ def default_candidates() -> list:
     return [NutTableJoint(), TableSubassembly(), BearingHousing(), CouplingStiffness(), MissingInertia(),
             MissingMass(), GuidewayFriction(), StribeckGuidewayFriction(), ScrewNutBacklash(), CompliantBacklash(),
             AmplifierDelay(), ExtraDamping(), SupportDamping(), CouplingDamping()]
+
+
+def optional_candidates() -> list:
+    """Effects measured but not in :func:`default_candidates` (each class docstring says why): the friction torque at
+    the motor (:class:`RotorFriction`)."""
+    return [RotorFriction()]
+
+
+def library() -> dict:
+    """Every candidate by name: :func:`default_candidates`, then :func:`optional_candidates`."""
+    return {c.name: c for c in default_candidates() + optional_candidates()}

@@ -1,14 +1,24 @@
-"""Nonlinear effects (time series only): guideway friction (Eq 5.6/5.7) and screw-nut backlash (Eq 5.8/5.9)."""
+"""Nonlinear effects (time series only): guideway friction (Eq 5.6/5.7), a friction torque at the motor (Eq 5.7 for
+a torque: bearings, seals, the nut) and screw-nut backlash (Eq 5.8/5.9)."""
 
 from __future__ import annotations
 
-from bscomp.components import Backlash, CoulombFriction, Fixed, Spring, StribeckFriction
+from bscomp.components import (
+    Backlash,
+    CoulombFriction,
+    Fixed,
+    FixedRotational,
+    RotationalFriction,
+    Spring,
+    StribeckFriction,
+)
 from bscomp.kernel.interface import NotApplicable
 from bscomp.validate.candidates._edits import between, connected, insert_series
 from bscomp.validate.candidates.base import Candidate, CandidateParameter
 from bscomp.validate.candidates.hooks import DetachedBodyDamping
 
-__all__ = ["GuidewayFriction", "StribeckGuidewayFriction", "ScrewNutBacklash", "CompliantBacklash", "V_REG"]
+__all__ = ["GuidewayFriction", "StribeckGuidewayFriction", "RotorFriction", "ScrewNutBacklash", "CompliantBacklash",
+           "V_REG", "W_REG"]
 
 
 V_REG = 1e-4
@@ -17,6 +27,12 @@ thesis bed's (``systems/thesis_effects.py``); its rule, about 1e-3 of the slowes
 ~4e-5 on the test bed. It was 5e-4 (no documented source) until 2026-12-05: the friction truths then ended at 5.9 /
 10.1 instead of 1.1 / 1.4; the candidates' sticking slope F_c / v_reg was 7x / 13x below the truths' (2/pi) F_c / v_s
 + d on the axial+torsional friction / joint + friction truths (docs/validation.md)."""
+
+
+W_REG = 1e-2
+"""Regularisation speed [rad/s] of the friction-torque candidate: ``RotationalFriction``'s default. Its sticking
+slope at the test bed's rotor, ``T_c / W_REG`` = 50 N m s/rad for 0.5 N m, is that of the guideway candidates'
+(``F_c / V_REG r_g^2`` = 52 N m s/rad for the Table 5.2 friction over r_g = 1.59 mm/rad)."""
 
 
 def _ground(e, point, vi) -> str:
@@ -81,6 +97,42 @@ class StribeckGuidewayFriction(GuidewayFriction):
         f = state["friction"]
         return {f"{f}.F_c_pos": values["F_c"], f"{f}.F_c_neg": values["F_c"],
                 f"{f}.F_s_pos": values["F_s"], f"{f}.F_s_neg": values["F_s"]}
+
+
+class RotorFriction(Candidate):
+    """Coulomb + viscous friction torque on the motor shaft (Eq 5.7 for a torque): the bearings, seals and the
+    preloaded nut, lumped at the ``rotor`` point, between a new :class:`FixedRotational` and the rotor's flange --
+    ``T_c`` and a viscous coefficient ``d`` added to the drive's own.
+
+    Not among :func:`~bscomp.validate.candidates.default_candidates` (measured on the guideway truths first:
+    ``docs/validation.md``, "Friction that is not at the guideways"): add it with
+    ``candidates=default_candidates() + optional_candidates()`` or the CLI's ``--candidate rotor_friction``.
+    The thesis keeps friction at the guideways only (Sec 5.2.2.1); at low frequency a torque ``T_c`` at the motor
+    and a force ``T_c / r_g`` on the table are the same, and only the drive's compliance between them (which side
+    stops first at a reversal) tells them apart."""
+
+    def __init__(self):
+        super().__init__(
+            name="rotor_friction", title="Coulomb + viscous friction torque at the motor", role="rotor",
+            parameters=[CandidateParameter("T_c", "N.m", 1e-3, 50.0, 0.5, 1.5, "Coulomb torque"),
+                        CandidateParameter("d", "N.m.s/rad", 1e-5, 1.0, 2e-3, 1.5, "added viscous coefficient")],
+            signature="as guideway friction, but on the motor side of the drive's compliance: the motor speed "
+                      "stops and restarts at each reversal while the table moves on behind it",
+            nonlinear=True, group="friction_torque", kinds=("rotational",))
+
+    def _edit(self, e, point, vi, for_engine):
+        frame = e.add(e.unique("effect_frame"), FixedRotational) + ".flange"
+        name = e.add(e.unique("friction_torque"), RotationalFriction, T_c_pos=0.5, T_c_neg=0.5, w_reg=W_REG)
+        e.connect(f"{name}.flange_a", frame)
+        e.connect(f"{name}.flange_b", point.ports[0])
+        return {"friction": name}
+
+    def _overrides(self, values, state):
+        f = state["friction"]
+        out = {f"{f}.T_c_pos": values["T_c"], f"{f}.T_c_neg": values["T_c"]}
+        if "d" in values:
+            out.update({f"{f}.d_pos": values["d"], f"{f}.d_neg": values["d"]})
+        return out
 
 
 class ScrewNutBacklash(Candidate):

@@ -35,6 +35,7 @@ from bscomp.validate.candidates import (
     SupportDamping,
     TableSubassembly,
     default_candidates,
+    optional_candidates,
 )
 from bscomp.validate.candidates._edits import Edits, between, cut
 
@@ -141,7 +142,7 @@ def test_validation_drive_matches_table_4_1():
 FE_ONLY = {"support_damping": r"handles \[.support.\]", "coupling_damping": "has no torsional damping parameter"}
 
 
-@pytest.mark.parametrize("cand", default_candidates(), ids=lambda c: c.name)
+@pytest.mark.parametrize("cand", default_candidates() + optional_candidates(), ids=lambda c: c.name)
 def test_every_candidate_applies_to_a_copy_of_the_lumped_drive_and_flattens(cand):
     nominal = build("validation_drive")
     if cand.name in FE_ONLY:                                   # said why, not a traceback
@@ -528,7 +529,8 @@ def _run(lines, system):
 @pytest.mark.parametrize("name", ["testbed_axial_torsional", "validation_drive"])
 def test_code_lines_reproduce_apply(nominal, name):
     base = nominal(name).system
-    for cand in [c for c in default_candidates() if name != "validation_drive" or c.name not in FE_ONLY]:
+    for cand in [c for c in default_candidates() + optional_candidates()
+                 if name != "validation_drive" or c.name not in FE_ONLY]:
         v = {p.name: p.median * 1.37 for p in cand.parameters}
         v = cand.check({k: min(x, [p.upper for p in cand.parameters if p.name == k][0] * 0.9) for k, x in v.items()})
         _same(cand.apply(base, **v), _run(cand.code_lines(v, base), base))
