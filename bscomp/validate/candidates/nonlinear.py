@@ -35,6 +35,11 @@ slope at the test bed's rotor, ``T_c / W_REG`` = 50 N m s/rad for 0.5 N m, is th
 (``F_c / V_REG r_g^2`` = 52 N m s/rad for the Table 5.2 friction over r_g = 1.59 mm/rad)."""
 
 
+def _symmetric(element: str, values: dict, names) -> dict:
+    """``{element.x_pos, element.x_neg: values[x]}`` for each name ``x`` of a friction law given in ``values``."""
+    return {f"{element}.{n}_{side}": values[n] for n in names if n in values for side in ("pos", "neg")}
+
+
 def _ground(e, point, vi) -> str:
     g = point.ground or (vi.ground if vi is not None else None)
     if g is not None:
@@ -64,11 +69,7 @@ class GuidewayFriction(Candidate):
         return {"friction": name}
 
     def _overrides(self, values, state):
-        f = state["friction"]
-        out = {f"{f}.F_c_pos": values["F_c"], f"{f}.F_c_neg": values["F_c"]}
-        if "d" in values:
-            out.update({f"{f}.d_pos": values["d"], f"{f}.d_neg": values["d"]})
-        return out
+        return _symmetric(state["friction"], values, ("F_c", "d"))
 
 
 class StribeckGuidewayFriction(GuidewayFriction):
@@ -94,9 +95,7 @@ class StribeckGuidewayFriction(GuidewayFriction):
         return {"friction": name}
 
     def _overrides(self, values, state):
-        f = state["friction"]
-        return {f"{f}.F_c_pos": values["F_c"], f"{f}.F_c_neg": values["F_c"],
-                f"{f}.F_s_pos": values["F_s"], f"{f}.F_s_neg": values["F_s"]}
+        return _symmetric(state["friction"], values, ("F_c", "F_s"))
 
 
 class RotorFriction(Candidate):
@@ -128,11 +127,7 @@ class RotorFriction(Candidate):
         return {"friction": name}
 
     def _overrides(self, values, state):
-        f = state["friction"]
-        out = {f"{f}.T_c_pos": values["T_c"], f"{f}.T_c_neg": values["T_c"]}
-        if "d" in values:
-            out.update({f"{f}.d_pos": values["d"], f"{f}.d_neg": values["d"]})
-        return out
+        return _symmetric(state["friction"], values, ("T_c", "d"))
 
 
 class ScrewNutBacklash(Candidate):
