@@ -18,7 +18,7 @@ overrides parameters (structural ones re-flatten a copy of the system).
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import casadi as ca
@@ -41,6 +41,7 @@ from bscomp.kernel.mechanics import (
     second_order_blocks,
     sparse_jacobians,
 )
+from bscomp.kernel.signal_meta import unit_of
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import direct_frf, state_space_decomposition, state_space_modal_frf
 from bscomp.model import resolve_model
@@ -235,6 +236,8 @@ class SecondOrderModel:
     linearized : tuple
         ``(model name, nonlinear components, variables)`` replaced by their tangent at the operating point
         (:func:`linearized_parts`); ``()`` for a linear model.
+    signal_units : dict
+        The declared unit of each input and output that has one (``{"amp.u": "V", "table.a": "m/s^2"}``).
     """
 
     M: Any
@@ -250,6 +253,7 @@ class SecondOrderModel:
     inputs: list
     outputs: list
     linearized: tuple = ()
+    signal_units: dict = field(default_factory=dict)
 
     @property
     def n(self):
@@ -375,4 +379,5 @@ def second_order(model, inputs=None, outputs=None, at: dict | None = None, param
         M=sp.csr_matrix(b.M), C=sp.csr_matrix(C), K=sp.csr_matrix(b.K), B=-sp.csr_matrix(b.Bu),
         Cq=sp.csr_matrix(Cq), Cv=sp.csr_matrix(Cv), Ca=sp.csr_matrix(Ca), D=sp.csr_matrix(Dy),
         coordinates=list(m.coordinate_names), units=list(m.coordinate_units), inputs=unames,
-        outputs=list(outputs), linearized=linearized_parts(dae, op.p))
+        outputs=list(outputs), linearized=linearized_parts(dae, op.p),
+        signal_units={n: u for n in [*unames, *outputs] if (u := unit_of(dae, n)) and u != "1"})

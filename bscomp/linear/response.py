@@ -51,6 +51,8 @@ class Frf:
         Response of each output to each input.
     inputs, outputs : list of str
     name : str
+    units : dict
+        Declared units of the inputs and outputs (``{"amp.u": "V"}``; the plot's legend and :meth:`pair_unit`).
     """
 
     freqs: np.ndarray
@@ -59,6 +61,7 @@ class Frf:
     outputs: list
     name: str = ""
     notes: list = field(default_factory=list)
+    units: dict = field(default_factory=dict)
 
     @property
     def magnitude_db(self) -> np.ndarray:
@@ -154,6 +157,15 @@ class Frf:
         out, inp = unit(output), unit(input)
         return out if inp == "1" else f"{out}/({inp})"
 
+    def _unit_label(self, output, input) -> str:
+        """`` [dB re 1 unit]`` of a pair for the legend (the declared units, else the naming convention's), or ``""``
+        where a unit is not SI or not known."""
+        try:
+            unit = self.pair_unit(output, input, self.units)
+        except UsageError:
+            return ""
+        return "" if unit == "1" else f" [dB re 1 {unit}]"
+
     def to_dict(self) -> dict:
         return {"name": self.name, "freqs_hz": self.freqs.tolist(), "inputs": list(self.inputs),
                 "outputs": list(self.outputs), "H_re": self.H.real.tolist(), "H_im": self.H.imag.tolist(),
@@ -172,7 +184,8 @@ class Frf:
 
         pairs = self._pairs()
         H = np.stack([self.H[:, j, i] for j, i in pairs], axis=1)
-        labels = [f"{self.inputs[i]} -> {self.outputs[j]}" for j, i in pairs]
+        labels = [f"{self.inputs[i]} -> {self.outputs[j]}{self._unit_label(self.outputs[j], self.inputs[i])}"
+                  for j, i in pairs]
         return bode_plot(self.freqs, H, labels=labels, title=title or f"{self.name}: FRF", path=path)
 
 
@@ -256,7 +269,8 @@ def frf(model, input=None, output=None, freqs=None, *, fmin: float = 1.0, fmax: 
     else:
         refuse_constant_outputs(model, params, list(so.outputs), [so.Cq, so.Cv, so.Ca, so.D])
     warn_linearized(so.linearized if warn else (), "frf", SIMULATE_INSTEAD)
-    return Frf(freqs=f, H=so.frf(f), inputs=list(so.inputs), outputs=list(so.outputs), name=name)
+    return Frf(freqs=f, H=so.frf(f), inputs=list(so.inputs), outputs=list(so.outputs), name=name,
+               units=dict(so.signal_units))
 
 
 def refuse_constant_outputs(model, params, outputs, rows, who="frf") -> None:

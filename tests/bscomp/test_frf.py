@@ -127,8 +127,12 @@ def test_frf_result_outputs(tmp_path):
     assert len(lines) == 41 and lines[0].split(",")[1] == "motor.tau->rotor.w re"
     d = json.loads(res.to_json(tmp_path / "f.json"))
     assert np.allclose(np.array(d["H_re"]) + 1j * np.array(d["H_im"]), res.H)
-    res.plot(tmp_path / "f.png")
+    fig = res.plot(tmp_path / "f.png")
     assert (tmp_path / "f.png").stat().st_size > 1000
+    # the legend carries each pair's unit, from the units the components declare
+    assert res.units == {"motor.tau": "N m", "rotor.w": "rad/s", "table.a": "m/s^2"}
+    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == [
+        "motor.tau -> rotor.w [dB re 1 rad/s/(N m)]", "motor.tau -> table.a [dB re 1 m/s^2/(N m)]"]
     with pytest.raises(UnknownNameError):
         res.response("table.s")
     assert math.isclose(res.response("table.a")[0].real, res.H[0, 1, 0].real)
