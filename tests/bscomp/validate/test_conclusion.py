@@ -130,3 +130,24 @@ def test_a_body_that_only_the_frfs_see_is_said_to_be_supported_by_them_alone():
     assert _frf_only([fit(1.0, 1.0, 1.0, 1.0 + 1.5 * UNSEEN)], setup, {}) == ""       # the held-out halves moved
     assert _frf_only([fit(0.969, 0.967, 1.04, 1.04, mode=None)], setup, {}) == ""     # no mode: a damping
     assert _frf_only([fit(0.969, 0.967, 1.04, 1.04, nonlinear=True)], setup, {}) == ""
+
+
+def test_a_guideway_friction_that_leaves_much_suggests_the_optional_friction_torque():
+    """The bearing-friction truths (docs/validation.md, "Friction that is not at the guideways"): the defaults accept a
+    guideway friction and leave 25-251x the noise floor (seed 2201: 54.5), or accept nothing with the guideway
+    friction ranked first (2203): the message suggests ``rotor_friction``; not when it was among the candidates, not
+    within 5x (a guideway truth's law shape: 1.65), not for another effect."""
+    def fit(group, title="Coulomb + viscous friction at the guideways"):
+        return SimpleNamespace(candidate=SimpleNamespace(title=title, group=group, nonlinear=True), equivalent={},
+                               refined=True, error_before=1e7, error_after=54.5, heldout_before=None,
+                               heldout_after=None, delta_bic=-1e6, values={})
+
+    friction, torque = fit("guideway_friction"), fit("friction_torque", "friction torque at the motor")
+    hint = "try the optional friction torque at the motor (candidates=default_candidates() + ['rotor_friction']"
+    assert hint in conclusion("", [friction], [], ("", ""), [friction], 2, None, {}, dict(LEFT, error=54.5))
+    assert hint in conclusion("", [], [], ("", ""), [friction], 2, None, {}, dict(LEFT, error=2.2e7))
+    assert hint not in conclusion("", [friction], [], ("", ""), [friction, torque], 2, None, {},
+                                  dict(LEFT, error=54.5))
+    assert hint not in conclusion("", [friction], [], ("", ""), [friction], 2, None, {}, dict(LEFT, error=1.65))
+    part = fit("table_part", "sub-assembly on a compliant joint at the table")
+    assert hint not in conclusion("", [part], [], ("", ""), [part], 2, None, {}, dict(LEFT, error=54.5))
