@@ -103,8 +103,9 @@ class RotorFriction(Candidate):
     preloaded nut, lumped at the ``rotor`` point, between a new :class:`FixedRotational` and the rotor's flange --
     ``T_c`` and a viscous coefficient ``d`` added to the drive's own.
 
-    Not among :func:`~bscomp.validate.candidates.default_candidates` (measured on the guideway truths first:
-    ``docs/validation.md``, "Friction that is not at the guideways"): add it with
+    Not among :func:`~bscomp.validate.candidates.default_candidates`: beside them it changed 2 of the 162 drawn rows,
+    both a motor torque ripple over a short stroke taken for it (one where the defaults accepted nothing;
+    ``docs/validation.md``, "Friction that is not at the guideways"). Add it with
     ``candidates=default_candidates() + optional_candidates()`` or the CLI's ``--candidate rotor_friction``.
     The thesis keeps friction at the guideways only (Sec 5.2.2.1); at low frequency a torque ``T_c`` at the motor
     and a force ``T_c / r_g`` on the table are the same, and only the drive's compliance between them (which side
