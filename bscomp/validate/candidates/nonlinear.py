@@ -40,6 +40,14 @@ def _symmetric(element: str, values: dict, names) -> dict:
     return {f"{element}.{n}_{side}": values[n] for n in names if n in values for side in ("pos", "neg")}
 
 
+def _to_ground(e, ground: str, port: str, base: str, cls, **values) -> dict:
+    """Friction ``cls`` (``values``) added from ``ground`` to ``port``; the edit state ``{"friction": name}``."""
+    name = e.add(e.unique(base), cls, **values)
+    e.connect(f"{name}.flange_a", ground)
+    e.connect(f"{name}.flange_b", port)
+    return {"friction": name}
+
+
 def _ground(e, point, vi) -> str:
     g = point.ground or (vi.ground if vi is not None else None)
     if g is not None:
@@ -62,11 +70,8 @@ class GuidewayFriction(Candidate):
             nonlinear=True, group="guideway_friction", kinds=("attach", "connection"))
 
     def _edit(self, e, point, vi, for_engine):
-        g = _ground(e, point, vi)
-        name = e.add(e.unique("friction"), CoulombFriction, F_c_pos=1000.0, F_c_neg=1000.0, v_reg=V_REG)
-        e.connect(f"{name}.flange_a", g)
-        e.connect(f"{name}.flange_b", point.ports[0])
-        return {"friction": name}
+        return _to_ground(e, _ground(e, point, vi), point.ports[0], "friction", CoulombFriction, F_c_pos=1000.0,
+                          F_c_neg=1000.0, v_reg=V_REG)
 
     def _overrides(self, values, state):
         return _symmetric(state["friction"], values, ("F_c", "d"))
@@ -87,12 +92,9 @@ class StribeckGuidewayFriction(GuidewayFriction):
             nonlinear=True, group="guideway_friction", kinds=("attach", "connection"))
 
     def _edit(self, e, point, vi, for_engine):
-        g = _ground(e, point, vi)
-        name = e.add(e.unique("friction"), StribeckFriction, F_s_pos=300.0, F_s_neg=300.0, F_c_pos=1000.0,
-                     F_c_neg=1000.0, v1_pos=5e-3, v1_neg=5e-3, v2_pos=V_REG, v2_neg=V_REG, v_reg=V_REG)
-        e.connect(f"{name}.flange_a", g)
-        e.connect(f"{name}.flange_b", point.ports[0])
-        return {"friction": name}
+        return _to_ground(e, _ground(e, point, vi), point.ports[0], "friction", StribeckFriction, F_s_pos=300.0,
+                          F_s_neg=300.0, F_c_pos=1000.0, F_c_neg=1000.0, v1_pos=5e-3, v1_neg=5e-3, v2_pos=V_REG,
+                          v2_neg=V_REG, v_reg=V_REG)
 
     def _overrides(self, values, state):
         return _symmetric(state["friction"], values, ("F_c", "F_s"))
@@ -122,10 +124,8 @@ class RotorFriction(Candidate):
 
     def _edit(self, e, point, vi, for_engine):
         frame = e.add(e.unique("effect_frame"), FixedRotational) + ".flange"
-        name = e.add(e.unique("friction_torque"), RotationalFriction, T_c_pos=0.5, T_c_neg=0.5, w_reg=W_REG)
-        e.connect(f"{name}.flange_a", frame)
-        e.connect(f"{name}.flange_b", point.ports[0])
-        return {"friction": name}
+        return _to_ground(e, frame, point.ports[0], "friction_torque", RotationalFriction, T_c_pos=0.5, T_c_neg=0.5,
+                          w_reg=W_REG)
 
     def _overrides(self, values, state):
         return _symmetric(state["friction"], values, ("T_c", "d"))
