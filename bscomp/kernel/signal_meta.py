@@ -20,8 +20,8 @@ import casadi as ca
 
 from bscomp.kernel.units import convention_units
 
-__all__ = ["state_meta", "input_meta", "parameter_meta", "output_meta", "unit_of", "unit_suffix", "measured_outputs",
-           "base_exponents", "derivative_unit", "BASE_ORDER"]
+__all__ = ["state_meta", "input_meta", "parameter_meta", "output_meta", "unit_of", "declared_units", "unit_suffix",
+           "measured_outputs", "base_exponents", "derivative_unit", "BASE_ORDER"]
 
 # SI base exponents in the FMI order (kg, m, s, A, K, mol, cd, rad) and a factor to SI
 BASE_ORDER = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
@@ -186,6 +186,12 @@ def unit_of(dae, name: str) -> str:
     unit = _declared_unit(dae, name)
     unit = re.sub(r"(?<=[A-Za-z0-9])\.(?=[A-Za-z])", " ", unit)
     return re.sub(r"(?<=[A-Za-z])(-?\d+)", r"^\1", unit)
+
+
+def declared_units(dae, names) -> dict:
+    """``{name: unit_of(dae, name)}`` for each of ``names`` that has a unit other than ``1`` (the units a result or a
+    plot carries: ``SimulationResult.units``, ``Frf.units``, the axes of a time plot)."""
+    return {n: u for n in names if (u := unit_of(dae, n)) and u != "1"}
 
 
 def unit_suffix(unit: str) -> str:

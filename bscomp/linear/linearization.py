@@ -41,7 +41,7 @@ from bscomp.kernel.mechanics import (
     second_order_blocks,
     sparse_jacobians,
 )
-from bscomp.kernel.signal_meta import unit_of
+from bscomp.kernel.signal_meta import declared_units
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import direct_frf, state_space_decomposition, state_space_modal_frf
 from bscomp.model import resolve_model
@@ -380,4 +380,4 @@ def second_order(model, inputs=None, outputs=None, at: dict | None = None, param
         Cq=sp.csr_matrix(Cq), Cv=sp.csr_matrix(Cv), Ca=sp.csr_matrix(Ca), D=sp.csr_matrix(Dy),
         coordinates=list(m.coordinate_names), units=list(m.coordinate_units), inputs=unames,
         outputs=list(outputs), linearized=linearized_parts(dae, op.p),
-        signal_units={n: u for n in [*unames, *outputs] if (u := unit_of(dae, n)) and u != "1"})
+        signal_units=declared_units(dae, [*unames, *outputs]))

@@ -14,7 +14,7 @@ from typing import Any, Callable
 import numpy as np
 
 from bscomp.errors import SolverError, UnknownNameError
-from bscomp.kernel.signal_meta import unit_of, unit_suffix
+from bscomp.kernel.signal_meta import declared_units, unit_suffix
 from bscomp.model import as_dae
 from bscomp.plotting.base import time_plot  # plotting (matplotlib) only when a figure is asked for
 from bscomp.simulation.dispatch import simulate
@@ -208,4 +208,4 @@ class OcpResult:
         for n in names:
             v = self[n]
             sig.append(np.r_[v, v[-1]] if len(v) == len(self.t) - 1 else v)
-        return time_plot(self.t, sig, names, title=title, path=path, units={n: unit_of(self.dae, n) for n in names})
+        return time_plot(self.t, sig, names, title=title, path=path, units=declared_units(self.dae, names))

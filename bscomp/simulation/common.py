@@ -19,7 +19,7 @@ import numpy as np
 
 from bscomp.errors import ArgumentTypeError, UnknownNameError, UsageError, check_mapping, check_number
 from bscomp.kernel.dae import Dae
-from bscomp.kernel.signal_meta import unit_of
+from bscomp.kernel.signal_meta import declared_units
 from bscomp.model import as_dae, run_overrides
 from bscomp.simulation.result import SimulationResult
 
@@ -340,7 +340,7 @@ class Progress:
 
 def result_units(dae, outputs) -> dict:
     """:attr:`SimulationResult.units`: the declared unit of each output and input of ``dae`` that has one."""
-    return {n: u for n in [*outputs, *dae.u_names] if (u := unit_of(dae, n)) and u != "1"}
+    return declared_units(dae, [*outputs, *dae.u_names])
 
 
 def finish(problem, X, XD, Z, Uh, stats, t_wall) -> SimulationResult:
