@@ -159,11 +159,11 @@ def _diagnose(args) -> int:
 
     uncertain = ck.parse_uncertain(args.uncertain)     # the formats and the folder first, then the model
     candidates = None
-    if args.candidate:                                 # optional candidates beside the defaults, names checked now
+    if args.candidate:                                 # candidates beside the defaults, names checked now
         from bscomp.validate.arguments import resolve_candidates
         from bscomp.validate.candidates import default_candidates
 
-        candidates = default_candidates() + resolve_candidates(list(args.candidate))
+        candidates = resolve_candidates(default_candidates() + list(args.candidate))
     if args.report:
         ck.output_folder(args.report, "--report")
     overrides = _parse_set(args.set)
@@ -395,8 +395,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--max-effects", type=ck.number("--max-effects", 0, 20, integer=True, open_low=False), default=3,
                    help="most effects accepted one after another")
     p.add_argument("--candidate", action="append", metavar="NAME",
-                   help="an optional candidate effect tried beside the defaults (repeatable): rotor_friction, a "
-                        "friction torque at the motor (bearings, seals, the nut)")
+                   help="a candidate effect of the library tried beside the defaults (repeatable; names already among "
+                        "them are tried once -- every library candidate is a default today, rotor_friction since "
+                        "2026-12-07)")
     p.add_argument("--apply", action="store_true", help="print the lines to add to the system file")
     p.add_argument("--report", metavar="DIR", help="write an HTML report to DIR: the model compared with the data, the "
                    "diagnosis (staircase, candidates), the model with the effects found compared again; JSON, text")

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from bscomp.validate.calibration import user_summary
 from bscomp.validate.collinearity import MIN_OWN_SHARE, own_share
-from bscomp.validate.conclusion import UNEXPLAINED, excess_drop
+from bscomp.validate.conclusion import UNEXPLAINED, excess_drop, residual_orders
 from bscomp.validate.datasets import FrfData
 
-__all__ = ["clearly_worse", "verdict", "score", "evidence", "choose", "CARRIED"]
+__all__ = ["clearly_worse", "verdict", "score", "evidence", "choose", "ripple_left", "CARRIED"]
 
 #: Held-out halves that lose less than ``min_heldout_drop`` of their excess still confirm an effect when they lose
 #: at least this share and at least the share the same records' fitted first halves lost: the fit's action on the
@@ -93,6 +93,21 @@ def evidence(before, after, datasets, cand):
     return "; ".join(parts) + f". Signature: {cand.signature}"
 
 
+def ripple_left(outputs, datasets) -> str:
+    """Why a :attr:`~bscomp.validate.candidates.base.Candidate.ripple_alike` effect (a friction torque at the motor)
+    is not accepted -- the residual it leaves (``outputs``: its fit's) is periodic in the motor angle
+    (:func:`~bscomp.validate.conclusion.residual_orders`): over a short stroke a torque ripple at the motor drags like
+    it (the other drive's ripple, seed 2304: a friction torque took 766 -> 155, rotor.w then 8 periods per revolution,
+    p 7e-4; docs/validation.md) -- or "" when no order is found."""
+    orders = sorted(residual_orders(outputs, datasets, "").values(), key=lambda o: o.p_value)
+    if not orders:
+        return ""
+    o = orders[0]
+    return (f"the residual it leaves repeats {o.order} times per motor revolution ({o.channel}, p {o.p_value:.1g}): "
+            "over a short stroke a torque ripple at the motor (cogging, no candidate) drags like a friction torque -- "
+            "model the ripple, then try it again")
+
+
 def choose(results, current, datasets, thresholds, unconfirmed_why=("", ""), unconfirmed=None):
     """The first refined candidate (in ranking order) that passes every acceptance rule; each gets its
     verdict and evidence in words. With ``unconfirmed_why``
@@ -113,6 +128,9 @@ def choose(results, current, datasets, thresholds, unconfirmed_why=("", ""), unc
             r.own_share, r.trades_with = tradeoff[0], [p for p, _ in tradeoff[1]]
         ok, why = verdict(current, r._after, r.delta_bic, bound, clearly_worse(user_now, r.user_after),
                            thresholds, tradeoff)
+        if ok and r.candidate.ripple_alike:
+            why = ripple_left(r._after["outputs"], datasets)
+            ok = not why
         why_not_confirmed = unconfirmed_why[1 if r.candidate.nonlinear else 0] if unconfirmed_why else ""
         if ok and why_not_confirmed:
             r.verdict = f"passes every rule but is not confirmed: {why_not_confirmed}"

@@ -122,7 +122,9 @@ def check_diagnose(legacy: dict, allowed, **numbers) -> dict:
 
 def resolve_candidates(candidates):
     """``candidates`` as Candidate objects: Candidate instances or names of the library's
-    (:func:`~bscomp.validate.candidates.library`: the defaults and the optional ones); None keeps the default."""
+    (:func:`~bscomp.validate.candidates.library`: the defaults and the optional ones); None keeps the default. A name
+    given twice (``default_candidates() + ["rotor_friction"]``, written when that one was optional) is kept once,
+    where it first appears."""
     if candidates is None:
         return None
     if isinstance(candidates, (str, Candidate)):
@@ -141,7 +143,8 @@ def resolve_candidates(candidates):
                 raise UnknownNameError(f"candidates[{k}] = {c!r} is not a candidate effect"
                                        + (f" (did you mean {close[0]!r}?)" if close else "")
                                        + f"; candidates: {', '.join(library)}")
-            out.append(library[c])
+            if all(o.name != c for o in out):
+                out.append(library[c])
         else:
             raise ArgumentTypeError(f"candidates[{k}] must be a candidate name or a Candidate, got "
                                     f"{type(c).__name__} {c!r}; names: {', '.join(library)}"[:400])

@@ -105,10 +105,10 @@ class RotorFriction(Candidate):
     preloaded nut, lumped at the ``rotor`` point, between a new :class:`FixedRotational` and the rotor's flange --
     ``T_c`` and a viscous coefficient ``d`` added to the drive's own.
 
-    Not among :func:`~bscomp.validate.candidates.default_candidates`: beside them it changed 2 of the 162 drawn rows,
-    both a motor torque ripple over a short stroke taken for it (one where the defaults accepted nothing;
-    ``docs/validation.md``, "Friction that is not at the guideways"). Add it with
-    ``candidates=default_candidates() + optional_candidates()`` or the CLI's ``--candidate rotor_friction``.
+    A motor torque ripple (cogging, which no candidate has) acts at the same place and over a short stroke drags alike:
+    beside the defaults the candidate took 2 of 18 drawn ripples (``docs/validation.md``, "Friction that is not at
+    the guideways"), so it is :attr:`~bscomp.validate.candidates.base.Candidate.ripple_alike` -- not accepted while
+    the residual it leaves repeats with the motor angle.
     The thesis keeps friction at the guideways only (Sec 5.2.2.1); at low frequency a torque ``T_c`` at the motor
     and a force ``T_c / r_g`` on the table are the same, and only the drive's compliance between them (which side
     stops first at a reversal) tells them apart."""
@@ -121,6 +121,8 @@ class RotorFriction(Candidate):
             signature="as guideway friction, but on the motor side of the drive's compliance: the motor speed "
                       "stops and restarts at each reversal while the table moves on behind it",
             nonlinear=True, group="friction_torque", kinds=("rotational",))
+
+    ripple_alike = True
 
     def _edit(self, e, point, vi, for_engine):
         frame = e.add(e.unique("effect_frame"), FixedRotational) + ".flange"

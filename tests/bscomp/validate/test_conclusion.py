@@ -132,18 +132,19 @@ def test_a_body_that_only_the_frfs_see_is_said_to_be_supported_by_them_alone():
     assert _frf_only([fit(0.969, 0.967, 1.04, 1.04, nonlinear=True)], setup, {}) == ""
 
 
-def test_a_guideway_friction_that_leaves_much_suggests_the_optional_friction_torque():
-    """The bearing-friction truths (docs/validation.md, "Friction that is not at the guideways"): the defaults accept a
-    guideway friction and leave 25-251x the noise floor (seed 2201: 54.5), or accept nothing with the guideway
-    friction ranked first (2203): the message suggests ``rotor_friction``; not when it was among the candidates, not
-    within 5x (a guideway truth's law shape: 1.65), not for another effect."""
+def test_a_guideway_friction_that_leaves_much_suggests_the_friction_torque_when_it_was_not_tried():
+    """The bearing-friction truths (docs/validation.md, "Friction that is not at the guideways"): the guideway
+    candidates without ``rotor_friction`` accept a guideway friction and leave 25-251x the noise floor (seed 2201:
+    54.5), or accept nothing with the guideway friction ranked first (2203): a candidate list without it gets the
+    suggestion; not when it was among the candidates (the defaults), not within 5x (a guideway truth's law shape:
+    1.65), not for another effect."""
     def fit(group, title="Coulomb + viscous friction at the guideways"):
         return SimpleNamespace(candidate=SimpleNamespace(title=title, group=group, nonlinear=True), equivalent={},
                                refined=True, error_before=1e7, error_after=54.5, heldout_before=None,
                                heldout_after=None, delta_bic=-1e6, values={})
 
     friction, torque = fit("guideway_friction"), fit("friction_torque", "friction torque at the motor")
-    hint = "try the optional friction torque at the motor (candidates=default_candidates() + ['rotor_friction']"
+    hint = "add the friction torque at the motor, which these candidates lack (the default 'rotor_friction'"
     assert hint in conclusion("", [friction], [], ("", ""), [friction], 2, None, {}, dict(LEFT, error=54.5))
     assert hint in conclusion("", [], [], ("", ""), [friction], 2, None, {}, dict(LEFT, error=2.2e7))
     assert hint not in conclusion("", [friction], [], ("", ""), [friction, torque], 2, None, {},
@@ -151,3 +152,25 @@ def test_a_guideway_friction_that_leaves_much_suggests_the_optional_friction_tor
     assert hint not in conclusion("", [friction], [], ("", ""), [friction], 2, None, {}, dict(LEFT, error=1.65))
     part = fit("table_part", "sub-assembly on a compliant joint at the table")
     assert hint not in conclusion("", [part], [], ("", ""), [part], 2, None, {}, dict(LEFT, error=54.5))
+
+
+def test_a_friction_torque_beside_a_residual_periodic_in_the_motor_angle_may_stand_in_for_a_ripple():
+    """Seed 2304 of the other drive (a motor torque ripple, docs/validation.md): the friction torque's fit passed the
+    order test, the final residual did not (rotor.w 8 periods per revolution, p 7e-4): the message says the torque may
+    stand in for a ripple; not without an order, not for an effect a ripple does not imitate."""
+    from bscomp.validate.periodicity import AngleOrder
+
+    order = AngleOrder("rotor.w", "rotor.phi", 8, 0.305, 7e-4, 0.0421, "rad/s")
+
+    def fit(title, alike):
+        return SimpleNamespace(candidate=SimpleNamespace(title=title, group="g", nonlinear=True, ripple_alike=alike),
+                               equivalent={}, values={})
+
+    torque = fit("Coulomb + viscous friction torque at the motor", True)
+    rest = dict(LEFT, error=155.0, orders=[order])
+    note = ("Coulomb + viscous friction torque at the motor: the residual left repeats 8 times per motor revolution, "
+            "and over a short stroke a torque ripple at the motor (cogging, no candidate) drags like it")
+    assert note in conclusion("", [torque], [], ("", ""), [torque], 2, None, {}, rest)
+    assert note not in conclusion("", [torque], [], ("", ""), [torque], 2, None, {}, dict(rest, orders=[]))
+    part = fit("sub-assembly on a compliant joint at the table", False)
+    assert "may stand in for the ripple" not in conclusion("", [part], [], ("", ""), [part], 2, None, {}, rest)

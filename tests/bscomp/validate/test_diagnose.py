@@ -311,16 +311,13 @@ def test_a_synthetic_frf_of_a_drive_with_friction_is_of_its_small_signal_equival
 @pytest.mark.slow
 @pytest.mark.parametrize("where, name, pname, value", [("screw", "rotor_friction", "T_c", 0.4),
                                                          ("table", "guideway_friction", "F_c", 1500.0)])
-def test_the_optional_friction_torque_tells_the_bearings_from_the_guideways(where, name, pname, value):
-    """With the optional ``rotor_friction`` beside the defaults, friction on the screw's bearing is named a torque at
-    the motor and friction at the guideways a force on the table -- each truth an arc-tangent law the candidates'
-    tanh is not, the torque across the coupling from where the candidate puts it. Measured: screw 0.4 N m -> T_c
-    0.394 (chi^2 2.85, the guideway candidates 37); table 1500 N -> F_c 1493 (1.85, the torque 793)."""
-    from bscomp.validate.candidates import default_candidates
-
+def test_the_friction_torque_tells_the_bearings_from_the_guideways(where, name, pname, value):
+    """With ``rotor_friction`` among the defaults (optional until 2026-12-07), friction on the screw's bearing is named
+    a torque at the motor and friction at the guideways a force on the table -- each truth an arc-tangent law the
+    candidates' tanh is not, the torque across the coupling from where the candidate puts it. Measured: screw 0.4 N m ->
+    T_c 0.394 (chi^2 2.85, the guideway candidates 37); table 1500 N -> F_c 1493 (1.85, the torque 793)."""
     data = generate(hidden={}, seed=5, nominal=_friction_truth(where))
-    diag = diagnose(validation_drive(), data.datasets, max_effects=1,
-                    candidates=default_candidates() + ["rotor_friction"])
+    diag = diagnose(validation_drive(), data.datasets, max_effects=1)
     assert [a.name for a in diag.accepted] == [name], diag.table()
     assert diag.accepted[0].values[pname] == pytest.approx(value, rel=0.03)
     other = next(r for r in diag.ranked if r.refined and r.name != name and "stribeck" not in r.name)

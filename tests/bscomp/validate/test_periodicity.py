@@ -137,3 +137,26 @@ def test_compare_at_the_truths_values_finds_the_ripples_order(tmp_path):
     control = RIPPLE.parent / "control"
     files = [str(control / "frf.csv"), str(control / "time.csv")]
     assert compare("testbed_axial_torsional", files).time[0].orders == []
+
+
+def test_a_friction_torque_is_not_accepted_while_the_residual_repeats_with_the_motor_angle():
+    """``acceptance.ripple_left`` (rule for :attr:`Candidate.ripple_alike`, the friction torque at the motor): the
+    residual a fit leaves, 12 periods per revolution of the ``rad`` channel beside noise and a smooth error, is the
+    reason given; the same noise and smooth error without the ripple give none; no angle channel, none."""
+    from bscomp.validate.acceptance import ripple_left
+    from bscomp.validate.candidates import RotorFriction, default_candidates
+    from bscomp.validate.datasets import TimeData
+
+    rng = np.random.default_rng(3)
+    phi = _angle("ramp")
+    noise = 0.05 * rng.standard_normal(T.size) + 0.3 * phi / phi.max()
+    units = {"motor.tau": "N m", "rotor.phi": "rad", "rotor.w": "rad/s"}
+    d = TimeData(T, {"motor.tau": np.zeros_like(T)}, {"rotor.phi": phi, "rotor.w": noise}, units=units)
+    fit = {"rotor.phi": phi, "rotor.w": -0.02 * np.sin(12 * phi + 1.0)}
+    why = ripple_left([fit], [d])
+    assert why.startswith("the residual it leaves repeats 12 times per motor revolution (rotor.w, p ")
+    assert ripple_left([dict(fit, **{"rotor.w": np.zeros_like(T)})], [d]) == ""
+    flat = TimeData(T, {"motor.tau": np.zeros_like(T)}, {"rotor.w": noise}, units={"motor.tau": "N m",
+                                                                                   "rotor.w": "rad/s"})
+    assert ripple_left([{"rotor.w": fit["rotor.w"]}], [flat]) == ""
+    assert RotorFriction.ripple_alike and [c.name for c in default_candidates() if c.ripple_alike] == ["rotor_friction"]
