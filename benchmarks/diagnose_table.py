@@ -17,7 +17,8 @@ with the drop, and the wall clock.
 (:data:`bscomp.systems.truths.DRIVES`), diagnosed with that drive's model (``overrides`` =
 :func:`bscomp.systems.truths.drive_overrides`). ``--case bearing_friction`` (with ``--seed``): a truth with friction
 at the screw's bearing instead of the guideways (:data:`bscomp.systems.truths.EXTRA_CASES`); ``--candidate NAME``
-adds an optional candidate (:func:`bscomp.validate.candidates.optional_candidates`) to the defaults.
+adds a library candidate to the defaults (:func:`bscomp.validate.candidates.library`; one already among them is tried
+once -- ``rotor_friction``, optional until 2026-12-07, is a default now).
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from pathlib import Path  # noqa: E402
 
 from bscomp.systems.truths import CASES as TRUTH_CASES  # noqa: E402
 from bscomp.systems.truths import EXTRA_CASES as TRUTH_EXTRA  # noqa: E402
+from bscomp.validate.arguments import resolve_candidates  # noqa: E402
 from bscomp.validate.candidates import default_candidates  # noqa: E402
 from bscomp.validate.conclusion import UNEXPLAINED  # noqa: E402
 from bscomp.validate.diagnostics import diagnose  # noqa: E402
@@ -142,7 +144,7 @@ def run(model: str, case: str, stepped: bool = False, seed: int | None = None, c
     if channels:
         data = keep_channels(data, channels)
     t0 = time.perf_counter()
-    cands = default_candidates() + list(extra) if extra else None
+    cands = resolve_candidates(default_candidates() + list(extra)) if extra else None
     d = diagnose(MODELS[model], data, max_effects=2, overrides=drive_overrides(drive) or None, candidates=cands)
     wall = time.perf_counter() - t0
     stairs = dict(d.staircase)
@@ -182,8 +184,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", choices=list(MODELS), action="append")
     ap.add_argument("--case", choices=CASES + EXTRA, action="append")
-    ap.add_argument("--candidate", action="append", default=[], help="an optional candidate added to the defaults "
-                    "(bscomp.validate.candidates.optional_candidates, e.g. rotor_friction)")
+    ap.add_argument("--candidate", action="append", default=[], help="a library candidate added to the defaults "
+                    "(bscomp.validate.candidates.library; one already among them is tried once)")
     ap.add_argument("--json", help="also write the rows to this JSON file")
     ap.add_argument("--stepped", action="store_true", help="stepped-sine FRFs at 0.2 V and 2 V (stating their "
                     "amplitude) instead of the bundled small-signal FRF, beside the same time series")

@@ -120,7 +120,7 @@ def diagnose(system_or_build, datasets, uncertain=None, candidates=None, max_eff
         declared ``validation.uncertain``.
     candidates : list of Candidate or of their names, optional
         Default :func:`~bscomp.validate.candidates.default_candidates` (a name picks one of those or of
-        :func:`~bscomp.validate.candidates.optional_candidates`, e.g. ``default_candidates() + ["rotor_friction"]``).
+        :func:`~bscomp.validate.candidates.optional_candidates`; a name given twice is tried once).
     max_effects : int
         Most effects accepted (greedy rounds, >= 0; 0 re-calibrates the uncertain parameters only).
     n_refine : int
