@@ -48,6 +48,11 @@ guideways the candidates without it accepted a guideway friction (or named it as
 ``rotor_friction`` beside them every one was named with its torque within 2.1 % (``docs/validation.md``, "Friction that
 is not at the guideways").
 
+A clearance and a nut-table joint accepted on the same line (the FE test beds model the screw-nut clearance on the
+nut-table line) are one element in the model -- the gap with the joint's spring as its contact and the joint's damper
+beside it -- so the joint may be the clearance's contact re-fitted: the message says so. On the other drive's clearance
+seed 2303 the pair was accepted (223 -> 4.7) with the truth's softplus contact and no joint.
+
 A friction torque at the motor is accepted only while the residual it leaves is not periodic in the motor angle
 (:func:`~bscomp.validate.acceptance.ripple_left`): over a short stroke a torque ripple (cogging, outside the library)
 drags alike -- beside the defaults the torque took 2 of 18 drawn ripples, and the rule gave one of them back (seed
@@ -66,6 +71,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from bscomp.kernel.interface import NotApplicable
 from bscomp.validate.amplitude import stuck_note
 from bscomp.validate.measurements import FrfData, TimeData
 from bscomp.validate.periodicity import angle_channel, periodic_in_angle
@@ -138,7 +144,7 @@ def conclusion(message, accepted, unconfirmed, unconfirmed_why, ranked, max_effe
                 + (_closest(last, "The closest further candidate") if outside else "")
                 + _together(accepted) + _out_of_band(accepted, setup, unc_values) + _overdamped(accepted)
                 + _frf_only(accepted, setup, unc_values) + (_elsewhere(accepted, ranked) if outside else "")
-                + _ripple_stand_in(accepted, rest))
+                + _ripple_stand_in(accepted, rest) + _one_line(accepted, setup))
     if unconfirmed:
         u = unconfirmed[0]
         return (f"no missing effect confirmed: {u.candidate.title} would explain the FRFs (error "
@@ -254,6 +260,27 @@ def _ripple_stand_in(accepted, rest) -> str:
                      "and over a short stroke a torque ripple at the motor (cogging, no candidate) drags like it -- it "
                      "may stand in for the ripple: model the ripple and diagnose again")
     return text
+
+
+def _one_line(accepted, setup) -> str:
+    """The sentence for a clearance and a nut-table joint accepted on the same line (module docstring)."""
+    gap = next((a for a in accepted if getattr(a.candidate, "group", "") == "backlash"), None)
+    joint = next((a for a in accepted if getattr(a.candidate, "group", "") == "nut_table"), None)
+    if gap is None or joint is None or setup is None:
+        return ""
+    try:
+        ports = [a.candidate.applicable(setup.reference).ports[:2] for a in (gap, joint)]
+    except NotApplicable:
+        return ""
+    if ports[0] != ports[1]:
+        return ""
+    k = (joint.values or {}).get("k")
+    return (f". {gap.candidate.title} and {joint.candidate.title} sit on the same line of the drive, so in the model "
+            "they are one element: the clearance's gap with the joint's spring as its contact"
+            + (f" (k = {k:.3g} N/m" + ("; the clearance's own k is not used)" if "k" in (gap.values or {}) else ")")
+               if k is not None else "")
+            + " and the joint's damper beside it -- the joint may be the clearance's contact re-fitted (its stiffness "
+            "and damping), not a joint of its own")
 
 
 def _together(accepted) -> str:

@@ -54,8 +54,8 @@ class NutTableJoint(Candidate):
             kw = {**_params_of(e.s.component(old)), "c": 5e8, "d": 0.0}
             e.rename(old, spring, Backlash, **kw)
             for st in e.s._effect_state.values():
-                if st.get("element") == old:
-                    st["element"] = spring
+                if st.get("element") == old:     # the clearance keeps its gap; its contact is this spring now
+                    st["element"], st["merged"] = spring, True
         else:
             insert_series(e, spring, Spring, {"c": 5e8}, a, b)
         e.add(loss, Damper, d=1e3)

@@ -174,3 +174,38 @@ def test_a_friction_torque_beside_a_residual_periodic_in_the_motor_angle_may_sta
     assert note not in conclusion("", [torque], [], ("", ""), [torque], 2, None, {}, dict(rest, orders=[]))
     part = fit("sub-assembly on a compliant joint at the table", False)
     assert "may stand in for the ripple" not in conclusion("", [part], [], ("", ""), [part], 2, None, {}, rest)
+
+
+def test_a_clearance_and_a_nut_table_joint_on_one_line_are_said_to_be_one_element():
+    """On the FE test bed the screw-nut clearance sits on the nut-table line: a clearance and a joint accepted together
+    are one element (the gap, the joint's spring its contact, the joint's damper beside it) -- the other drive's
+    clearance seed 2303 (223 -> 4.7, a softplus contact and no joint in the truth). The clearance's own k is then not
+    written (``merged``: the same overrides whichever came first); on the lumped drive (the clearance on the screw-nut
+    spring, the joint between nut and table) nothing is said."""
+    from bscomp.systems.testbed import testbed
+    from bscomp.systems.validation_drive import validation_drive
+    from bscomp.validate.candidates import CompliantBacklash, NutTableJoint, ScrewNutBacklash
+
+    fe = testbed("axial_torsional", "C")
+    gap, joint = CompliantBacklash(), NutTableJoint()
+    values = {"b": 3e-6, "k": 2e9, "w": 0.3, "x0": 1.0}
+    for first, second in ((gap, joint), (joint, gap)):
+        s = second.structure(first.structure(fe))
+        assert f"{s._effect_state['nut_table_joint']['spring']}.c" not in gap.overrides(values, s)
+
+    def fit(cand, vals):
+        return SimpleNamespace(candidate=cand, values=vals, equivalent={}, together="")
+
+    said = "sit on the same line of the drive, so in the model they are one element"
+    pair = [fit(gap, values), fit(joint, {"k": 5.1e8, "d": 870.0})]
+    text = conclusion("", pair, [], ("", ""), pair, 2, SimpleNamespace(reference=fe, datasets=[]), {},
+                      dict(LEFT, error=4.7))
+    assert said in text and "(k = 5.1e+08 N/m; the clearance's own k is not used)" in text
+    sharp = [fit(ScrewNutBacklash(), {"b": 3e-6}), pair[1]]
+    text = conclusion("", sharp, [], ("", ""), sharp, 2, SimpleNamespace(reference=fe, datasets=[]), {}, LEFT)
+    assert said in text and "(k = 5.1e+08 N/m) and the joint's damper" in text
+    lumped = [fit(ScrewNutBacklash(), {"b": 3e-6}), pair[1]]
+    assert said not in conclusion("", lumped, [], ("", ""), lumped, 2,
+                                  SimpleNamespace(reference=validation_drive(), datasets=[]), {}, LEFT)
+    assert said not in conclusion("", pair[:1], [], ("", ""), pair[:1], 2, SimpleNamespace(reference=fe, datasets=[]),
+                                  {}, LEFT)
