@@ -319,7 +319,6 @@ def stuck_note(setup, result, recalibrated) -> str:
                       for el, f in r.small_signal().items() if el in mine]
     if not parts:
         return ""
-    what = ("the clearance not crossed: its contact or open slope" if "friction" not in (cand.group or cand.name)
-            else "friction stuck: T_c / w_reg" if cand.parameters[0].name == "T_c" else "friction stuck: F_c / v_reg")
+    what = cand.slope_at_rest or "its slope at rest"
     return (f"; {'; '.join(parts)}: there those files measure its slope at rest ({what}), not its level -- an FRF at "
             "a larger amplitude, or a time series, pins the level")

@@ -93,6 +93,9 @@ class Candidate:
 
     #: True when an evaluation engine applies the effect exactly from :meth:`engine_hooks`
     exact_delay = False
+    #: What a nonlinear effect's slope at rest is, in words (``"friction stuck: F_c / v_reg"``), for the message on
+    #: FRFs measured where it does not leave it (:func:`~bscomp.validate.amplitude.stuck_note`)
+    slope_at_rest = ""
     #: True for an effect a motor torque ripple (no candidate has one) can imitate over a short stroke: accepted only
     #: when the residual it leaves is not periodic in the motor angle (:func:`~bscomp.validate.acceptance.choose`)
     ripple_alike = False

@@ -69,6 +69,8 @@ class GuidewayFriction(Candidate):
                       "errors jump at every velocity reversal and the table position drifts",
             nonlinear=True, group="guideway_friction", kinds=("attach", "connection"))
 
+    slope_at_rest = "friction stuck: F_c / v_reg"
+
     def _edit(self, e, point, vi, for_engine):
         return _to_ground(e, _ground(e, point, vi), point.ports[0], "friction", CoulombFriction, F_c_pos=1000.0,
                           F_c_neg=1000.0, v_reg=V_REG)
@@ -123,6 +125,7 @@ class RotorFriction(Candidate):
             nonlinear=True, group="friction_torque", kinds=("rotational",))
 
     ripple_alike = True
+    slope_at_rest = "friction stuck: T_c / w_reg"
 
     def _edit(self, e, point, vi, for_engine):
         frame = e.add(e.unique("effect_frame"), FixedRotational) + ".flange"
@@ -152,6 +155,8 @@ class ScrewNutBacklash(Candidate):
     0: sharp corners) smooths the dead zone's corners over ``eps = eps_fraction b``; note that with
     ``eps > 0`` the rest position carries a preload ``c eps / 8``.
     """
+
+    slope_at_rest = "the clearance not crossed: its contact or open slope"
 
     def __init__(self, contact_stiffness: float = 1e11, contact_damping: float = 1e3, eps_fraction: float = 0.0):
         super().__init__(

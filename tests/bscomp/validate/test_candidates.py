@@ -648,3 +648,17 @@ def test_a_local_loss_adds_its_dashpot_and_nothing_else(nominal, cand, value, pa
         assert names[0].startswith("screw.n") and names[0].endswith(".w")
     else:                                                      # the rotor and the screw's torsion at the coupling
         assert sorted(n.rsplit(".", 1)[-1] for n in names) == ["phi", "tz"] and "rotor.phi" in names
+
+
+def test_every_nonlinear_candidate_says_what_its_slope_at_rest_is():
+    """The stuck note (``amplitude.stuck_note``) names what an FRF below breakaway measures: for a friction its level
+    over the regularisation (its own names: F_c / v_reg, T_c / w_reg), for a clearance the slope of the side it stays
+    on; a linear candidate has none."""
+    for cand in default_candidates():
+        if not cand.nonlinear:
+            assert cand.slope_at_rest == ""
+        elif cand.group in ("guideway_friction", "friction_torque"):
+            level = cand.parameters[0].name
+            assert cand.slope_at_rest == f"friction stuck: {level} / {'w' if level == 'T_c' else 'v'}_reg"
+        else:
+            assert cand.slope_at_rest == "the clearance not crossed: its contact or open slope"
