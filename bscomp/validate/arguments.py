@@ -122,9 +122,9 @@ def check_diagnose(legacy: dict, allowed, **numbers) -> dict:
 
 def resolve_candidates(candidates):
     """``candidates`` as Candidate objects: Candidate instances or names of the library's
-    (:func:`~bscomp.validate.candidates.library`: the defaults and the optional ones); None keeps the default. A name
+    (:func:`~bscomp.validate.candidates.library`: the defaults and the optional ones); None keeps the default. An effect
     given twice (``default_candidates() + ["rotor_friction"]``, written when that one was optional) is kept once,
-    where it first appears."""
+    where it first appears; two that differ under one name are a :class:`UsageError`."""
     if candidates is None:
         return None
     if isinstance(candidates, (str, Candidate)):
@@ -135,19 +135,23 @@ def resolve_candidates(candidates):
     library = candidate_library()
     out = []
     for k, c in enumerate(candidates):
-        if isinstance(c, Candidate):
-            out.append(c)
-        elif isinstance(c, str):
+        if isinstance(c, str):
             if c not in library:
                 close = difflib.get_close_matches(c, list(library), n=1)
                 raise UnknownNameError(f"candidates[{k}] = {c!r} is not a candidate effect"
                                        + (f" (did you mean {close[0]!r}?)" if close else "")
                                        + f"; candidates: {', '.join(library)}")
-            if all(o.name != c for o in out):
-                out.append(library[c])
-        else:
+            c = library[c]
+        elif not isinstance(c, Candidate):
             raise ArgumentTypeError(f"candidates[{k}] must be a candidate name or a Candidate, got "
                                     f"{type(c).__name__} {c!r}; names: {', '.join(library)}"[:400])
+        prev = next((o for o in out if o.name == c.name), None)
+        if prev is None:
+            out.append(c)
+        elif type(prev) is not type(c) or vars(prev) != vars(c):
+            raise UsageError(f"candidates[{k}] is named {c.name!r} like an earlier one that differs from it "
+                             f"({type(prev).__name__}, here {type(c).__name__}): each effect once, under its own name",
+                             hint="leave one out, or give it another name (candidate.name = ...)")
     if not out:
         raise UsageError("candidates is empty: name at least one effect, or leave it out for all of them",
                          hint=f"names: {', '.join(library)}")

@@ -321,12 +321,16 @@ def test_diagnose_takes_a_candidate_by_name_and_names_a_misspelt_one(capsys):
     """``--candidate`` adds a library candidate to the defaults, once (rotor_friction, optional until 2026-12-07, is a
     default now: scripts that added it still run); a name not in the library is an UnknownNameError that suggests the
     close one, before any model is built or file read (rc 2, no traceback)."""
+    from bscomp.errors import UsageError
     from bscomp.validate.arguments import resolve_candidates
-    from bscomp.validate.candidates import default_candidates
+    from bscomp.validate.candidates import ScrewNutBacklash, default_candidates
 
     assert [c.name for c in resolve_candidates(["rotor_friction"])] == ["rotor_friction"]
     names = [c.name for c in resolve_candidates(default_candidates() + ["rotor_friction", "rotor_friction"])]
     assert names == [c.name for c in default_candidates()] and names.count("rotor_friction") == 1
+    stiff = ScrewNutBacklash(contact_stiffness=1e10)             # one name, another effect: not silently dropped
+    with pytest.raises(UsageError, match="'screw_nut_backlash' like an earlier one that differs"):
+        resolve_candidates(default_candidates() + [stiff])
     assert main(["diagnose", "validation_drive", "missing.csv", "--candidate", "rotor_frictio"]) == 2
     err = capsys.readouterr().err
     assert "UnknownNameError" in err and "did you mean 'rotor_friction'" in err and "Traceback" not in err
