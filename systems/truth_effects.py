@@ -21,8 +21,15 @@ from bscomp.components import Damper, Spring, TorsionalDamper
 from bscomp.kernel.component import Parameter
 from bscomp.kernel.partials import PartialCompliant, PartialRotCompliant
 
-__all__ = ["AtanFriction", "AtanTorqueFriction", "SoftBacklash", "TorqueRipple", "RigidJointDamping", "HeldBodyDamping",
+__all__ = ["AtanFriction", "AtanTorqueFriction", "atan_friction", "SoftBacklash", "TorqueRipple", "RigidJointDamping",
+           "HeldBodyDamping",
            "softplus"]
+
+
+def atan_friction(level, smoothing, d, rate):
+    """``level (2/pi) atan(rate / smoothing) + d rate``: the truths' friction law, for a force or a torque (CasADi or
+    float); Eq (5.7) as ``smoothing -> 0``."""
+    return level * (2.0 / math.pi) * ca.atan(rate / smoothing) + d * rate
 
 
 class AtanFriction(PartialCompliant):
@@ -47,7 +54,7 @@ class AtanFriction(PartialCompliant):
 
     def force_law(self, s_rel, v_rel):
         """Friction force [N] at sliding velocity ``v_rel`` (CasADi expression or float)."""
-        return self.F_c * (2.0 / math.pi) * ca.atan(v_rel / self.v_s) + self.d * v_rel
+        return atan_friction(self.F_c, self.v_s, self.d, v_rel)
 
     def equations(self):
         return [self.f - self.force_law(self.s_rel, self.v_rel)]
@@ -79,7 +86,7 @@ class AtanTorqueFriction(PartialRotCompliant):
 
     def force_law(self, phi_rel, w_rel):
         """Friction torque [N.m] at relative angular speed ``w_rel`` (CasADi expression or float)."""
-        return self.T_c * (2.0 / math.pi) * ca.atan(w_rel / self.w_s) + self.d * w_rel
+        return atan_friction(self.T_c, self.w_s, self.d, w_rel)
 
     def equations(self):
         return [self.tau - self.force_law(self.phi_rel, self.w_rel)]
