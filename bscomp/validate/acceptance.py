@@ -18,8 +18,9 @@ __all__ = ["clearly_worse", "verdict", "score", "evidence", "choose", "ripple_le
 CARRIED = 0.1
 
 
-def clearly_worse(before: dict, after: dict) -> list:
-    """User-visible errors that got clearly worse (magnitude/phase of an FRF pair, fit % of a channel)."""
+def clearly_worse(before: dict, after: dict, frf_only: bool = False) -> list:
+    """User-visible errors that got clearly worse (magnitude/phase of an FRF pair, fit % of a channel; ``frf_only``:
+    the FRFs' alone)."""
     worse = []
     for ub, ua in zip(before.get("per_dataset", []), after.get("per_dataset", [])):
         for b, a in zip(ub.get("frf", []), ua.get("frf", [])):
@@ -29,7 +30,7 @@ def clearly_worse(before: dict, after: dict) -> list:
             if a["phase_deg_rms"] > 1.2 * b["phase_deg_rms"] + 1.0:
                 worse.append(f"{b['pair'][0]}->{b['pair'][1]} phase error {b['phase_deg_rms']:.3g} -> "
                              f"{a['phase_deg_rms']:.3g} deg")
-        for b, a in zip(ub.get("time", []), ua.get("time", [])):
+        for b, a in zip([] if frf_only else ub.get("time", []), ua.get("time", [])):
             if a["fit_percent"] < b["fit_percent"] - 2.0:
                 worse.append(f"{b['channel']} fit {b['fit_percent']:.1f} -> {a['fit_percent']:.1f} %")
     return worse

@@ -37,7 +37,9 @@ r"""Which physical effect is the model missing? Re-calibrate, fit candidate effe
    When none passes alone, at least two effects may still be added and the error left is above ``UNEXPLAINED`` x
    the noise floor, the round's best refined candidates are fitted **in pairs** (:mod:`~bscomp.validate.pairs`: two
    effects missing at once, each of which stands in for both when fitted alone and fails a rule); a pair passes the
-   same rules and each member must be needed beside the other.
+   same rules and each member must be needed beside the other. When every member is nonlinear and the best made an
+   FRF clearly worse, the linear candidate that best mends the FRFs on top of it is paired with it too
+   (:func:`~bscomp.validate.pairs.linear_partner`: a table part the friction swamped in the screen).
    Repeat (greedy) up to ``max_effects``. FRF files that state their sine amplitude are compared with the
    model at that amplitude (the describing function of its friction and backlash,
    :class:`~bscomp.validate.evaluation.Evaluator`). With FRFs at an amplitude and no time series
@@ -57,12 +59,10 @@ Information criterion: with whitened residuals, ``-2 ln L = sum r^2`` and ``BIC 
 from __future__ import annotations
 
 import inspect
-import math
 import sys
 import time
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 from threadpoolctl import threadpool_limits
 
 from bscomp.kernel.interface import NotApplicable
@@ -78,6 +78,7 @@ from bscomp.validate.equivalence import mark_equivalent, simpler_first
 from bscomp.validate.evaluation import Problem
 from bscomp.validate.pairs import pair_round, wants_pairs
 from bscomp.validate.refinement import job_base, refine_candidate, refine_task
+from bscomp.validate.screening import screen
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
 
@@ -235,7 +236,8 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         if chosen is None and wants_pairs(current, max_effects - len(accepted)):
             new_fits, tried, n = pair_round(rnd, results, current, fixed_effects, k_now, unc_nominal, thresholds,
                                             structures=structures, sigmas=sigmas, ref=ref, unc=unc,
-                                            datasets=datasets, prog=prog, unconfirmed_why=unconfirmed_why)
+                                            datasets=datasets, prog=prog, unconfirmed_why=unconfirmed_why,
+                                            screening=(n_scan, n_screen))
             pairs += tried
             n_evals += n
         if not new_fits:
@@ -375,7 +377,7 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
         # polish put into the re-calibrated table -- is a structure candidate's (demo's truth: diagnose 67 -> 51 s,
         # the same result)
         sets = [unc_start] if cand.nonlinear and rnd > 1 else [unc_nominal, unc_start]
-        scores, n = _screen(cand, effects, ev, st, sigmas, sets, has_frf and rnd > 1,
+        scores, n = screen(cand, effects, ev, st, sigmas, sets, has_frf and rnd > 1,
                             n_scan, n_screen, base, ref)
         n_evals += n
         screened.append((scores[0][0], cand, effects, scores))  # (error, theta, uncertain values)
@@ -427,91 +429,3 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
     # refined candidates by their predictive error: the mean of the fitted and the held-out error (a
     # candidate that only fits the fitted half, e.g. by absorbing noise or a smoothing detail, drops)
     return results, n_evals
-
-
-def _screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen, base=None, ref=None):
-    """Scores ``[(error, log-theta, uncertain values)]`` of a candidate over its prior, best first.
-
-    Each start is scored with the uncertain parameters at each of ``unc_sets`` (nominal and re-calibrated:
-    the re-calibration may have absorbed part of the effect -- a heavier table for a table part on a
-    joint, a softer bearing for a compliant clearance -- or the nominal values may be far off -- a mis-set
-    table mass dominating a time series).
-    ``frf_only``: a linear candidate after an accepted nonlinear effect is screened on the FRFs (its
-    linear evidence; the time series is then dominated by that effect's fitted parameters).
-    A nonlinear candidate with ``linear`` parameters (a clearance's contact stiffness) takes those from
-    the FRFs at each uncertain set (:func:`_linear_medians`); with more free parameters, the others are
-    then tried at their prior's +-1 sigma around the best scanned point.
-    """
-    p0 = cand.parameters[0]
-    if cand.nonlinear or len(cand.parameters) == 1:   # one-parameter effects: a dense scan is cheap
-        lo = max(math.log(p0.lower), math.log(p0.median) - 2.5 * p0.sigma_log)
-        hi = min(math.log(p0.upper), math.log(p0.median) + 2.5 * p0.sigma_log)
-        grid = np.exp(np.linspace(lo, hi, n_scan))
-    else:
-        grid = p0.starts(n_screen)
-    use_lin = cand.nonlinear and base is not None and any(p.linear for p in cand.parameters[1:])
-    scores, nfev, seen = [], 0, []
-    for unc in unc_sets:
-        if any(unc == u for u in seen):
-            continue
-        seen.append(unc)
-        meds = [p.median for p in cand.parameters]
-        if use_lin:
-            meds, n = _linear_medians(cand, effects, ev, st, sigmas, unc, meds)
-            nfev += n
-        starts = [tuple([v] + meds[1:]) for v in grid]
-        if len(cand.parameters) >= 2 and not cand.nonlinear:
-            # linear effects of two or more parameters (a mass on a spring, a joint's stiffness and damping): a
-            # grid over the first two priors -- evaluations are cheap and the cost is far from convex -- the rest
-            # (a sub-assembly's damping ratio) at their medians, left to the refinement
-            starts = [(a, b, *meds[2:]) for a in grid for b in cand.parameters[1].starts(n_screen)]
-            starts += cand.mode_starts(meds, ref)
-        elif len(cand.parameters) > 1 and not use_lin:
-            starts += list(zip(*[p.starts(n_screen) for p in cand.parameters]))[1:3]
-        pr0 = Problem(ev, sigmas, dict(unc), [], effects, st)
-        pr0.only_frf = frf_only and not cand.nonlinear
-        e0 = (base or {}).get((tuple(sorted(unc.items())), pr0.only_frf), 0.0)
-
-        def score(stv, pr0=pr0, e0=e0, unc=unc):
-            th = np.log(np.array(stv, float))
-            try:
-                e = float(np.sum(pr0.residual(th) ** 2)) - e0
-            except RuntimeError:
-                e = np.inf
-            scores.append((e, th, dict(unc)))
-            return e
-
-        errs = [score(stv) for stv in starts]
-        if use_lin and len(cand.parameters) > 2:
-            best = list(starts[int(np.argmin(errs))])
-            for i, p in enumerate(cand.parameters[1:], 1):
-                if not p.linear:
-                    for q in (-1.0, 1.0):
-                        score(tuple(best[:i] + [p.starts(3)[1 if q < 0 else 2]] + best[i + 1:]))
-        nfev += pr0.nfev
-    scores.sort(key=lambda x: x[0])
-    return scores, nfev
-
-
-def _linear_medians(cand, effects, ev, st, sigmas, unc, meds):
-    """Screening values of a nonlinear candidate's ``linear`` parameters (a clearance's contact stiffness)
-    from the FRFs alone, which see the contact engaged and nothing of the gap: a bounded Brent search per
-    parameter in log space over its prior, the others at ``meds``. Returns (values, evaluations)."""
-    pr = Problem(ev, sigmas, dict(unc), [], effects, st)
-    pr.only_frf = True
-    if not any(isinstance(d, FrfData) for d in ev.datasets):
-        return meds, 0
-    out = np.log(np.asarray(meds, float))
-    for i, p in enumerate(cand.parameters):
-        if not p.linear:
-            continue
-
-        def f(x, i=i):
-            th = out.copy()
-            th[i] = x
-            return float(np.sum(pr.residual(th) ** 2))
-
-        res = minimize_scalar(f, bounds=(math.log(p.lower), math.log(p.upper)), method="bounded",
-                              options={"xatol": 1e-2})
-        out[i] = res.x
-    return list(np.exp(out)), pr.nfev

@@ -82,7 +82,7 @@ class TableSubassembly(Candidate):
     stiffness, and the width of the added resonance shows it. Held at 5 %, a part damped at 3.2 % came out
     9.6 % too heavy and 8.7 % too stiff with 2.9x the noise floor left; fitted, within 0.4 % at the noise
     floor (``benchmarks/diagnose_table.py --seed 2201 --case joint``, docs/validation.md "Other draws").
-    Screening holds it at the median: the grid is over ``m`` and ``k`` (:func:`~bscomp.validate.diagnostics._screen`)
+    Screening holds it at the median: the grid is over ``m`` and ``k`` (:func:`~bscomp.validate.screening.screen`)
     plus points along the part's frequency, 10 % apart (:meth:`mode_starts`), where the grid's ~1.8x steps missed a
     part at 205 Hz (seed 2203).
     """

@@ -6,8 +6,9 @@ from types import SimpleNamespace
 
 import pytest
 
+from bscomp.validate.acceptance import clearly_worse
 from bscomp.validate.conclusion import UNEXPLAINED, conclusion
-from bscomp.validate.pairs import PAIR_MEMBERS, _needed, _unconfirmed, wants_pairs
+from bscomp.validate.pairs import PAIR_MEMBERS, _needed, _unconfirmed, linear_partner, wants_pairs
 
 THRESHOLDS = (10.0, 0.5, 0.25, 0.5)          # bic, min_drop, min_heldout_drop, noise tolerance (diagnose's defaults)
 
@@ -79,3 +80,37 @@ def test_a_pair_nothing_confirms_is_not_accepted():
         "passes every rule but is not confirmed: only a time series confirms friction")
     assert _unconfirmed(lin, lin, ("", "only a time series")) == ""          # linear members: the linear reason
     assert _unconfirmed(lin, lin, ("one amplitude", "x")).endswith("one amplitude")
+
+
+def _user(phase_deg, fit_percent):
+    """A user summary of one dataset with one FRF pair and one time channel (acceptance.clearly_worse's input)."""
+    return {"per_dataset": [{"frf": [{"pair": ("amp.u", "rotor.w"), "mag_mean_abs_dlog10": 0.02,
+                                      "phase_deg_rms": phase_deg}],
+                             "time": [{"channel": "table.a", "fit_percent": fit_percent}]}]}
+
+
+def test_clearly_worse_can_look_at_the_frfs_alone():
+    """Seed 2213's joint + friction in numbers: the friction alone took the motor FRF's phase error 4.4 -> 8.9 deg
+    (> 1.2 x 4.4 + 1 deg) and the table acceleration's fit 32.7 -> 12.8 %; ``frf_only`` keeps the first."""
+    before, after = _user(4.4, 32.7), _user(8.9, 12.8)
+    assert clearly_worse(before, after) == ["amp.u->rotor.w phase error 4.4 -> 8.9 deg", "table.a fit 32.7 -> 12.8 %"]
+    assert clearly_worse(before, after, frf_only=True) == ["amp.u->rotor.w phase error 4.4 -> 8.9 deg"]
+    assert clearly_worse(before, _user(6.2, 12.8), frf_only=True) == []          # 6.2 < 1.2 x 4.4 + 1: not clearly
+
+
+def _member(name, nonlinear, phase_after=8.9):
+    return SimpleNamespace(name=name, candidate=SimpleNamespace(nonlinear=nonlinear, group=name),
+                           user_before=_user(4.4, 32.7), user_after=_user(phase_after, 12.8))
+
+
+@pytest.mark.parametrize("members", [
+    [],                                                                          # no member to pair
+    [_member("guideway_friction", True), _member("table_subassembly", False)],   # a linear member: pairs hold it
+    [_member("guideway_friction", True, phase_after=4.5), _member("rotor_friction", True)],   # FRFs not worse
+])
+def test_no_linear_partner_is_looked_for_unless_every_member_is_nonlinear_and_an_frf_got_worse(members):
+    """The partner is screened only where the pairs of members cannot hold a linear part and the best member's FRFs
+    say one is missing (the time series alone getting worse is the nonlinear effect's own business); nothing is
+    evaluated then (no structures are needed: these calls would fail on ``None``)."""
+    assert linear_partner(members, [], [], ["table.m"], structures=None, sigmas=None, ref=None, datasets=[],
+                          screening=(21, 5)) == (None, 0)
