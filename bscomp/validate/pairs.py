@@ -59,6 +59,18 @@ def wants_pairs(current: dict, slots: int) -> bool:
     return slots >= 2 and current["error"] > UNEXPLAINED
 
 
+def _built(structures, effects, prog, label):
+    """``(evaluator, structure)`` of ``effects`` (the progress bar stepped with ``label``), or None where one of them
+    does not apply on top of the others."""
+    try:
+        built = structures.get(effects)
+    except NotApplicable:
+        return None
+    if prog is not None:
+        prog.step(label)
+    return built
+
+
 def linear_partner(members, results, fixed_effects, unc, *, structures, sigmas, ref, datasets, screening,
                    prog=None):
     """The linear candidate paired with the best of ``members`` when every member is nonlinear and the best made an
@@ -85,12 +97,10 @@ def linear_partner(members, results, fixed_effects, unc, *, structures, sigmas, 
         if r.candidate.nonlinear or r.candidate.group == best.candidate.group:
             continue
         effects = fixed + [(r.candidate, r.candidate.medians(), True)]
-        try:
-            ev, st = structures.get(effects)
-        except NotApplicable:
+        built = _built(structures, effects, prog, f"partner {r.name}")
+        if built is None:
             continue
-        if prog is not None:
-            prog.step(f"partner {r.name}")
+        ev, st = built
         scores, n = screen(r.candidate, effects, ev, st, sigmas, [unc_best], True, *screening, base, ref)
         n_evals += n
         if scores and scores[0][0] < 0.0 and (found is None or scores[0][0] < found[0]):
@@ -127,12 +137,10 @@ def pair_round(rnd, results, current, fixed_effects, k_now, unc_nominal, thresho
             continue
         effects = [(c, v, True) for c, v, _ in fixed_effects] + [(a.candidate, dict(a.values), True),
                                                                  (b.candidate, dict(b.values), True)]
-        try:
-            ev, st = structures.get(effects)
-        except NotApplicable:
+        built = _built(structures, effects, prog, f"pair {a.name}+{b.name}")
+        if built is None:
             continue
-        if prog is not None:
-            prog.step(f"pair {a.name}+{b.name}")
+        ev, st = built
         start_unc = {k: a._start.get(k, unc_nominal[k]) for k in unc}
         pr = Problem(ev, sigmas, {}, parameter_bounds(ref, unc, start_unc), effects, st)
         slow = any(c.nonlinear for c, _, _ in effects)
