@@ -71,8 +71,7 @@ def _built(structures, effects, prog, label):
     return built
 
 
-def linear_partner(members, results, fixed_effects, unc, *, structures, sigmas, ref, datasets, screening,
-                   prog=None):
+def linear_partner(members, results, fixed_effects, unc, *, structures, sigmas, ref, screening, prog=None):
     """The linear candidate paired with the best of ``members`` when every member is nonlinear and the best made an
     FRF clearly worse than the re-calibrated model (module docstring), or None.
 
@@ -130,7 +129,7 @@ def pair_round(rnd, results, current, fixed_effects, k_now, unc_nominal, thresho
     pairs = list(combinations(members, 2))
     if screening is not None:
         partner, n_evals = linear_partner(members, results, fixed_effects, unc, structures=structures, sigmas=sigmas,
-                                          ref=ref, datasets=datasets, screening=screening, prog=prog)
+                                          ref=ref, screening=screening, prog=prog)
         pairs += [(members[0], partner)] if partner is not None else []
     for a, b in pairs:
         if a.candidate.group == b.candidate.group:

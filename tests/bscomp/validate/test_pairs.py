@@ -112,5 +112,5 @@ def test_no_linear_partner_is_looked_for_unless_every_member_is_nonlinear_and_an
     """The partner is screened only where the pairs of members cannot hold a linear part and the best member's FRFs
     say one is missing (the time series alone getting worse is the nonlinear effect's own business); nothing is
     evaluated then (no structures are needed: these calls would fail on ``None``)."""
-    assert linear_partner(members, [], [], ["table.m"], structures=None, sigmas=None, ref=None, datasets=[],
+    assert linear_partner(members, [], [], ["table.m"], structures=None, sigmas=None, ref=None,
                           screening=(21, 5)) == (None, 0)
