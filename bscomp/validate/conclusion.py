@@ -284,12 +284,20 @@ def _one_line(accepted, setup) -> str:
 
 
 def _together(accepted) -> str:
-    """A sentence per pair accepted together (:mod:`~bscomp.validate.pairs`): neither member passed alone."""
+    """A sentence per pair accepted together (:mod:`~bscomp.validate.pairs`): neither member passed alone, or a
+    nonlinear lead that failed a rule with its linear partner (``EffectFit.partner``)."""
     text, seen = "", set()
     for a in accepted:
         if getattr(a, "together", "") and a.together not in seen:
             seen.add(a.name)
             other = next((b for b in accepted if b.name == a.together), None)
+            a_partner, o_partner = (getattr(x, "partner", False) for x in (a, other))
+            lead, part = (other, a) if a_partner else (a, other)
+            if other is not None and (a_partner or o_partner):    # a linear partner of a nonlinear lead
+                text += (f". {lead.candidate.title} and {part.candidate.title} were found together: the first alone "
+                         "failed a rule (see the table), the second -- screened on the FRFs beside it, which the "
+                         "first made worse; the two explain the data within the rules, each needed beside the other")
+                continue
             text += (f". {a.candidate.title} and {other.candidate.title if other else a.together} were found "
                      "together: neither alone explains the data (each stood in for both and failed a rule, see the "
                      "table), the two do within the rules, each needed beside the other")

@@ -66,6 +66,9 @@ class EffectFit:
     together : str
         The candidate it was fitted and accepted together with, when neither passed alone
         (:mod:`bscomp.validate.pairs`); "" otherwise.
+    partner : bool
+        It entered that pair as the linear partner of a nonlinear lead (screened on the FRFs beside it,
+        :func:`~bscomp.validate.pairs.linear_partner`), not as a candidate that failed a rule alone.
     """
 
     candidate: object
@@ -89,6 +92,7 @@ class EffectFit:
     own_share: float | None = None
     trades_with: list = field(default_factory=list)
     together: str = ""
+    partner: bool = False
     _start: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -114,7 +118,7 @@ class EffectFit:
                 "evidence": self.evidence, "signature": self.candidate.signature,
                 "user_before": self.user_before, "user_after": self.user_after, "equivalent": self.equivalent,
                 "compared": self.compared, "own_share": self.own_share, "trades_with": self.trades_with,
-                "together": self.together}
+                "together": self.together, "partner": self.partner}
 
     def equivalence_lines(self, indent: str = "     ", skip=()) -> list:
         """The candidates this one cannot be told apart from (but those in ``skip``), with the numbers and

@@ -178,7 +178,8 @@ def _judge(a, b, pr, th, sl, after, current, user_now, datasets, thresholds, rnd
                       error_before=current["error"], error_after=after["error"], delta_bic=dbic,
                       heldout_before=current["heldout"], heldout_after=after["heldout"], refined=True, round=rnd,
                       per_dataset=(current["per_dataset"], after["per_dataset"]), own_share=share,
-                      trades_with=[p for p, _ in partners], together=other.name, _start=vals_all)
+                      trades_with=[p for p, _ in partners], together=other.name, partner=not r.refined,
+                      _start=vals_all)
         fits.append((f, (share, partners)))
     tradeoff = min((t for _, t in fits), key=lambda t: t[0])
     fits = [f for f, _ in fits]
@@ -187,7 +188,9 @@ def _judge(a, b, pr, th, sl, after, current, user_now, datasets, thresholds, rnd
     ok, why = verdict(current, after, dbic, bound, worse, thresholds, tradeoff)
     needs = [w for w in (_needed(r, other, after, thresholds) for r, other in ((a, b), (b, a))) if w]
     why = "; ".join([why] * (not ok) + needs)
-    alone = "; ".join(f"{r.name} alone: {r.verdict or 'not judged'}" for r in (a, b))
+    alone = "; ".join(f"{r.name} alone: " + (f"{r.verdict or 'not judged'}" if r.refined else
+                                             f"screened only (the linear partner, screened on the FRFs beside "
+                                             f"{other.name})") for r, other in ((a, b), (b, a)))
     for f in fits:
         f.verdict = "accepted" if not why else why
         f.evidence = f"fitted together with {f.together}; neither passed alone ({alone})"

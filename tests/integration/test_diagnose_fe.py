@@ -203,6 +203,8 @@ def test_a_heavy_table_part_beside_friction_is_found_with_a_linear_partner():
     assert "(clearly worse)" in next(r for r in diag.rounds[0] if r.name == "guideway_friction").verdict
     assert sorted(a.name for a in diag.accepted) == ["guideway_friction", "table_subassembly"], diag.table()
     assert {a.together for a in diag.accepted} == {"guideway_friction", "table_subassembly"}
+    assert {a.name: a.partner for a in diag.accepted} == {"guideway_friction": False, "table_subassembly": True}
+    assert "the first alone failed a rule" in diag.message, diag.message
     fit, h = {a.name: a.values for a in diag.accepted}, info["hidden"]
     assert abs(fit["guideway_friction"]["F_c"] / h["friction"]["F_c"] - 1) < 0.01, (fit, h)
     for p, tol in (("m", 0.01), ("k", 0.01), ("zeta", 0.05)):

@@ -114,3 +114,23 @@ def test_no_linear_partner_is_looked_for_unless_every_member_is_nonlinear_and_an
     evaluated then (no structures are needed: these calls would fail on ``None``)."""
     assert linear_partner(members, [], [], ["table.m"], structures=None, sigmas=None, ref=None,
                           screening=(21, 5)) == (None, 0)
+
+
+def test_the_conclusion_says_which_member_is_the_linear_partner():
+    """A pair found by a linear partner (pairs.linear_partner) is not 'each stood in for both': the lead failed a rule
+    alone and the partner was screened beside it -- the sentence says so, lead first, whichever order they come in."""
+    lead = SimpleNamespace(candidate=SimpleNamespace(title="Coulomb + viscous friction at the guideways",
+                                                     nonlinear=True),
+                           name="guideway_friction", equivalent={}, together="table_subassembly", partner=False,
+                           values={"F_c": 1410.0})
+    part = SimpleNamespace(candidate=SimpleNamespace(title="sub-assembly on a compliant joint at the table",
+                                                     nonlinear=False),
+                           name="table_subassembly", equivalent={}, together="guideway_friction", partner=True,
+                           values={"m": 52.4})
+    for accepted in ([lead, part], [part, lead]):
+        msg = conclusion("", accepted, [], ("", ""), [], 2, None, {})
+        said = ("Coulomb + viscous friction at the guideways and sub-assembly on a compliant joint at the table were "
+                "found together: the first alone failed a rule (see the table), the second -- screened on the FRFs "
+                "beside it")
+        assert said in msg and msg.count("found together") == 1, msg
+        assert "each stood in for both" not in msg
