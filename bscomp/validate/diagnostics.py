@@ -78,7 +78,7 @@ from bscomp.validate.equivalence import mark_equivalent, simpler_first
 from bscomp.validate.evaluation import Problem
 from bscomp.validate.pairs import pair_round, wants_pairs
 from bscomp.validate.refinement import job_base, refine_candidate, refine_task
-from bscomp.validate.screening import screen
+from bscomp.validate.screening import add_baseline, screen
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
 
@@ -357,12 +357,7 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
     base = {}
     for u in (unc_nominal, unc_start):
         for frf_only in {False, has_frf and rnd > 1}:
-            key = (tuple(sorted(u.items())), frf_only)
-            if key not in base:
-                pb = Problem(base_ev, sigmas, dict(u), [], fixed_effects, base_st)
-                pb.only_frf = frf_only
-                base[key] = float(np.sum(pb.residual(np.zeros(0)) ** 2))
-                n_evals += pb.nfev
+            n_evals += add_baseline(base, base_ev, base_st, sigmas, u, fixed_effects, frf_only)
     screened = []
     for cand in pool:
         prog.step(cand.name)

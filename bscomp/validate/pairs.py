@@ -45,7 +45,7 @@ from bscomp.validate.collinearity import own_share
 from bscomp.validate.conclusion import UNEXPLAINED, excess_drop
 from bscomp.validate.diagnosis import EffectFit
 from bscomp.validate.evaluation import Problem
-from bscomp.validate.screening import screen
+from bscomp.validate.screening import add_baseline, screen
 
 __all__ = ["pair_round", "PAIR_MEMBERS", "wants_pairs", "linear_partner"]
 
@@ -87,11 +87,9 @@ def linear_partner(members, results, fixed_effects, unc, *, structures, sigmas, 
         return None, 0
     unc_best = {k: float(best._start.get(k, ref.get(k))) for k in unc}
     fixed = [(c, v, False) for c, v, _ in fixed_effects] + [(best.candidate, dict(best.values), False)]
-    base_ev, base_st = structures.get(fixed)
-    pb = Problem(base_ev, sigmas, dict(unc_best), [], fixed, base_st)
-    pb.only_frf = True
-    base = {(tuple(sorted(unc_best.items())), True): float(np.sum(pb.residual(np.zeros(0)) ** 2))}
-    found, n_evals = None, pb.nfev
+    base = {}
+    n_evals = add_baseline(base, *structures.get(fixed), sigmas, unc_best, fixed, True)
+    found = None
     for r in results:
         if r.candidate.nonlinear or r.candidate.group == best.candidate.group:
             continue

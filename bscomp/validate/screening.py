@@ -12,7 +12,20 @@ from scipy.optimize import minimize_scalar
 from bscomp.validate.datasets import FrfData
 from bscomp.validate.evaluation import Problem
 
-__all__ = ["screen", "linear_medians"]
+__all__ = ["screen", "linear_medians", "add_baseline"]
+
+
+def add_baseline(base: dict, ev, st, sigmas, unc: dict, effects, frf_only: bool) -> int:
+    """Put the squared error of the model without the candidate (``effects`` only, uncertain values ``unc``, the FRFs
+    alone with ``frf_only``) into ``base`` under :func:`screen`'s key, once; returns the evaluations spent (0 when the
+    key was there). Each screening score is the improvement over it."""
+    key = (tuple(sorted(unc.items())), frf_only)
+    if key in base:
+        return 0
+    pb = Problem(ev, sigmas, dict(unc), [], effects, st)
+    pb.only_frf = frf_only
+    base[key] = float(np.sum(pb.residual(np.zeros(0)) ** 2))
+    return pb.nfev
 
 
 def screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen, base=None, ref=None):
