@@ -57,6 +57,7 @@ from bscomp.linear.frf_engine import dense, modal_frf
 from bscomp.linear.linearization import second_order
 from bscomp.model import ModelSpec, as_system
 from bscomp.simulation.compiled_checks import check_frf
+from bscomp.simulation.compiled_hot import HotSteps
 from bscomp.simulation.compiled_sensitivity import (
     affine,
     block_sensitivity,
@@ -254,6 +255,7 @@ class CompiledModel(TimeSeriesMixin):
             self.prepare(name)
         self._steps = {}
         self._runs = {}
+        self._hot = HotSteps()                 # sample Functions compiled to C once hot
         self._modal_cache = {}
         self.stats = {"evaluations": 0}
 

@@ -64,9 +64,11 @@ class TimeSeriesMixin:
         if r:
             y = y + ca.mtimes(Dyw, w)
         Xn = ca.vertcat(x, w) if r else x
-        f = ca.Function("sample", [X, up, uc, Ad, *Ga, *Gb, Wend, Gw0, Gw1, Cs, Cv, Dsu, Gs, Gv, Cy, Dyu, Dyw, plaw],
-                        [Xn, y, bad]).expand()   # SX: ~2x faster per sample than the MX virtual machine
+        ins = [X, up, uc, Ad, *Ga, *Gb, Wend, Gw0, Gw1, Cs, Cv, Dsu, Gs, Gv, Cy, Dyu, Dyw, plaw]
+        graph = ca.Function("sample", ins, [Xn, y, bad])
+        f = graph.expand()   # SX: ~2x faster per sample than the MX virtual machine
         self._steps[key] = f
+        self._steps[("graph", key)] = graph    # compiled to C from this when hot (compiled_hot.HotSteps)
         return f
 
     def _newton(self, n_iter, guard=False):
@@ -273,9 +275,15 @@ class TimeSeriesMixin:
         r, nt, nu = len(self.elements), up_seq.shape[1], len(self.inputs)
         n2, blocks, Phi, Ad, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs, Gv, Cy, Dyu, Dyw = self._disc(mm, key)
         f = self._step_function(n2, nu, len(outputs), n_sub, n_newton, blocks, guard)
+        fkey = (n2, nu, len(outputs), n_sub, n_newton, blocks, guard)
+        native = self._hot.get(fkey, self._steps[("graph", fkey)], f, nt - 1) if r and nt > 1 else None
+        self.stats["native_steps"] = native is not None
         if not r:
             Y = _linear_run(Phi, Ga, Gb, Cy, Dyu, up_seq, uc_seq, n_sub, blocks)
             bad = 0.0
+        elif native is not None:                            # the same samples compiled to C: the same numbers
+            Y, bad = native(np.zeros(n2 + r), up_seq[:, :nt - 1], uc_seq[:, :nt - 1],
+                            (Ad, *Ga, *Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs, Gv, Cy, Dyu, Dyw, plaw))
         else:
             bkey = ("blocked", id(f))                       # f itself is held in _steps: its id stays
             if bkey not in self._steps:

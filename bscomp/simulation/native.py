@@ -21,7 +21,8 @@ import casadi as ca
 
 from bscomp.errors import BscompError
 
-__all__ = ["quiet_native_stderr", "native_function", "native_functions", "CFLAGS", "NATIVE_CFLAGS", "cpu_id"]
+__all__ = ["quiet_native_stderr", "native_function", "native_functions", "cached_functions", "CFLAGS", "NATIVE_CFLAGS",
+           "cpu_id"]
 
 #: The C compiler's flags everywhere. -O3 over -O2: the modal steps' loops run 10 % faster, the same compile time;
 #: no fused multiply-add contraction (GCC contracts by default where the CPU has FMA), so the numbers are those of
@@ -100,6 +101,28 @@ def native_function(f, cache_dir=None):
     return native_functions([f], cache_dir)[0]
 
 
+def _root(cache_dir=None) -> Path:
+    """The compiled libraries' folder: ``<cache_dir or $BSCOMP_CACHE_DIR or ~/.cache/bscomp>/jit``."""
+    return Path(cache_dir or os.environ.get("BSCOMP_CACHE_DIR") or Path.home() / ".cache" / "bscomp") / "jit"
+
+
+def _tag(flags) -> str:
+    """What else a library's code depends on: the flags, the CPU under ``-march=native``, the product loops."""
+    return f"{flags}|{cpu_id() if '-march=native' in flags else ''}|{_AXPY_ORDER}|{_FIXED_PRODUCT}"
+
+
+def _keyed(root, key, names, tag) -> Path:
+    digest = hashlib.sha1(f"{key}|{ca.__version__}|{tag}".encode()).hexdigest()[:16]
+    return root / f"{names[0]}_k{digest}.so"
+
+
+def cached_functions(key, names, cache_dir=None) -> list | None:
+    """The Functions ``names`` of a library :func:`native_functions` compiled under ``key`` earlier (in any process),
+    loaded; ``None`` when there is none (nothing is generated or compiled)."""
+    so = _keyed(_root(cache_dir), key, names, _tag(_flags()[0]))
+    return [ca.external(n, str(so)) for n in names] if so.exists() else None
+
+
 def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
     """Several Functions in one C library (one compiler run; shared callees generated once), loaded.
 
@@ -109,13 +132,12 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
     if not cc:
         raise BscompError("jit=True needs a C compiler (cc or gcc on PATH, or $CC)")
-    root = Path(cache_dir or os.environ.get("BSCOMP_CACHE_DIR") or Path.home() / ".cache" / "bscomp") / "jit"
+    root = _root(cache_dir)
     root.mkdir(parents=True, exist_ok=True)
     flags, fallback = _flags()
-    tag = f"{flags}|{cpu_id() if '-march=native' in flags else ''}|{_AXPY_ORDER}|{_FIXED_PRODUCT}"
+    tag = _tag(flags)
     if key is not None:
-        digest = hashlib.sha1(f"{key}|{ca.__version__}|{tag}".encode()).hexdigest()[:16]
-        so = root / f"{names[0]}_k{digest}.so"
+        so = _keyed(root, key, names, tag)
         if so.exists():
             return [ca.external(n, str(so)) for n in names]
     if callable(functions):
