@@ -29,9 +29,10 @@ _cache = {}
 CASES = [
     ("joint", {"table_mode"}, 0.80),
     ("friction", {"guideway_friction"}, 0.80),
-    ("backlash", {"backlash"}, 0.50),
     ("delay", {"delay"}, 0.80),
     ("housing", {"bearing_housing"}, 0.80),
+    # backlash ({"backlash"}, 0.50): checked in test_backlash_truth_is_explained_to_the_noise_floor on the same run
+    # (one diagnose, ~45 s, whichever pytest-xdist worker takes it)
     # joint + friction: the same diagnose call as `bscomp demo`; its assertions (groups, named first, values,
     # error drop, evidence) run in tests/bscomp/test_cli.py::test_demo_tells_the_story_on_the_fe_test_bed
 ]
@@ -76,6 +77,11 @@ def test_hidden_effect_found_on_the_axial_torsional_fe_bed(case, groups, min_dro
     truth, diag = _case("axial_torsional", case)
     if case == "joint":      # the report's user errors and skips, on the same run (a diagnose costs ~40 s)
         _check_report_carries_user_errors_and_skips(diag)
+    _check_found(truth, diag, groups, min_drop)
+
+
+def _check_found(truth, diag, groups, min_drop):
+    """The hidden effect named first, alone, its values within 15 %, the error down by ``min_drop``, evidence said."""
     assert {a.candidate.group for a in diag.accepted} == groups, diag.table()
     assert diag.ranked[0].candidate.group in groups, diag.table()           # named first
     # ... alone: on the FE bed the data tell it from every other candidate (bscomp.validate.equivalence);
@@ -98,6 +104,7 @@ def test_backlash_truth_is_explained_to_the_noise_floor():
     centred start -- with the contact in the linear part and 6 kHz it stopped at 1.62, k -16 %, and round 2 fitted a
     motor inertia that only traded off against table.m (docs/validation.md "Engine"). Nothing is left for a round 2."""
     truth, diag = _case("axial_torsional", "backlash")
+    _check_found(truth, diag, {"backlash"}, 0.50)
     assert [a.name for a in diag.accepted] == ["compliant_backlash"], diag.table()
     v, hidden = diag.accepted[0].values, truth["hidden"]["backlash"]
     assert abs(v["k"] / hidden["c"] - 1) < 0.1 and abs(v["x0"] - 1.0) < 0.05, (v, hidden)
