@@ -131,10 +131,24 @@ def bench_evaluation(t_old: float = 0.02):
     print(f"  old FrfEvaluator (dense solves)    {t_fold * 1e3:8.1f} ms  (ratio old/new {t_fold / t_fnew:.0f}x)")
 
 
+def _thesis_bed():
+    """The thesis's Ch 5 drive: Table 5.2 guideway friction and the 1.7e10 N/m screw-nut backlash."""
+    from bscomp.systems.testbed import testbed
+    from bscomp.systems.thesis_effects import with_friction_backlash
+
+    return with_friction_backlash(testbed("axial_torsional", "C"))
+
+
 def bench_inner_calls(repeat: int = 5):
     """The two inner loops a fit repeats, each against what it replaced (same results): the time series with
-    several samples per mapaccum call against one (``compiled_time.BLOCK_INSTRUCTIONS = 0``), and the harmonic
-    balance at an amplitude (three odd orders) with the Newton's exact Jacobian against forward differences."""
+    several samples per mapaccum call against one (``compiled_time.BLOCK_INSTRUCTIONS = 0``), both in CasADi's
+    virtual machine, and the same sample compiled to C (``bscomp.simulation.compiled_hot``, here compiled at the first
+    run into a fresh cache, its compilation timed apart) -- with friction, and with friction and the 1.7e10 N/m
+    screw-nut clearance the time series cuts out (16 sub-steps per sample); and the harmonic balance at an amplitude
+    (three odd orders) with the Newton's exact Jacobian against forward differences."""
+    import tempfile
+
+    import bscomp.simulation.compiled_hot as ch
     import bscomp.simulation.compiled_time as ct
     from bscomp.simulation.harmonic_balance import HarmonicBalance
 
@@ -142,24 +156,41 @@ def bench_inner_calls(repeat: int = 5):
     t = np.arange(0, 0.3, 2e-4)
     u = 2.125 * np.sign(np.sin(2 * np.pi * 5 * t) + 1e-12)
 
-    def series(block):
-        old, ct.BLOCK_INSTRUCTIONS = ct.BLOCK_INSTRUCTIONS, block
+    def series(system, block, native=False):
+        old = ct.BLOCK_INSTRUCTIONS, ch.HOT_WORK, os.environ.get("BSCOMP_NATIVE_STEPS"), os.environ.get(
+            "BSCOMP_CACHE_DIR")
+        ct.BLOCK_INSTRUCTIONS, ch.HOT_WORK = block, 0.0
+        os.environ["BSCOMP_NATIVE_STEPS"] = "1" if native else "0"
         try:
-            cm = CompiledModel(s, ["amp.u"], OUTS)
-            y = cm.simulate({}, t, {"amp.u": u})
-            t0 = time.perf_counter()
-            for k in range(repeat):
-                cm.simulate({"friction.F_c_pos": 2000.0 + k, "friction.F_c_neg": 2000.0 + k}, t, {"amp.u": u})
-            return y, (time.perf_counter() - t0) / repeat
+            with tempfile.TemporaryDirectory() as fresh:
+                os.environ["BSCOMP_CACHE_DIR"] = fresh
+                cm = CompiledModel(system, ["amp.u"], OUTS)
+                t0 = time.perf_counter()
+                y = cm.simulate({}, t, {"amp.u": u})
+                first = time.perf_counter() - t0
+                t0 = time.perf_counter()
+                for k in range(repeat):
+                    cm.simulate({"friction.F_c_pos": 2000.0 + k, "friction.F_c_neg": 2000.0 + k}, t, {"amp.u": u})
+                return y, (time.perf_counter() - t0) / repeat, first, cm.stats["n_sub_used"]
         finally:
-            ct.BLOCK_INSTRUCTIONS = old
+            ct.BLOCK_INSTRUCTIONS, ch.HOT_WORK = old[0], old[1]
+            for k, v in zip(("BSCOMP_NATIVE_STEPS", "BSCOMP_CACHE_DIR"), old[2:], strict=True):
+                os.environ.pop(k, None) if v is None else os.environ.__setitem__(k, v)
 
-    y1, w1 = series(0)
-    yb, wb = series(ct.BLOCK_INSTRUCTIONS)
-    dy = max(float(np.max(np.abs(yb[o] - y1[o])) / np.max(np.abs(y1[o]))) for o in OUTS)
+    def differ(a, b):
+        return max(float(np.max(np.abs(a[o] - b[o])) / np.max(np.abs(b[o]))) for o in OUTS)
+
     print("\n4. the inner loops (same results, old way first)")
+    y1, w1, _, _ = series(s, 0)
+    yb, wb, _, _ = series(s, ct.BLOCK_INSTRUCTIONS)
     print(f"  time series, 0.3 s at 5 kHz, friction: one sample a call {w1 * 1e3:7.1f} ms, blocks "
-          f"{wb * 1e3:7.1f} ms  (ratio {w1 / wb:.2f}x; outputs differ by {dy:.1e})")
+          f"{wb * 1e3:7.1f} ms  (ratio {w1 / wb:.2f}x; outputs differ by {differ(yb, y1):.1e})")
+    for label, system in (("friction", s), ("friction + clearance", _thesis_bed())):
+        yb, wb, _, n_sub = series(system, ct.BLOCK_INSTRUCTIONS)
+        yn, wn, first, _ = series(system, ct.BLOCK_INSTRUCTIONS, native=True)
+        print(f"  time series, 0.3 s at 5 kHz, {label} ({n_sub} sub-steps): virtual machine {wb * 1e3:7.1f} ms, "
+              f"compiled {wn * 1e3:7.1f} ms (ratio {wb / wn:.2f}x; first run with the compilation {first:.2f} s; "
+              f"outputs differ by {differ(yn, yb):.1e})")
     cm = CompiledModel(s, ["amp.u"], ["rotor.w", "table.a"])
     f = np.logspace(np.log10(5), np.log10(200), 60)
 
