@@ -23,7 +23,7 @@ import numpy as np
 from bscomp.errors import BscompError
 from bscomp.simulation.native import cached_functions, native_functions
 
-__all__ = ["BLOCKS", "HOT_WORK", "HotSteps", "NativeRun"]
+__all__ = ["BLOCKS", "HOT_WORK", "HotSteps", "NativeRun", "skipping_newton"]
 
 #: SX instructions x samples the virtual machine runs of one sample Function before it is compiled (~0.7 s of it;
 #: a compilation costs ~0.9 s and saves ~60 % of every later run).
@@ -36,21 +36,19 @@ class HotSteps:
     def __init__(self):
         self.work = {}          # key -> instructions x samples run in the virtual machine
         self.native = {}        # key -> NativeRun, or None (not available: keep the VM)
-        self.looked = set()     # keys whose on-disk library was looked for
+        self.graphs = {}        # key -> the MX sample Function (built at its first run: the on-disk library looked for)
         self.enabled = os.environ.get("BSCOMP_NATIVE_STEPS", "1") != "0"
 
-    def get(self, key, graph, f, n_samples):
-        """The :class:`NativeRun` of ``key`` (``graph``: the MX sample Function, ``f``: its expansion the virtual
-        machine runs), or ``None``: then the caller runs ``f`` for ``n_samples`` samples, counted here."""
+    def get(self, key, build, f, n_samples):
+        """The :class:`NativeRun` of ``key`` (``build()``: the MX sample Function to compile, ``f``: the SX one the
+        virtual machine runs), or ``None``: then the caller runs ``f`` for ``n_samples`` samples, counted here."""
         if not self.enabled:
             return None
         if key in self.native:
             return self.native[key]
-        ident = f"time_series_sample|{hashlib.sha1(graph.serialize().encode()).hexdigest()}"
-        names = [f"{graph.name()}_x{n}" for n in BLOCKS]
-        if key not in self.looked:
-            self.looked.add(key)
-            found = cached_functions(ident, names)
+        if key not in self.graphs:
+            graph = self.graphs[key] = build()
+            found = cached_functions(_ident(graph), _names(graph))
             if found is not None:
                 self.native[key] = NativeRun(found)
                 return self.native[key]
@@ -58,11 +56,38 @@ class HotSteps:
         if done < HOT_WORK:
             self.work[key] = done + f.n_instructions() * n_samples
             return None
+        graph = self.graphs[key]
         try:
-            self.native[key] = NativeRun(native_functions(lambda: _blocks(graph), key=ident, names=names))
+            functions = native_functions(lambda: _blocks(graph), key=_ident(graph), names=_names(graph))
+            self.native[key] = NativeRun(functions)
         except BscompError:                       # no C compiler, or it failed: the virtual machine goes on
             self.native[key] = None
         return self.native[key]
+
+
+def _ident(graph) -> str:
+    """The on-disk cache's key of a sample Function: a hash of its serialized graph (what its code is made from)."""
+    return f"time_series_sample|{hashlib.sha1(graph.serialize().encode()).hexdigest()}"
+
+
+def _names(graph) -> list:
+    return [f"{graph.name()}_x{n}" for n in BLOCKS]
+
+
+def skipping_newton(step, residual, n_iter):
+    """MX Function ``(a_s, a_v, Gs, Gv, w0, pl) -> (w, residual)``: ``n_iter`` calls of the Newton ``step`` (SX,
+    ``-> (w_next, R)``), each skipped once an iteration returned its start exactly (``Function.if_else``: the skipped
+    call is not computed in C). A fixed point of the step stays one, so the result is that of every iteration run (the
+    virtual machine's, to the bit)."""
+    ins = step.mx_in()
+    keep = ca.Function("newton_keep", ins, [ins[4], ca.MX.zeros(step.sparsity_out(1))])
+    maybe = ca.Function.if_else("newton_maybe", keep, step)
+    w, done = ins[4], ca.MX(0)
+    for _ in range(n_iter):
+        wn = maybe(done, *ins[:4], w, ins[5])[0]
+        done = ca.logic_or(done, ca.norm_inf(wn - w) == 0)
+        w = wn
+    return ca.Function("newton_skipping", ins, [w, residual(*ins[:4], w, ins[5])])
 
 
 #: Samples per compiled call: a run of n samples is cut greedily into calls of these (largest first).

@@ -15,6 +15,7 @@ from bscomp.errors import ModelLimitationWarning
 from bscomp.linear.frf_engine import dense
 from bscomp.linear.real_form import ModalError, modal_basis
 from bscomp.simulation.compiled_checks import CompiledModelError, check_run
+from bscomp.simulation.compiled_hot import skipping_newton
 
 __all__ = ["CompiledModelError", "TimeSeriesMixin"]
 
@@ -24,14 +25,31 @@ class TimeSeriesMixin:
     ``modal``, ``_split``, ``law_values``, ``_n_plaw``, ``_steps``, ``_runs``, ``stats``)."""
 
     def _step_function(self, n2, nu, ny, n_sub, n_newton, blocks=None, guard=False):
-        """One sample (``n_sub`` sub-steps) as an MX Function of the state and the discretised matrices.
+        """One sample (``n_sub`` sub-steps) as an SX Function of the state and the discretised matrices: the
+        expansion of :meth:`_sample_graph` with the Newton of :meth:`_newton` (CasADi's virtual machine runs it)."""
+        key = (n2, nu, ny, n_sub, n_newton, blocks, guard)
+        if key in self._steps:
+            return self._steps[key]
+        newton = self._newton(n_newton, guard) if self.elements else None
+        f = self._sample_graph(n2, nu, ny, n_sub, blocks, newton).expand()   # SX: ~2x faster than the MX VM
+        self._steps[key] = f
+        return f
+
+    def _native_graph(self, key):
+        """The sample of ``key`` (:meth:`_step_function`'s) as compiled to C (:mod:`~bscomp.simulation.compiled_hot`):
+        the plain Newton's iterations skipped once one returned its start exactly -- a fixed point, so every later
+        one would too and the numbers are the virtual machine's to the bit (the guarded Newton: all of them)."""
+        n2, nu, ny, n_sub, n_newton, blocks, guard = key
+        newton = self._newton(n_newton, guard) if guard else skipping_newton(*self._newton_parts(), n_newton)
+        return self._sample_graph(n2, nu, ny, n_sub, blocks, newton)
+
+    def _sample_graph(self, n2, nu, ny, n_sub, blocks, newton):
+        """One sample (``n_sub`` sub-steps) as an MX Function of the state and the discretised matrices, the
+        element forces by ``newton`` at every sub-step (``None``: no elements).
 
         ``blocks``: the diagonal block sizes of the transition matrix in the real modal form
         (:func:`real_modal_form`; ``None``: dense), so that the state update costs ``O(n2)``, not ``O(n2^2)``.
         """
-        key = (n2, nu, ny, n_sub, n_newton, blocks, guard)
-        if key in self._steps:
-            return self._steps[key]
         r = len(self.elements)
         X = ca.MX.sym("x", n2 + r)
         up, uc = ca.MX.sym("up", nu), ca.MX.sym("uc", nu)
@@ -47,7 +65,6 @@ class TimeSeriesMixin:
         plaw = ca.MX.sym("plaw", self._n_plaw())
         x, w = X[:n2], X[n2:]
         bad = ca.MX(0)
-        newton = self._newton(n_newton, guard) if r else None
         for j in range(n_sub):
             xp = ca.mtimes(Ad, x) + ca.mtimes(Ga[j], up) + ca.mtimes(Gb[j], uc)
             if r:
@@ -65,11 +82,7 @@ class TimeSeriesMixin:
             y = y + ca.mtimes(Dyw, w)
         Xn = ca.vertcat(x, w) if r else x
         ins = [X, up, uc, Ad, *Ga, *Gb, Wend, Gw0, Gw1, Cs, Cv, Dsu, Gs, Gv, Cy, Dyu, Dyw, plaw]
-        graph = ca.Function("sample", ins, [Xn, y, bad])
-        f = graph.expand()   # SX: ~2x faster per sample than the MX virtual machine
-        self._steps[key] = f
-        self._steps[("graph", key)] = graph    # compiled to C from this when hot (compiled_hot.HotSteps)
-        return f
+        return ca.Function("sample", ins, [Xn, y, bad])
 
     def _newton(self, n_iter, guard=False):
         """SX Newton on ``w = law(a_s + Gs w, a_v + Gv w) - lin(...)`` for all elements at once; ``guard``: safeguarded
@@ -78,13 +91,7 @@ class TimeSeriesMixin:
         a_s, a_v, w0 = ca.SX.sym("a_s", r), ca.SX.sym("a_v", r), ca.SX.sym("w0", r)
         Gs, Gv = ca.SX.sym("Gs", r, r), ca.SX.sym("Gv", r, r)
         pl = ca.SX.sym("pl", self._n_plaw())
-        s, v = ca.SX.sym("s", r), ca.SX.sym("v", r)
-        delta = []
-        for i, (el, (pe, k_lin, s0_lin, d_lin)) in enumerate(zip(self.elements, self.law_slices(pl), strict=True)):
-            law = el.law(s[i], v[i], pe)
-            delta.append(law - k_lin * (s[i] - s0_lin) - d_lin * v[i])
-        dl = ca.vertcat(*delta)
-        dfun = ca.Function("delta", [s, v, pl], [dl, ca.diag(ca.jacobian(dl, s)), ca.diag(ca.jacobian(dl, v))])
+        dfun = self._delta(pl)
         w = w0
         eye = ca.SX.eye(r)
         # guard: each element's residual rises with its force (a passive law: J_ii >= 1), so the iterates bracket its
@@ -112,6 +119,36 @@ class TimeSeriesMixin:
         R = w - dfun(ss, vv, pl)[0]
         scale = 1.0 + ca.norm_inf(w)
         return ca.Function("newton", [a_s, a_v, Gs, Gv, w0, pl], [w, ca.norm_inf(R) / scale])
+
+    def _delta(self, pl):
+        """SX Function ``(s, v, pl) -> (law - lin, d/ds, d/dv)`` of every element (what the Newton zeroes), made on
+        the caller's law-parameter symbols ``pl`` (called with them, the parameters' own terms are made once, not
+        once per iteration: 14 of the 200 instructions of an iteration with friction and a clearance)."""
+        r = len(self.elements)
+        s, v = ca.SX.sym("s", r), ca.SX.sym("v", r)
+        delta = []
+        for i, (el, (pe, k_lin, s0_lin, d_lin)) in enumerate(zip(self.elements, self.law_slices(pl), strict=True)):
+            law = el.law(s[i], v[i], pe)
+            delta.append(law - k_lin * (s[i] - s0_lin) - d_lin * v[i])
+        dl = ca.vertcat(*delta)
+        return ca.Function("delta", [s, v, pl], [dl, ca.diag(ca.jacobian(dl, s)), ca.diag(ca.jacobian(dl, v))])
+
+    def _newton_parts(self):
+        """SX Functions of :meth:`_newton`'s plain iteration (for :func:`~.compiled_hot.skipping_newton`):
+        ``step(a_s, a_v, Gs, Gv, w, pl) -> (w_next, R)`` and ``residual(...) -> |R|_inf / (1 + |w|_inf)``, with the
+        same operations in the same order."""
+        r = len(self.elements)
+        a_s, a_v, w = ca.SX.sym("a_s", r), ca.SX.sym("a_v", r), ca.SX.sym("w", r)
+        Gs, Gv = ca.SX.sym("Gs", r, r), ca.SX.sym("Gv", r, r)
+        pl = ca.SX.sym("pl", self._n_plaw())
+        dfun = self._delta(pl)
+        ss, vv = a_s + ca.mtimes(Gs, w), a_v + ca.mtimes(Gv, w)
+        dv, ds_, dvv = dfun(ss, vv, pl)
+        R = w - dv
+        J = ca.SX.eye(r) - ca.mtimes(ca.diag(ds_), Gs) - ca.mtimes(ca.diag(dvv), Gv)
+        ins = [a_s, a_v, Gs, Gv, w, pl]
+        return (ca.Function("newton_step", ins, [w - ca.solve(J, R), R]),
+                ca.Function("newton_residual", ins, [ca.norm_inf(R) / (1.0 + ca.norm_inf(w))]))
 
     def _discrete(self, mm, dt, n_sub, alpha, outputs):
         """Discretised modal matrices for one step length, delay fraction and output set (cached per
@@ -276,7 +313,7 @@ class TimeSeriesMixin:
         n2, blocks, Phi, Ad, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs, Gv, Cy, Dyu, Dyw = self._disc(mm, key)
         f = self._step_function(n2, nu, len(outputs), n_sub, n_newton, blocks, guard)
         fkey = (n2, nu, len(outputs), n_sub, n_newton, blocks, guard)
-        native = self._hot.get(fkey, self._steps[("graph", fkey)], f, nt - 1) if r and nt > 1 else None
+        native = self._hot.get(fkey, lambda: self._native_graph(fkey), f, nt - 1) if r and nt > 1 else None
         self.stats["native_steps"] = native is not None
         if not r:
             Y = _linear_run(Phi, Ga, Gb, Cy, Dyu, up_seq, uc_seq, n_sub, blocks)

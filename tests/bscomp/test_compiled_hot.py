@@ -77,3 +77,35 @@ def test_where_nothing_compiles_the_virtual_machine_goes_on(tmp_path, monkeypatc
     assert not n1 and not n2
     assert all(np.array_equal(y1[o], y2[o]) for o in OUTS) and np.all(np.isfinite(y1["table.a"]))
     assert not list(tmp_path.glob("jit/sample_*"))
+
+
+def test_the_skipping_newton_is_the_full_newton_to_the_bit():
+    """compiled_hot.skipping_newton (the compiled sample's Newton: an iteration skipped once one returned its start)
+    against CompiledModel._newton (every iteration), at 300 random element coordinates through and around the
+    clearance and the friction's regularised band, started as in a run from the forces of a sub-step before (the
+    coordinates 1e-8 m and 1e-4 m/s away) and from far off: equal to the bit, and from the sub-step before most
+    reach the fixed point before the eighth iteration (so the skip saves work)."""
+    cm = CompiledModel(_drive(), ["amp.u"], OUTS)
+    full = cm._newton(8)
+    step, residual = cm._newton_parts()
+    skip = compiled_hot.skipping_newton(step, residual, 8)
+    pl = cm.law_values(cm._split({})[1])
+    rng = np.random.default_rng(7)
+    Gs, Gv = np.array([[-2e-9, 1e-10], [1e-10, -3e-9]]), np.array([[-1e-6, 0.0], [0.0, -2e-6]])
+    first_fixed = []
+    for _ in range(300):
+        a_s, a_v = rng.uniform(-4e-5, 4e-5, 2), rng.uniform(-2e-3, 2e-3, 2)
+        far = rng.uniform(-2e3, 2e3, 2)
+        w0 = np.asarray(full(a_s - 1e-8, a_v - 1e-4, Gs, Gv, far, pl)[0]).ravel()     # the sub-step before's
+        for start in (w0, far):
+            ref, got = full(a_s, a_v, Gs, Gv, start, pl), skip(a_s, a_v, Gs, Gv, start, pl)
+            assert np.array_equal(np.asarray(ref[0]), np.asarray(got[0])) and float(ref[1]) == float(got[1])
+        w, k = w0, 0
+        while k < 8:
+            wn = np.asarray(step(a_s, a_v, Gs, Gv, w, pl)[0]).ravel()
+            k += 1
+            if np.array_equal(wn, w):
+                break
+            w = wn
+        first_fixed.append(k)
+    assert np.median(first_fixed) < 8, np.bincount(first_fixed)
