@@ -2,14 +2,15 @@
 
 :meth:`bscomp.simulation.compiled.CompiledModel.simulate` runs a sample (its sub-steps, each with the Newton on the
 element forces) as an expanded SX Function in CasADi's virtual machine. A fit runs the same sample Function hundreds
-of times (diagnose of the bundled backlash truth: 91 runs of one 16-sub-step shape, 7.4 of its 43 s); compiled to C
-the same sample runs 2.7x faster (133 -> 49 ms a 1,500-sample run) with the same numbers to the bit (the C is
-generated from the MX graph before it is expanded: the Newton one called function, the products loops, ~0.9 s to
-compile, against ~12 s for the expanded straight-line code). So a shape is compiled when the virtual machine has run
-:data:`HOT_WORK` instructions of it, and a shape compiled before (in any process, on this machine) is loaded from the
-on-disk cache at its first run (:func:`bscomp.simulation.native.cached_functions`). Where no C compiler is found
-or the compilation fails, the virtual machine goes on (``CompiledModel.stats["native_steps"]`` says which ran).
-``BSCOMP_NATIVE_STEPS=0`` keeps every run in the virtual machine.
+of times (diagnose of the bundled backlash truth: 91 runs of one 16-sub-step shape, 7.4 of its 43 s). Compiled to C
+from the MX graph before it is expanded -- the Newton one called function (:func:`skipping_newton`), the products
+loops, runs of 4-256 samples as nested calls (:func:`_blocks`) -- it compiles in ~1 s (the expanded straight-line
+code: ~12 s) and that sample's 1,500-sample run takes 24 ms instead of 130, with the same numbers to the bit. So a
+shape is compiled when the virtual machine has run :data:`HOT_WORK` instructions of it, and a shape compiled before
+(in any process, on this machine) is loaded from the on-disk cache at its first run
+(:func:`bscomp.simulation.native.cached_functions`). Where no C compiler is found, the compilation fails or the cache
+folder cannot be written, the virtual machine goes on (``CompiledModel.stats["native_steps"]`` says which ran).
+``BSCOMP_NATIVE_STEPS=0`` keeps every run in the virtual machine. Measured: ``docs/validation.md``, "Engine".
 """
 
 from __future__ import annotations
@@ -48,7 +49,10 @@ class HotSteps:
             return self.native[key]
         if key not in self.graphs:
             graph = self.graphs[key] = build()
-            found = cached_functions(_ident(graph), _names(graph))
+            try:
+                found = cached_functions(_ident(graph), _names(graph))
+            except (OSError, RuntimeError):      # a library there that does not load: compiled anew when hot
+                found = None
             if found is not None:
                 self.native[key] = NativeRun(found)
                 return self.native[key]
@@ -60,8 +64,8 @@ class HotSteps:
         try:
             functions = native_functions(lambda: _blocks(graph), key=_ident(graph), names=_names(graph))
             self.native[key] = NativeRun(functions)
-        except BscompError:                       # no C compiler, or it failed: the virtual machine goes on
-            self.native[key] = None
+        except (BscompError, OSError, RuntimeError):   # no C compiler, it failed, the cache is not writable or the
+            self.native[key] = None                     # library not loadable: the virtual machine goes on
         return self.native[key]
 
 

@@ -109,3 +109,15 @@ def test_the_skipping_newton_is_the_full_newton_to_the_bit():
             w = wn
         first_fixed.append(k)
     assert np.median(first_fixed) < 8, np.bincount(first_fixed)
+
+
+def test_a_cache_folder_that_cannot_be_written_leaves_the_virtual_machine(tmp_path, monkeypatch):
+    """BSCOMP_CACHE_DIR naming a file (a read-only or mistyped folder): the run is not refused, it stays in the
+    virtual machine with the same numbers."""
+    blocker = tmp_path / "not_a_folder"
+    blocker.write_text("")
+    monkeypatch.setenv("BSCOMP_CACHE_DIR", str(blocker))
+    monkeypatch.setattr(compiled_hot, "HOT_WORK", 0.0)
+    cm = CompiledModel(_drive(), ["amp.u"], OUTS)
+    (y1, n1), (y2, n2) = _run(cm), _run(cm)
+    assert not n1 and not n2 and all(np.array_equal(y1[o], y2[o]) for o in OUTS)
