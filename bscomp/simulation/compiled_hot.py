@@ -6,7 +6,8 @@ of times (diagnose of the bundled backlash truth: 91 runs of one 16-sub-step sha
 from the MX graph before it is expanded -- the Newton one called function (:func:`skipping_newton`), the products
 loops, runs of 4-256 samples as nested calls (:func:`_blocks`) -- it compiles in ~1 s (the expanded straight-line
 code: ~12 s) and that sample's 1,500-sample run takes 24 ms instead of 130, with the same numbers to the bit. So a
-shape is compiled when the virtual machine has run :data:`HOT_WORK` instructions of it, and a shape compiled before
+shape is compiled when the virtual machine has run :data:`HOT_WORK` instructions of it -- in a background thread
+(:data:`BACKGROUND`; the virtual machine runs it until the library is there) -- and a shape compiled before
 (in any process, on this machine) is loaded from the on-disk cache at its first run
 (:func:`bscomp.simulation.native.cached_functions`). Where no C compiler is found, the compilation fails or the cache
 folder cannot be written, the virtual machine goes on (``CompiledModel.stats["native_steps"]`` says which ran).
@@ -17,18 +18,25 @@ from __future__ import annotations
 
 import hashlib
 import os
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import casadi as ca
 import numpy as np
 
 from bscomp.errors import BscompError
-from bscomp.simulation.native import cached_functions, native_functions
+from bscomp.simulation.native import cached_functions, library_job, load_library
 
-__all__ = ["BLOCKS", "HOT_WORK", "HotSteps", "NativeRun", "skipping_newton"]
+__all__ = ["BACKGROUND", "BLOCKS", "HOT_WORK", "HotSteps", "NativeRun", "skipping_newton"]
 
 #: SX instructions x samples the virtual machine runs of one sample Function before it is compiled (~0.7 s of it;
 #: a compilation costs ~0.9 s and saves ~60 % of every later run).
 HOT_WORK = 3e8
+
+
+#: Compile in a background thread (the virtual machine goes on meanwhile; the compiler runs on another core where there
+#: is one); ``False``: compile at once, in the caller's thread.
+BACKGROUND = True
+_POOL = None                                   # the one compiler thread (made at the first compilation)
 
 
 class HotSteps:
@@ -38,6 +46,7 @@ class HotSteps:
         self.work = {}          # key -> instructions x samples run in the virtual machine
         self.native = {}        # key -> NativeRun, or None (not available: keep the VM)
         self.graphs = {}        # key -> the MX sample Function (built at its first run: the on-disk library looked for)
+        self.pending = {}       # key -> (future of the compiler's run, library path, names)
         self.enabled = os.environ.get("BSCOMP_NATIVE_STEPS", "1") != "0"
 
     def get(self, key, build, f, n_samples):
@@ -47,6 +56,8 @@ class HotSteps:
             return None
         if key in self.native:
             return self.native[key]
+        if key in self.pending:
+            return self._finish(key)
         if key not in self.graphs:
             graph = self.graphs[key] = build()
             try:
@@ -61,12 +72,42 @@ class HotSteps:
             self.work[key] = done + f.n_instructions() * n_samples
             return None
         graph = self.graphs[key]
+        try:                                     # the C generated here (CasADi stays in this thread)
+            job, so, names = library_job(lambda: _blocks(graph), key=_ident(graph), names=_names(graph))
+        except (BscompError, OSError):           # no C compiler, or the cache folder cannot be written
+            self.native[key] = None
+            return None
+        if not BACKGROUND:
+            self.pending[key] = (_done(job), so, names)
+            return self._finish(key)
+        global _POOL
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=1, thread_name_prefix="bscomp-cc")
+        self.pending[key] = (_POOL.submit(job), so, names)
+        return None
+
+    def _finish(self, key):
+        """The compiled run of a pending compilation once the compiler is done (else ``None``: the VM goes on)."""
+        future, so, names = self.pending[key]
+        if not future.done():
+            return None
+        del self.pending[key]
         try:
-            functions = native_functions(lambda: _blocks(graph), key=_ident(graph), names=_names(graph))
-            self.native[key] = NativeRun(functions)
-        except (BscompError, OSError, RuntimeError):   # no C compiler, it failed, the cache is not writable or the
-            self.native[key] = None                     # library not loadable: the virtual machine goes on
+            future.result()
+            self.native[key] = NativeRun(load_library(so, names))
+        except (BscompError, OSError, RuntimeError):   # it failed, or the library does not load: the VM goes on
+            self.native[key] = None
         return self.native[key]
+
+
+def _done(job) -> Future:
+    """``job()`` run now, as a finished Future (its exception kept for ``result()``)."""
+    future = Future()
+    try:
+        future.set_result(job())
+    except Exception as exc:                     # noqa: BLE001 -- handed to _finish, which names what it catches
+        future.set_exception(exc)
+    return future
 
 
 def _ident(graph) -> str:

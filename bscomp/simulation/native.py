@@ -21,8 +21,8 @@ import casadi as ca
 
 from bscomp.errors import BscompError
 
-__all__ = ["quiet_native_stderr", "native_function", "native_functions", "cached_functions", "CFLAGS", "NATIVE_CFLAGS",
-           "cpu_id"]
+__all__ = ["quiet_native_stderr", "native_function", "native_functions", "cached_functions", "library_job",
+           "load_library", "CFLAGS", "NATIVE_CFLAGS", "cpu_id"]
 
 #: The C compiler's flags everywhere. -O3 over -O2: the modal steps' loops run 10 % faster, the same compile time;
 #: no fused multiply-add contraction (GCC contracts by default where the CPU has FMA), so the numbers are those of
@@ -120,7 +120,7 @@ def cached_functions(key, names, cache_dir=None) -> list | None:
     """The Functions ``names`` of a library :func:`native_functions` compiled under ``key`` earlier (in any process),
     loaded; ``None`` when there is none (nothing is generated or compiled)."""
     so = _keyed(_root(cache_dir), key, names, _tag(_flags()[0]))
-    return [ca.external(n, str(so)) for n in names] if so.exists() else None
+    return load_library(so, names) if so.exists() else None
 
 
 def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
@@ -129,6 +129,15 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
     ``functions`` may be a callable that builds them: with a ``key`` (any string that identifies them) and
     their ``names``, a library already in the cache is loaded without building or generating anything.
     """
+    build, so, names = library_job(functions, cache_dir, key, names)
+    build()
+    return load_library(so, names)
+
+
+def library_job(functions, cache_dir=None, key=None, names=None) -> tuple:
+    """``(build, so, names)`` of :func:`native_functions`' library: the C is generated here (nothing when a library
+    under ``key`` is in the cache), ``build()`` runs the compiler into ``so`` (no CasADi: it may run in another
+    thread; atomic, a no-op once ``so`` is there) and :func:`load_library` loads it."""
     cc = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
     if not cc:
         raise BscompError("jit=True needs a C compiler (cc or gcc on PATH, or $CC)")
@@ -139,7 +148,7 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
     if key is not None:
         so = _keyed(root, key, names, tag)
         if so.exists():
-            return [ca.external(n, str(so)) for n in names]
+            return (lambda: None), so, list(names)
     if callable(functions):
         functions = functions()
     name = functions[0].name()
@@ -149,11 +158,15 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
     src = _fixed_products(_axpy_order(cg.dump()))
     if key is None:
         so = root / f"{name}_{hashlib.sha1(f'{src}|{tag}'.encode()).hexdigest()[:16]}.so"
-    if not so.exists():
+
+    def build():
+        if so.exists():
+            return
         with tempfile.TemporaryDirectory(dir=root) as tmp:
             c = Path(tmp) / f"{name}.c"
             c.write_text(src)
             out = Path(tmp) / so.name
+
             def compile_(fl):
                 return subprocess.run([cc, *fl, "-shared", "-fPIC", str(c), "-o", str(out)], capture_output=True,
                                       text=True)
@@ -164,7 +177,13 @@ def native_functions(functions, cache_dir=None, key=None, names=None) -> list:
             if run.returncode:
                 raise BscompError(f"compiling {name} failed: {run.stderr[-500:]}")
             os.replace(out, so)  # atomic: concurrent workers never load a half-written file
-    return [ca.external(f.name(), str(so)) for f in functions]
+
+    return build, so, [f.name() for f in functions]
+
+
+def load_library(so, names) -> list:
+    """The Functions ``names`` of the compiled library ``so``."""
+    return [ca.external(n, str(so)) for n in names]
 
 
 _DOT_ORDER = """  } else {

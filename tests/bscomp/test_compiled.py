@@ -401,6 +401,7 @@ def _run(cm, F_c=1500.0):
 def test_a_hot_sample_runs_compiled_with_the_numbers_of_the_virtual_machine(tmp_path, monkeypatch):
     monkeypatch.setenv("BSCOMP_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(compiled_hot, "HOT_WORK", 1.0)          # hot after one run
+    monkeypatch.setattr(compiled_hot, "BACKGROUND", False)      # compiled at once (the next test: in the background)
     s = _friction_backlash_drive()
     monkeypatch.setenv("BSCOMP_NATIVE_STEPS", "0")
     vm = CompiledModel(s, ["amp.u"], OUTS)
@@ -420,6 +421,26 @@ def test_a_hot_sample_runs_compiled_with_the_numbers_of_the_virtual_machine(tmp_
     assert list(tmp_path.glob("jit/sample_x256_k*.so"))
 
 
+@needs_cc
+def test_compiled_in_the_background_the_runs_go_on_in_the_virtual_machine_until_it_is_there(tmp_path, monkeypatch):
+    """The default: the compiler runs in a background thread once the sample is hot; the runs meanwhile are the
+    virtual machine's, the later ones compiled -- every one the same numbers."""
+    import time
+
+    monkeypatch.setenv("BSCOMP_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(compiled_hot, "HOT_WORK", 1.0)
+    cm = CompiledModel(_friction_backlash_drive(), ["amp.u"], OUTS)
+    runs = [_run(cm), _run(cm)]                                  # counted, then the compilation started
+    assert [n for _, n in runs] == [False, False] and cm._hot.pending
+    deadline = time.monotonic() + 120.0
+    while not runs[-1][1] and time.monotonic() < deadline:
+        time.sleep(0.05)
+        runs.append(_run(cm))
+    assert runs[-1][1], "the background compilation did not end in 120 s"
+    for y, _ in runs[1:]:
+        assert all(np.array_equal(y[o], runs[0][0][o]) for o in OUTS)
+
+
 def test_where_nothing_compiles_the_virtual_machine_goes_on(tmp_path, monkeypatch):
     monkeypatch.setenv("BSCOMP_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(compiled_hot, "HOT_WORK", 0.0)
@@ -427,7 +448,7 @@ def test_where_nothing_compiles_the_virtual_machine_goes_on(tmp_path, monkeypatc
     def no_compiler(*args, **kwargs):
         raise BscompError("jit=True needs a C compiler (cc or gcc on PATH, or $CC)")
 
-    monkeypatch.setattr(compiled_hot, "native_functions", no_compiler)
+    monkeypatch.setattr(compiled_hot, "library_job", no_compiler)
     s = _friction_backlash_drive()
     cm = CompiledModel(s, ["amp.u"], OUTS)
     (y1, n1), (y2, n2) = _run(cm), _run(cm)
