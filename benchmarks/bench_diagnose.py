@@ -147,6 +147,7 @@ def bench_inner_calls(repeat: int = 5):
     screw-nut clearance the time series cuts out (16 sub-steps per sample); and the harmonic balance at an amplitude
     (three odd orders) with the Newton's exact Jacobian against forward differences."""
     import tempfile
+    from unittest import mock
 
     import bscomp.simulation.compiled_hot as ch
     import bscomp.simulation.compiled_time as ct
@@ -157,13 +158,11 @@ def bench_inner_calls(repeat: int = 5):
     u = 2.125 * np.sign(np.sin(2 * np.pi * 5 * t) + 1e-12)
 
     def series(system, block, native=False):
-        old = ct.BLOCK_INSTRUCTIONS, ch.HOT_WORK, os.environ.get("BSCOMP_NATIVE_STEPS"), os.environ.get(
-            "BSCOMP_CACHE_DIR")
-        ct.BLOCK_INSTRUCTIONS, ch.HOT_WORK = block, 0.0
-        os.environ["BSCOMP_NATIVE_STEPS"] = "1" if native else "0"
+        old = ct.BLOCK_INSTRUCTIONS, ch.HOT_WORK, ch.BACKGROUND
+        ct.BLOCK_INSTRUCTIONS, ch.HOT_WORK, ch.BACKGROUND = block, 0.0, False    # compiled in the first run
         try:
-            with tempfile.TemporaryDirectory() as fresh:
-                os.environ["BSCOMP_CACHE_DIR"] = fresh
+            with tempfile.TemporaryDirectory() as fresh, mock.patch.dict(
+                    os.environ, {"BSCOMP_NATIVE_STEPS": "1" if native else "0", "BSCOMP_CACHE_DIR": fresh}):
                 cm = CompiledModel(system, ["amp.u"], OUTS)
                 t0 = time.perf_counter()
                 y = cm.simulate({}, t, {"amp.u": u})
@@ -173,9 +172,7 @@ def bench_inner_calls(repeat: int = 5):
                     cm.simulate({"friction.F_c_pos": 2000.0 + k, "friction.F_c_neg": 2000.0 + k}, t, {"amp.u": u})
                 return y, (time.perf_counter() - t0) / repeat, first, cm.stats["n_sub_used"]
         finally:
-            ct.BLOCK_INSTRUCTIONS, ch.HOT_WORK = old[0], old[1]
-            for k, v in zip(("BSCOMP_NATIVE_STEPS", "BSCOMP_CACHE_DIR"), old[2:], strict=True):
-                os.environ.pop(k, None) if v is None else os.environ.__setitem__(k, v)
+            ct.BLOCK_INSTRUCTIONS, ch.HOT_WORK, ch.BACKGROUND = old
 
     def differ(a, b):
         return max(float(np.max(np.abs(a[o] - b[o])) / np.max(np.abs(b[o]))) for o in OUTS)

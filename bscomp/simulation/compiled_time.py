@@ -136,7 +136,10 @@ class TimeSeriesMixin:
     def _newton_parts(self):
         """SX Functions of :meth:`_newton`'s plain iteration (for :func:`~.compiled_hot.skipping_newton`):
         ``step(a_s, a_v, Gs, Gv, w, pl) -> (w_next, R)`` and ``residual(...) -> |R|_inf / (1 + |w|_inf)``, with the
-        same operations in the same order."""
+        same operations in the same order (built once)."""
+        parts = self._steps.get("newton_parts")
+        if parts is not None:
+            return parts
         r = len(self.elements)
         a_s, a_v, w = ca.SX.sym("a_s", r), ca.SX.sym("a_v", r), ca.SX.sym("w", r)
         Gs, Gv = ca.SX.sym("Gs", r, r), ca.SX.sym("Gv", r, r)
@@ -147,8 +150,10 @@ class TimeSeriesMixin:
         R = w - dv
         J = ca.SX.eye(r) - ca.mtimes(ca.diag(ds_), Gs) - ca.mtimes(ca.diag(dvv), Gv)
         ins = [a_s, a_v, Gs, Gv, w, pl]
-        return (ca.Function("newton_step", ins, [w - ca.solve(J, R), R]),
-                ca.Function("newton_residual", ins, [ca.norm_inf(R) / (1.0 + ca.norm_inf(w))]))
+        parts = self._steps["newton_parts"] = (
+            ca.Function("newton_step", ins, [w - ca.solve(J, R), R]),
+            ca.Function("newton_residual", ins, [ca.norm_inf(R) / (1.0 + ca.norm_inf(w))]))
+        return parts
 
     def _discrete(self, mm, dt, n_sub, alpha, outputs):
         """Discretised modal matrices for one step length, delay fraction and output set (cached per
@@ -311,8 +316,8 @@ class TimeSeriesMixin:
         n_sub, outputs = key[1], key[3]
         r, nt, nu = len(self.elements), up_seq.shape[1], len(self.inputs)
         n2, blocks, Phi, Ad, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs, Gv, Cy, Dyu, Dyw = self._disc(mm, key)
-        f = self._step_function(n2, nu, len(outputs), n_sub, n_newton, blocks, guard)
         fkey = (n2, nu, len(outputs), n_sub, n_newton, blocks, guard)
+        f = self._step_function(*fkey)
         native = self._hot.get(fkey, lambda: self._native_graph(fkey), f, nt - 1) if r and nt > 1 else None
         self.stats["native_steps"] = native is not None
         if not r:
