@@ -26,8 +26,11 @@ __all__ = ["quiet_native_stderr", "native_function", "native_functions", "cached
 
 #: The C compiler's flags everywhere. -O3 over -O2: the modal steps' loops run 10 % faster, the same compile time;
 #: no fused multiply-add contraction (GCC contracts by default where the CPU has FMA), so the numbers are those of
-#: CasADi's virtual machine to the bit.
-CFLAGS = "-O3 -ffp-contract=off"
+#: CasADi's virtual machine to the bit. ``-fno-tree-slp-vectorize``: GCC 12's straight-line (SLP) vectorizer emits
+#: vector FMAs under ``-march=native`` *despite* ``-ffp-contract=off`` (4 of 80 random chains of
+#: ``benchmarks/fuzz_compiled.py`` left the VM's numbers by ~1e-13 of their scale, ``docs/validation.md`` "Engine");
+#: the loops (products) are still vectorized, and the modal steps ran no slower without it.
+CFLAGS = "-O3 -ffp-contract=off -fno-tree-slp-vectorize"
 #: Added on an x86 Linux whose CPU is identified (:func:`cpu_id`, part of the cache key: a library built here is
 #: never loaded on another CPU): its vector width for the modal steps' products (moving-nut bed: the compiled steps
 #: 62 -> 50 ms of a 0.6 s run). A compiler that refuses it is asked again without.

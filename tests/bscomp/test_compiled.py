@@ -499,3 +499,46 @@ def test_a_cache_folder_that_cannot_be_written_leaves_the_virtual_machine(tmp_pa
     cm = CompiledModel(_friction_backlash_drive(), ["amp.u"], OUTS)
     (y1, n1), (y2, n2) = _run(cm), _run(cm)
     assert not n1 and not n2 and all(np.array_equal(y1[o], y2[o]) for o in OUTS)
+
+
+@needs_cc
+def test_a_chain_where_the_slp_vectorizer_fused_products_is_compiled_to_the_bit(tmp_path, monkeypatch):
+    """benchmarks/fuzz_compiled.py's chain of seed 48 (two masses to a wall, a 53 um clearance of 3.1e7 N/m
+    between them, asymmetric Coulomb friction on the second, a 24 Hz square wave of 174 N held per 0.1 ms). Built
+    with ``-march=native`` on a CPU with FMA, GCC 12's straight-line vectorizer fused products in the sample's C
+    despite ``-ffp-contract=off``: from sample 387 on the outputs left the virtual machine's by ~1e-13 of their
+    scale (4 of 80 fuzz chains). ``native.CFLAGS`` turns that vectorizer off; compiled and VM agree to the bit."""
+    from bscomp.components import Damper, Force, Mass, Spring
+    from bscomp.kernel.system import System
+
+    monkeypatch.setenv("BSCOMP_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(compiled_hot, "HOT_WORK", 0.0)
+    monkeypatch.setattr(compiled_hot, "BACKGROUND", False)
+    s = System("fuzz_seed_48")
+    s.add("wall", Fixed())
+    s.add("m0", Mass(m=29.99078775645233))
+    s.add("k0", Spring(c=5997463.533932531))
+    s.add("d0", Damper(d=536.4604826799202))
+    s.add("m1", Mass(m=25.933126980173498))
+    s.add("k1", Backlash(b=5.323945613991864e-05, c=31242911.398465965, d=0.0, eps=0.0))
+    s.add("d1", Damper(d=411.13167168375855))
+    s.add("ground", Fixed())
+    s.add("fr", CoulombFriction(F_c_pos=154.57231873988755, F_c_neg=117.9457381521684, d_pos=8.551473272188803,
+                                d_neg=47.533266371353065, v_reg=5.669733539059217e-05))
+    s.add("F", Force())
+    for a, b in (("wall.flange", "k0.flange_a"), ("k0.flange_b", "m0.flange_a"), ("wall.flange", "d0.flange_a"),
+                 ("d0.flange_b", "m0.flange_a"), ("m0.flange_b", "k1.flange_a"), ("k1.flange_b", "m1.flange_a"),
+                 ("m0.flange_b", "d1.flange_a"), ("d1.flange_b", "m1.flange_a"), ("ground.flange", "fr.flange_a"),
+                 ("fr.flange_b", "m1.flange_a"), ("F.flange", "m1.flange_b")):
+        s.connect(a, b)
+    t = np.round(np.arange(2001) * 1e-4, 12)
+    u = 174.4761970366625 * np.sign(np.sin(2 * np.pi * 24.187745162844184 * t) + 1e-12)
+    outs = ["m1.v", "m1.a"]
+    monkeypatch.setenv("BSCOMP_NATIVE_STEPS", "0")
+    vm = CompiledModel(s, ["F.f"], outs).simulate({}, t, {"F.f": u})
+    monkeypatch.delenv("BSCOMP_NATIVE_STEPS")
+    cm = CompiledModel(s, ["F.f"], outs)
+    got = cm.simulate({}, t, {"F.f": u})
+    assert cm.stats["native_steps"]
+    for o in outs:
+        assert np.array_equal(vm[o], got[o]), (o, np.flatnonzero(vm[o] != got[o])[:3])
