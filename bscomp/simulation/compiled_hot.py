@@ -169,6 +169,7 @@ class NativeRun:
 
     def __call__(self, x0, up, uc, mats):
         n = up.shape[1]
+        mats = [ca.DM(m) for m in mats]       # converted once, not at every call (~30 arguments a call)
         x, Y, bad, k = x0, [], [], 0
         for size in BLOCKS:
             while n - k >= size:

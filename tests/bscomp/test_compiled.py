@@ -63,6 +63,24 @@ def test_frf_equals_bscomp_frf_on_the_fe_test_bed_after_parameter_changes(testbe
             assert np.max(np.abs(H[("amp.u", o)] - r) / np.abs(r)) < 1e-6
 
 
+def test_the_linear_frf_is_kept_per_modal_model_and_handed_out_as_a_copy(testbed_model):
+    """CompiledModel.frf keeps the linear part's FRFs on its modal model (a fit that varies only a friction or a
+    clearance meets them again): the same arrays to the bit as computed anew, one entry per frequencies and pairs,
+    and what a caller does to the arrays it got does not reach the next call."""
+    _, cm = testbed_model
+    pairs = [("amp.u", "table.a"), ("amp.u", "rotor.w")]
+    pv = {"table.m": 263.0}
+    H1 = cm.frf(pv, F, pairs)
+    mm = cm.modal(pv)
+    fresh = cm._modal_map(mm, F, ["amp.u"], ["table.a", "rotor.w"])
+    assert np.array_equal(H1[pairs[0]], fresh[:, 0, 0]) and np.array_equal(H1[pairs[1]], fresh[:, 1, 0])
+    H1[pairs[0]][:] = 0.0                                    # a caller writing into what it got
+    H2 = cm.frf(pv, F, pairs)
+    assert np.array_equal(H2[pairs[0]], fresh[:, 0, 0]) and len(mm.__dict__["_frf"]) == 1
+    cm.frf(pv, F[:50], pairs)                                # other frequencies: their own entry
+    assert len(mm.__dict__["_frf"]) == 2
+
+
 def test_a_damping_the_model_leaves_at_zero_gets_an_exact_sensitivity(testbed_model):
     """b1.c_axial and coupling.d are 0 in the thesis model (its damping is modal): their sensitivities are probed at
     0 and +-1 (a relative step of a zero value divided by zero before), and the FRF with them turned on equals the

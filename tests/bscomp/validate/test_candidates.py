@@ -662,3 +662,24 @@ def test_every_nonlinear_candidate_says_what_its_slope_at_rest_is():
             assert cand.slope_at_rest == f"friction stuck: {level} / {'w' if level == 'T_c' else 'v'}_reg"
         else:
             assert cand.slope_at_rest == "the clearance not crossed: its contact or open slope"
+
+
+def test_detached_body_damping_reuses_the_drives_matrix_when_only_the_bodys_joint_changes():
+    """DetachedBodyDamping computes the base option's matrix on the drive with the body lumped and its joint taken
+    out, so a fit that varies the joint's stiffness meets the same drive again: the base matrix is computed once
+    (one memo entry) and each result is what a fresh option computes, to the bit."""
+    from bscomp.kernel.damping import ModalDamping
+    from bscomp.validate.candidates.hooks import DetachedBodyDamping
+
+    names = ["m1", "m2", "body"]
+    M = np.diag([2.0, 3.0, 0.5])
+
+    def K(k_joint):
+        return np.array([[3e4, -1e4, 0.0], [-1e4, 1e4 + k_joint, -k_joint], [0.0, -k_joint, k_joint]])
+
+    opt = DetachedBodyDamping(ModalDamping(0.02), ["body"])
+    got = [opt.matrix(M, K(k), names) for k in (4e5, 5e5, 4e5)]
+    assert len(opt.__dict__["_memo"]) == 1
+    for C, k in zip(got, (4e5, 5e5, 4e5), strict=True):
+        assert np.array_equal(C, DetachedBodyDamping(ModalDamping(0.02), ["body"]).matrix(M, K(k), names))
+        assert not np.any(C[2]) and not np.any(C[:, 2]) and np.all(np.diag(C)[:2] > 0)
