@@ -81,6 +81,44 @@ def test_the_linear_frf_is_kept_per_modal_model_and_handed_out_as_a_copy(testbed
     assert len(mm.__dict__["_frf"]) == 2
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_frfs_on_random_chains_follow_parameter_changes_back_and_forth(seed):
+    """Random damped chains (2-4 masses of 0.5-50 kg on 1e4-1e7 N/m, a dashpot beside each spring), a sequence of 12
+    parameter vectors drawn from 4 (so the modal models and their kept FRFs are met again, in another order): every
+    FRF equals ``bscomp.frf`` on the re-flattened system at those values."""
+    from bscomp.components import Damper, Force, Mass, Spring
+    from bscomp.kernel.system import System
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 5))
+    s = System(f"chain_{seed}")
+    s.add("wall", Fixed())
+    prev = "wall.flange"
+    for i in range(n):
+        m, k = rng.uniform(0.5, 50), 10 ** rng.uniform(4, 7)
+        s.add(f"m{i}", Mass(m=m))
+        s.add(f"k{i}", Spring(c=k))
+        s.add(f"d{i}", Damper(d=float(0.02 * np.sqrt(k * m) * rng.uniform(0.5, 2))))
+        for a, b in ((prev, f"k{i}.flange_a"), (f"k{i}.flange_b", f"m{i}.flange_a"), (prev, f"d{i}.flange_a"),
+                     (f"d{i}.flange_b", f"m{i}.flange_a")):
+            s.connect(a, b)
+        prev = f"m{i}.flange_b"
+    s.add("F", Force())
+    s.connect("F.flange", prev)
+    free = ["m0.m", f"k{n - 1}.c", "d0.d"]
+    outs = [f"m{n - 1}.a", "m0.v"]
+    cm = CompiledModel(s, ["F.f"], outs, free=free)
+    f = np.logspace(0, 2.5, 80)
+    vectors = [{p: s.get(p) * float(np.exp(rng.normal(0, 0.3))) for p in free} for _ in range(4)]
+    for j in rng.integers(0, 4, 12):
+        pv = vectors[j]
+        H = cm.frf(pv, f, [("F.f", o) for o in outs])
+        ref = frf(s.with_parameters(pv), input="F.f", output=outs, freqs=f)
+        for o in outs:
+            r = ref.H[:, ref.outputs.index(o), 0]
+            assert np.max(np.abs(H[("F.f", o)] - r) / np.abs(r)) < 1e-6, (seed, j, o)
+
+
 def test_a_damping_the_model_leaves_at_zero_gets_an_exact_sensitivity(testbed_model):
     """b1.c_axial and coupling.d are 0 in the thesis model (its damping is modal): their sensitivities are probed at
     0 and +-1 (a relative step of a zero value divided by zero before), and the FRF with them turned on equals the
