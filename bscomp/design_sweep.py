@@ -53,6 +53,7 @@ from bscomp.errors import (
 from bscomp.files import atomic_path, atomic_write
 from bscomp.kernel.system import System
 from bscomp.linear.sweeps import check_count
+from bscomp.memo import kept
 from bscomp.model import ModelSpec, spec_of
 from bscomp.plotting.sweep_map import sweep_map
 
@@ -333,12 +334,7 @@ def _run_chunk(job, values, start=0):
     with threadpool_limits(limits=1, user_api="blas"):
         if callable(analysis):
             return _run_callable(analysis, spec, names, values, start)
-        key = (spec, names, inputs, outputs)
-        ev = _CACHE.get(key)
-        if ev is None:
-            ev = _CACHE[key] = ModesEvaluator(spec, names, inputs, outputs)
-            if len(_CACHE) > 8:
-                _CACHE.pop(next(iter(_CACHE)))
+        ev = kept(_CACHE, (spec, names, inputs, outputs), lambda: ModesEvaluator(spec, names, inputs, outputs), 8)
         if analysis == "modes":
             cols = [f"f{i + 1}" for i in range(n_modes)] + [f"zeta{i + 1}" for i in range(n_modes)]
             return cols, [ev.modes_row(dict(zip(names, v)), n_modes) for v in values], ev.kinds

@@ -56,6 +56,7 @@ from bscomp.kernel.system import System
 from bscomp.kernel.system_damping import system_damping_matrix
 from bscomp.linear.frf_engine import dense, modal_frf
 from bscomp.linear.linearization import second_order
+from bscomp.memo import kept
 from bscomp.model import ModelSpec, as_system
 from bscomp.simulation.compiled_checks import check_frf
 from bscomp.simulation.compiled_hot import HotSteps
@@ -398,13 +399,8 @@ class CompiledModel(TimeSeriesMixin):
         lin, _law, struct = self._split(dict(params or {}))
         key = (tuple(sorted(lin.items())), tuple(sorted(struct.items())), float(extra_damping), float(delay),
                getattr(damping_of, "serial", None), f_keep)
-        if key in self._modal_cache:
-            return self._modal_cache[key]
-        mm = self._modal(lin, struct, extra_damping, delay, damping_of, f_keep or self.f_keep)
-        if len(self._modal_cache) > 8:
-            self._modal_cache.pop(next(iter(self._modal_cache)))
-        self._modal_cache[key] = mm
-        return mm
+        return kept(self._modal_cache, key,
+                    lambda: self._modal(lin, struct, extra_damping, delay, damping_of, f_keep or self.f_keep), 9)
 
     def _modal(self, lin, struct, extra_damping, delay, damping_of, f_keep):
         refl = {k: v for k, v in struct.items() if k in self._reflatten}
@@ -510,14 +506,10 @@ class CompiledModel(TimeSeriesMixin):
         """:meth:`_modal_map` kept on ``mm`` (a copy returned): a fit's evaluations that change only a friction or a
         clearance -- finite-difference columns, screening scans -- meet the same linear part and frequencies again
         (40 % of the FRFs of the demo's diagnosis)."""
-        cache = mm.__dict__.setdefault("_frf", {})
         f = np.asarray(freqs, float)
         key = (f.shape, hashlib.sha1(f.tobytes()).hexdigest(), tuple(inputs), tuple(outputs), float(delay))
-        if key not in cache:
-            if len(cache) >= 16:
-                cache.pop(next(iter(cache)))
-            cache[key] = cls._modal_map(mm, f, inputs, outputs, delay)
-        return cache[key].copy()
+        return kept(mm.__dict__.setdefault("_frf", {}), key, lambda: cls._modal_map(mm, f, inputs, outputs, delay),
+                    16).copy()
 
     @staticmethod
     def _modal_map(mm, freqs, inputs, outputs, delay=0.0):

@@ -17,6 +17,7 @@ import casadi as ca
 import numpy as np
 
 from bscomp.errors import ArgumentTypeError, UsageError, check_number
+from bscomp.memo import kept
 from bscomp.simulation.common import Progress, SampledLoop, evaluate_mapped, result_units
 from bscomp.simulation.modal_driver import ModalSimulator
 from bscomp.simulation.modal_steps import block
@@ -175,13 +176,9 @@ def simulator(dae, p, options, jit=False, f_band=False):
     options (up to four per Dae: a repeated run skips the set-up). ``f_band``: ``f_keep`` is the default and may
     be raised to keep the modes of the elements' stiff regimes."""
     key = ("modal", p.tobytes(), options["f_keep"], options["window"], bool(jit), bool(f_band))
-    cache = dae._cache.setdefault("modal_simulators", {})
-    if key not in cache:
-        if len(cache) >= 4:
-            cache.pop(next(iter(cache)))
-        cache[key] = ModalSimulator(dae, p, f_keep=options["f_keep"], window=options["window"], jit=jit,
-                                    f_band=f_band)
-    return cache[key]
+    return kept(dae._cache.setdefault("modal_simulators", {}), key,
+                lambda: ModalSimulator(dae, p, f_keep=options["f_keep"], window=options["window"], jit=jit,
+                                       f_band=f_band), 4)
 
 
 def check_modal_options(modal_options) -> dict:

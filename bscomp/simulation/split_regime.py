@@ -12,6 +12,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from bscomp.linear.linearization import explicit_form
+from bscomp.memo import kept
 from bscomp.simulation.split_kernels import REGIME_RTOL, Kernels, Numeric, rigid_block
 
 __all__ = ["SplitModel", "Regime", "split_model", "nonlinear_structure", "step_key", "FINE"]
@@ -47,12 +48,8 @@ def split_model(dae, p, xs, xd0, z0, u0, newton_iter, substeps, h):
     discretisations and modal bases are reused by a later run from the same start; a few kept)."""
     parts = [np.asarray(a, float).tobytes() for a in (p, xs, xd0, z0, u0)]
     key = ("split_model", *parts, int(newton_iter), int(substeps), step_key(h))
-    models = dae._cache.setdefault("split_models", {})
-    if key not in models:
-        if len(models) >= 4:
-            models.pop(next(iter(models)))
-        models[key] = SplitModel(dae, p, xs, xd0, z0, u0, newton_iter, substeps, h)
-    m = models[key]
+    m = kept(dae._cache.setdefault("split_models", {}), key,
+             lambda: SplitModel(dae, p, xs, xd0, z0, u0, newton_iter, substeps, h), 4)
     m.reset()
     return m
 

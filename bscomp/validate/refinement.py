@@ -19,6 +19,7 @@ from threadpoolctl import threadpool_limits
 
 from bscomp.errors import UnknownNameError
 from bscomp.kernel.system import System
+from bscomp.memo import kept
 from bscomp.validate.calibration import FitSetup, parameter_bounds
 from bscomp.validate.evaluation import Problem
 
@@ -132,12 +133,8 @@ def job_base(system_or_build, datasets, overrides, harmonics: int = 1) -> tuple:
 def refine_task(job, unc, cand, effects, scores, unc_nominal, frf_only, rnd):
     """One candidate's refinement as ``diagnose`` does it in process: ``(theta, sol, nfev)``."""
     model, datasets, overrides, harmonics, token = job
-    key = (token, tuple(unc))
-    if key not in _CACHE:
-        _CACHE[key] = FitSetup.build(model, datasets, dict(unc), overrides, harmonics=harmonics)
-        while len(_CACHE) > 2:
-            _CACHE.pop(next(iter(_CACHE)))
-    setup = _CACHE[key]
+    setup = kept(_CACHE, (token, tuple(unc)),
+                 lambda: FitSetup.build(model, datasets, dict(unc), overrides, harmonics=harmonics), 2)
     with threadpool_limits(limits=1, user_api="blas"):
         ev, st = setup.structures.get(effects)
         effects_free = [(c, v, True) for c, v, _ in effects]

@@ -17,6 +17,7 @@ from bscomp.components.pade_delay import PadeDelay
 from bscomp.kernel.damping import matrix_from_ratios, modal_damping_matrix
 from bscomp.kernel.interface import NotApplicable
 from bscomp.kernel.system_damping import system_damping_matrix
+from bscomp.memo import kept
 from bscomp.validate.candidates._edits import insert_series
 from bscomp.validate.candidates.base import Candidate, CandidateParameter, _state
 
@@ -124,14 +125,10 @@ class DetachedBodyDamping:
         """The base option's matrix of the drive without the bodies, kept for the same matrices and base: the
         body's own joint leaves the lumped drive, so a fit that varies it (and a friction, a clearance) meets the
         same drive again (60 % of the damping matrices of the demo's diagnosis)."""
-        cache = self.__dict__.setdefault("_memo", {})
         key = (repr(self.base), tuple(names), hashlib.sha1(np.ascontiguousarray(M).tobytes()
                                                              + np.ascontiguousarray(K).tobytes()).hexdigest())
-        if key not in cache:
-            if len(cache) >= 16:
-                cache.pop(next(iter(cache)))
-            cache[key] = np.asarray(system_damping_matrix(self.base, M, K, names), float)
-        return cache[key]
+        return kept(self.__dict__.setdefault("_memo", {}), key,
+                    lambda: np.asarray(system_damping_matrix(self.base, M, K, names), float), 16)
 
     def __repr__(self):
         held = f", held={self.held!r}" if self.held else ""
