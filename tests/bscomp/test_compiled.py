@@ -33,6 +33,33 @@ def _square(t, amp=2.125):
     return amp * np.sign(np.sin(2 * np.pi * 5 * t) + 1e-12)
 
 
+def _chain(name, masses, links, dampers, friction=None, at=None):
+    """A grounded chain as ``benchmarks/fuzz_modal.py`` builds it: wall -- link and dashpot -- mass -- ..., the force
+    ``F.f`` on the last mass, ``friction`` (a component) to ground on mass ``at``."""
+    from bscomp.components import Damper, Force, Mass
+    from bscomp.kernel.system import System
+
+    s = System(name)
+    s.add("wall", Fixed())
+    prev = "wall.flange"
+    for i, (m, link, d) in enumerate(zip(masses, links, dampers, strict=True)):
+        s.add(f"m{i}", Mass(m=m))
+        s.add(f"k{i}", link)
+        s.add(f"d{i}", Damper(d=d))
+        for a, b in ((prev, f"k{i}.flange_a"), (f"k{i}.flange_b", f"m{i}.flange_a"), (prev, f"d{i}.flange_a"),
+                     (f"d{i}.flange_b", f"m{i}.flange_a")):
+            s.connect(a, b)
+        prev = f"m{i}.flange_b"
+    if friction is not None:
+        s.add("ground", Fixed())
+        s.add("fr", friction)
+        s.connect("ground.flange", "fr.flange_a")
+        s.connect("fr.flange_b", f"m{at}.flange_a")
+    s.add("F", Force())
+    s.connect("F.flange", prev)
+    return s
+
+
 @pytest.fixture(scope="module")
 def testbed_model():
     s = get("testbed_axial_torsional")
@@ -86,25 +113,12 @@ def test_frfs_on_random_chains_follow_parameter_changes_back_and_forth(seed):
     """Random damped chains (2-4 masses of 0.5-50 kg on 1e4-1e7 N/m, a dashpot beside each spring), a sequence of 12
     parameter vectors drawn from 4 (so the modal models and their kept FRFs are met again, in another order): every
     FRF equals ``bscomp.frf`` on the re-flattened system at those values."""
-    from bscomp.components import Damper, Force, Mass, Spring
-    from bscomp.kernel.system import System
+    from bscomp.components import Spring
 
     rng = np.random.default_rng(seed)
     n = int(rng.integers(2, 5))
-    s = System(f"chain_{seed}")
-    s.add("wall", Fixed())
-    prev = "wall.flange"
-    for i in range(n):
-        m, k = rng.uniform(0.5, 50), 10 ** rng.uniform(4, 7)
-        s.add(f"m{i}", Mass(m=m))
-        s.add(f"k{i}", Spring(c=k))
-        s.add(f"d{i}", Damper(d=float(0.02 * np.sqrt(k * m) * rng.uniform(0.5, 2))))
-        for a, b in ((prev, f"k{i}.flange_a"), (f"k{i}.flange_b", f"m{i}.flange_a"), (prev, f"d{i}.flange_a"),
-                     (f"d{i}.flange_b", f"m{i}.flange_a")):
-            s.connect(a, b)
-        prev = f"m{i}.flange_b"
-    s.add("F", Force())
-    s.connect("F.flange", prev)
+    ms, ks = rng.uniform(0.5, 50, n), 10 ** rng.uniform(4, 7, n)
+    s = _chain(f"chain_{seed}", ms, [Spring(c=k) for k in ks], 0.02 * np.sqrt(ks * ms) * rng.uniform(0.5, 2, n))
     free = ["m0.m", f"k{n - 1}.c", "d0.d"]
     outs = [f"m{n - 1}.a", "m0.v"]
     cm = CompiledModel(s, ["F.f"], outs, free=free)
@@ -328,29 +342,12 @@ def test_a_run_that_needed_more_substeps_takes_twice_the_first_that_converged():
     two, Stribeck friction (v_reg 1e-5 m/s) on the last, a 51 Hz square wave of 199 N held per 0.1 ms. The Newton
     fails at 4 sub-steps and converges at 8 with the last mass's velocity 52 % off (a stick-slip resolved wrongly);
     at 16, 2e-6. Against IDAS at rtol 1e-10 on the same held input."""
-    from bscomp.components import Damper, Force, Mass, Spring, StribeckFriction
-    from bscomp.kernel.system import System
+    from bscomp.components import Spring, StribeckFriction
 
-    s = System("fuzz_seed_29")
-    s.add("wall", Fixed())
-    s.add("ground", Fixed())
-    prev = "wall.flange"
     links = [Spring(c=12103.87), Backlash(b=2.99518e-6, c=5.720993e6, eps=1.497592e-7), Spring(c=331829.05),
              Spring(c=12411.03)]
-    for i, (m, link, d) in enumerate(zip((25.563, 26.202, 13.628, 6.8965), links, (22.25, 125.57, 85.06, 11.70),
-                                         strict=True)):
-        s.add(f"m{i}", Mass(m=m))
-        s.add(f"k{i}", link)
-        s.add(f"d{i}", Damper(d=d))
-        for a, b in ((prev, f"k{i}.flange_a"), (f"k{i}.flange_b", f"m{i}.flange_a"), (prev, f"d{i}.flange_a"),
-                     (f"d{i}.flange_b", f"m{i}.flange_a")):
-            s.connect(a, b)
-        prev = f"m{i}.flange_b"
-    s.add("fr", StribeckFriction(F_s_pos=224.07, F_s_neg=224.07, F_c_pos=172.36, F_c_neg=172.36, v_reg=1e-5))
-    s.connect("ground.flange", "fr.flange_a")
-    s.connect("fr.flange_b", "m3.flange_a")
-    s.add("F", Force())
-    s.connect("F.flange", prev)
+    s = _chain("fuzz_seed_29", (25.563, 26.202, 13.628, 6.8965), links, (22.25, 125.57, 85.06, 11.70),
+               StribeckFriction(F_s_pos=224.07, F_s_neg=224.07, F_c_pos=172.36, F_c_neg=172.36, v_reg=1e-5), at=3)
     t = np.round(np.arange(2001) * 1e-4, 12)
     u = 198.685 * np.sign(np.sin(2 * np.pi * 51.304 * t) + 1e-12)
     ref = simulate(s, t, inputs={"F.f": lambda tt: u[min(int(np.floor(tt / 1e-4 + 1e-9)), u.size - 1)]},
@@ -564,29 +561,16 @@ def test_a_chain_where_the_slp_vectorizer_fused_products_is_compiled_to_the_bit(
     with ``-march=native`` on a CPU with FMA, GCC 12's straight-line vectorizer fused products in the sample's C
     despite ``-ffp-contract=off``: from sample 387 on the outputs left the virtual machine's by ~1e-13 of their
     scale (4 of 80 fuzz chains). ``native.CFLAGS`` turns that vectorizer off; compiled and VM agree to the bit."""
-    from bscomp.components import Damper, Force, Mass, Spring
-    from bscomp.kernel.system import System
+    from bscomp.components import Spring
 
     monkeypatch.setenv("BSCOMP_CACHE_DIR", str(tmp_path))
     monkeypatch.setattr(compiled_hot, "HOT_WORK", 0.0)
     monkeypatch.setattr(compiled_hot, "BACKGROUND", False)
-    s = System("fuzz_seed_48")
-    s.add("wall", Fixed())
-    s.add("m0", Mass(m=29.99078775645233))
-    s.add("k0", Spring(c=5997463.533932531))
-    s.add("d0", Damper(d=536.4604826799202))
-    s.add("m1", Mass(m=25.933126980173498))
-    s.add("k1", Backlash(b=5.323945613991864e-05, c=31242911.398465965, d=0.0, eps=0.0))
-    s.add("d1", Damper(d=411.13167168375855))
-    s.add("ground", Fixed())
-    s.add("fr", CoulombFriction(F_c_pos=154.57231873988755, F_c_neg=117.9457381521684, d_pos=8.551473272188803,
-                                d_neg=47.533266371353065, v_reg=5.669733539059217e-05))
-    s.add("F", Force())
-    for a, b in (("wall.flange", "k0.flange_a"), ("k0.flange_b", "m0.flange_a"), ("wall.flange", "d0.flange_a"),
-                 ("d0.flange_b", "m0.flange_a"), ("m0.flange_b", "k1.flange_a"), ("k1.flange_b", "m1.flange_a"),
-                 ("m0.flange_b", "d1.flange_a"), ("d1.flange_b", "m1.flange_a"), ("ground.flange", "fr.flange_a"),
-                 ("fr.flange_b", "m1.flange_a"), ("F.flange", "m1.flange_b")):
-        s.connect(a, b)
+    s = _chain("fuzz_seed_48", (29.99078775645233, 25.933126980173498),
+               [Spring(c=5997463.533932531), Backlash(b=5.323945613991864e-05, c=31242911.398465965, d=0.0, eps=0.0)],
+               (536.4604826799202, 411.13167168375855),
+               CoulombFriction(F_c_pos=154.57231873988755, F_c_neg=117.9457381521684, d_pos=8.551473272188803,
+                               d_neg=47.533266371353065, v_reg=5.669733539059217e-05), at=1)
     t = np.round(np.arange(2001) * 1e-4, 12)
     u = 174.4761970366625 * np.sign(np.sin(2 * np.pi * 24.187745162844184 * t) + 1e-12)
     outs = ["m1.v", "m1.a"]
