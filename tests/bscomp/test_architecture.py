@@ -29,7 +29,7 @@ ALLOWED = {
                         "bscomp.plotting"},
     "bscomp.plotting": set(),
 }
-LEAVES = {"bscomp.errors", "bscomp.files"}
+LEAVES = {"bscomp.errors", "bscomp.files", "bscomp.memo"}
 
 
 def _modules():
