@@ -45,13 +45,15 @@ class HotSteps:
     def __init__(self):
         self.work = {}          # key -> instructions x samples run in the virtual machine
         self.native = {}        # key -> NativeRun, or None (not available: keep the VM)
-        self.graphs = {}        # key -> the MX sample Function (built at its first run: the on-disk library looked for)
+        self.graphs = {}        # key -> (the MX sample Function, its cache key); built at its first run, when the
+                                #        on-disk library is looked for
         self.pending = {}       # key -> (future of the compiler's run, library path, names)
         self.enabled = os.environ.get("BSCOMP_NATIVE_STEPS", "1") != "0"
 
-    def get(self, key, build, f, n_samples):
-        """The :class:`NativeRun` of ``key`` (``build()``: the MX sample Function to compile, ``f``: the SX one the
-        virtual machine runs), or ``None``: then the caller runs ``f`` for ``n_samples`` samples, counted here."""
+    def get(self, key, build, vm, n_samples):
+        """The :class:`NativeRun` of ``key`` (``build()``: the MX sample Function to compile, ``vm()``: the SX one the
+        virtual machine runs -- expanded only where it runs), or ``None``: then the caller runs ``vm()`` for
+        ``n_samples`` samples, counted here."""
         if not self.enabled:
             return None
         if key in self.native:
@@ -59,9 +61,10 @@ class HotSteps:
         if key in self.pending:
             return self._finish(key)
         if key not in self.graphs:
-            graph = self.graphs[key] = build()
+            graph = build()
+            self.graphs[key] = graph, _ident(graph)
             try:
-                found = cached_functions(_ident(graph), _names(graph))
+                found = cached_functions(self.graphs[key][1], _names(graph))
             except (OSError, RuntimeError):      # a library there that does not load: compiled anew when hot
                 found = None
             if found is not None:
@@ -69,11 +72,11 @@ class HotSteps:
                 return self.native[key]
         done = self.work.get(key, 0.0)
         if done < HOT_WORK:
-            self.work[key] = done + f.n_instructions() * n_samples
+            self.work[key] = done + vm().n_instructions() * n_samples
             return None
-        graph = self.graphs[key]
+        graph, ident = self.graphs[key]
         try:                                     # the C generated here (CasADi stays in this thread)
-            job, so, names = library_job(lambda: _blocks(graph), key=_ident(graph), names=_names(graph))
+            job, so, names = library_job(lambda: _blocks(graph), key=ident, names=_names(graph))
         except (BscompError, OSError):           # no C compiler, or the cache folder cannot be written
             self.native[key] = None
             return None

@@ -317,8 +317,8 @@ class TimeSeriesMixin:
         r, nt, nu = len(self.elements), up_seq.shape[1], len(self.inputs)
         n2, blocks, Phi, Ad, Ga, Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs, Gv, Cy, Dyu, Dyw = self._disc(mm, key)
         fkey = (n2, nu, len(outputs), n_sub, n_newton, blocks, guard)
-        f = self._step_function(*fkey)
-        native = self._hot.get(fkey, lambda: self._native_graph(fkey), f, nt - 1) if r and nt > 1 else None
+        native = (self._hot.get(fkey, lambda: self._native_graph(fkey), lambda: self._step_function(*fkey), nt - 1)
+                  if r and nt > 1 else None)
         self.stats["native_steps"] = native is not None
         if not r:
             Y = _linear_run(Phi, Ga, Gb, Cy, Dyu, up_seq, uc_seq, n_sub, blocks)
@@ -327,6 +327,7 @@ class TimeSeriesMixin:
             Y, bad = native(np.zeros(n2 + r), up_seq[:, :nt - 1], uc_seq[:, :nt - 1],
                             (Ad, *Ga, *Gb, Wend, Gw0, Gw1, Cs, Cvn, Dsu, Gs, Gv, Cy, Dyu, Dyw, plaw))
         else:
+            f = self._step_function(*fkey)
             bkey = ("blocked", id(f))                       # f itself is held in _steps: its id stays
             if bkey not in self._steps:
                 self._steps[bkey] = _blocked(f)
