@@ -78,7 +78,7 @@ from bscomp.validate.equivalence import mark_equivalent, simpler_first
 from bscomp.validate.evaluation import Problem
 from bscomp.validate.pairs import pair_round, wants_pairs
 from bscomp.validate.refinement import job_base, refine_candidate, refine_task
-from bscomp.validate.screening import add_baseline, screen
+from bscomp.validate.screening import add_baseline, screen, to_refine
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
 
@@ -377,15 +377,8 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
         n_evals += n
         screened.append((scores[0][0], cand, effects, scores))  # (error, theta, uncertain values)
     screened.sort(key=lambda x: x[0])
-    # refined: the best of each uncertain-value set (improvements over the nominal model reward
-    # candidates that absorb a mis-set parameter; over the re-calibrated one, those the re-calibration
-    # has not absorbed), up to n_refine in all
-    refine = set()
-    for key in {tuple(sorted(sc[2].items())) for _e, _c, _f, scs in screened for sc in scs}:
-        by_set = sorted(screened, key=lambda x: min((sc[0] for sc in x[3] if tuple(sorted(sc[2].items())) == key),
-                                                    default=np.inf))
-        refine |= {x[1].name for x in by_set[:max(n_refine - 1, 1)]}
-    refine |= {x[1].name for x in screened[:n_refine]}
+    refine = to_refine(screened, n_refine, base, unc_start, current) if rnd == 1 else \
+        to_refine(screened, n_refine)
     futures = {}
     if remote is not None:                       # the refinements on the executor, collected in order below
         executor, job = remote
