@@ -78,7 +78,7 @@ from bscomp.validate.equivalence import mark_equivalent, simpler_first
 from bscomp.validate.evaluation import Problem
 from bscomp.validate.pairs import pair_round, wants_pairs
 from bscomp.validate.refinement import job_base, refine_candidate, refine_task
-from bscomp.validate.screening import add_baseline, screen, to_refine
+from bscomp.validate.screening import add_baseline, blind, screen, to_refine
 
 __all__ = ["diagnose", "Diagnosis", "EffectFit"]
 
@@ -224,14 +224,22 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         unc_nominal = {k: float(ref.get(k)) for k in unc}
         ctx = dict(structures=structures, sigmas=sigmas, ref=ref, unc=unc, has_frf=has_frf, n_scan=n_scan,
                    n_screen=n_screen, n_refine=n_refine, prog=prog, skipped=skipped, remote=remote)
-        results, n = _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, **ctx)
+        results, n, (screened, base) = _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start,
+                                              **ctx)
         n_evals += n
-        results.sort(key=lambda r: (not r.refined, score(r), r.delta_bic))
-        mark_equivalent(results, current, datasets, sigmas, ref)   # one group where the data cannot tell
-        simpler_first(results)                                     # ... the lower BIC named first in it
+        n_unconfirmed = len(unconfirmed)
+        chosen = _rank_and_choose(results, current, datasets, sigmas, ref, thresholds, unconfirmed_why, unconfirmed)
+        if chosen is None and rnd == 1 and blind(screened, base, unc_start, current["error"]):
+            # the screen could not tell: every linear candidate refined (screening.blind), then chosen again
+            more, n = _refine_more(results, screened, current, k_now, unc_nominal, **ctx)
+            n_evals += n
+            if more:
+                del unconfirmed[n_unconfirmed:]
+                results[:] = [r for r in results if r.name not in more] + list(more.values())
+                chosen = _rank_and_choose(results, current, datasets, sigmas, ref, thresholds, unconfirmed_why,
+                                          unconfirmed)
         rounds.append(results)
         log(f"round {rnd}: " + ", ".join(f"{r.name} {r.error_after:.3g} dBIC {r.delta_bic:.0f}" for r in results))
-        chosen = choose(results, current, datasets, thresholds, unconfirmed_why, unconfirmed)
         new_fits = None if chosen is None else [chosen]
         if chosen is None and wants_pairs(current, max_effects - len(accepted)):
             new_fits, tried, n = pair_round(rnd, results, current, fixed_effects, k_now, unc_nominal, thresholds,
@@ -277,6 +285,31 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
                             "conditions": len(setup.systems), "unconverged": _unconverged(structures)},
                      calibration=calibration, amplitude=amplitude,
                      unconfirmed=unconfirmed, remainder=rest, pairs=pairs)
+
+
+def _rank_and_choose(results, current, datasets, sigmas, ref, thresholds, unconfirmed_why, unconfirmed):
+    """Rank a round's fits in place -- refined first, by their predictive error (the mean of the fitted and the
+    held-out error: a candidate that only fits the fitted half, e.g. by absorbing noise or a smoothing detail,
+    drops), one group where the data cannot tell them apart, the lower BIC named first in it -- and return the
+    first that passes every acceptance rule (or None)."""
+    results.sort(key=lambda r: (not r.refined, score(r), r.delta_bic))
+    mark_equivalent(results, current, datasets, sigmas, ref)
+    simpler_first(results)
+    return choose(results, current, datasets, thresholds, unconfirmed_why, unconfirmed)
+
+
+def _refine_more(results, screened, current, k_now, unc_nominal, *, structures, sigmas, ref, unc, has_frf, prog,
+                 remote=None, **_):
+    """Where round 1 accepted nothing and its screen was blind (:func:`~bscomp.validate.screening.blind`): fit
+    every linear candidate not refined yet; returns ``({name: EffectFit}, evaluations)``."""
+    done = {r.name for r in results if r.refined}
+    rest = [x for x in screened if not x[1].nonlinear and x[1].name not in done]
+    if not rest:
+        return {}, 0
+    prog.total += len(rest)
+    fits, n = _fits(1, rest, {x[1].name for x in rest}, current, k_now, unc_nominal, structures=structures,
+                    sigmas=sigmas, ref=ref, unc=unc, has_frf=has_frf, prog=prog, remote=remote)
+    return {r.name: r for r in fits}, n
 
 
 def _polish(new_fits, accepted, accepted_effects, current, unc_values, structures, sigmas, ref, unc, datasets):
@@ -348,7 +381,8 @@ def _applicable(candidates, ref, unc):
 def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, structures, sigmas, ref, unc,
            has_frf, n_scan, n_screen, n_refine, prog, skipped, remote=None):
     """One round: screen every candidate of the pool on top of the effects accepted so far, refine the
-    best ``n_refine``; returns ([EffectFit], evaluations)."""
+    best ``n_refine`` (:func:`~bscomp.validate.screening.to_refine`); returns ([EffectFit], evaluations,
+    ``(screened, base)``: the screen, for :func:`_refine_more`)."""
     n_evals = 0
     # each screening score is the improvement over the model without the candidate at the same
     # uncertain values: a candidate that can do nothing (a joint made rigid) then does not outrank the
@@ -377,8 +411,16 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
         n_evals += n
         screened.append((scores[0][0], cand, effects, scores))  # (error, theta, uncertain values)
     screened.sort(key=lambda x: x[0])
-    refine = to_refine(screened, n_refine, base, unc_start, current) if rnd == 1 else \
-        to_refine(screened, n_refine)
+    results, n = _fits(rnd, screened, to_refine(screened, n_refine), current, k_now, unc_nominal, structures=structures,
+                       sigmas=sigmas, ref=ref, unc=unc, has_frf=has_frf, prog=prog, remote=remote)
+    return results, n_evals + n, (screened, base)
+
+
+def _fits(rnd, screened, refine, current, k_now, unc_nominal, *, structures, sigmas, ref, unc, has_frf, prog,
+          remote=None):
+    """An :class:`EffectFit` of each screened candidate, refined for the names in ``refine`` (else at its best
+    screened start); returns ([EffectFit], evaluations)."""
+    n_evals = 0
     futures = {}
     if remote is not None:                       # the refinements on the executor, collected in order below
         executor, job = remote
@@ -414,6 +456,4 @@ def _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start, *, 
         r._after, r._problem, r._theta = after, pr, th
         r._jac = None if sl is None or getattr(sl, "jac", None) is None else np.asarray(sl.jac, float)
         results.append(r)
-    # refined candidates by their predictive error: the mean of the fitted and the held-out error (a
-    # candidate that only fits the fitted half, e.g. by absorbing noise or a smoothing detail, drops)
     return results, n_evals

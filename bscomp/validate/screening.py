@@ -1,6 +1,6 @@
 """diagnose's screening: a candidate scored over its prior before the best are refined (:func:`screen`), and a
 nonlinear candidate's ``linear`` parameters taken from the FRFs (:func:`linear_medians`), and which of the screened
-are refined (:func:`to_refine`, with every linear one where the screen is :func:`blind`). Shared by a round
+are refined (:func:`to_refine`; every linear one where the screen is :func:`blind`). Shared by a round
 (:mod:`~bscomp.validate.diagnostics`) and the pair round's linear partner (:mod:`~bscomp.validate.pairs`)."""
 
 from __future__ import annotations
@@ -118,20 +118,17 @@ def linear_medians(cand, effects, ev, st, sigmas, unc, meds):
     return list(np.exp(out)), pr.nfev
 
 
-def to_refine(screened, n_refine, base=None, unc_start=None, current=None) -> set:
+def to_refine(screened, n_refine) -> set:
     """Names of the screened candidates ``[(error, candidate, effects, scores)]`` (best first) to refine: the best of
     each uncertain-value set (improvements over the nominal model reward candidates that absorb a mis-set parameter;
-    over the re-calibrated one, those the re-calibration has not absorbed), up to ``n_refine`` in all -- and every
-    linear candidate where the screen is blind (:func:`blind`; given ``base``, the re-calibrated values
-    ``unc_start`` and the ``current`` summary: round 1)."""
+    over the re-calibrated one, those the re-calibration has not absorbed), up to ``n_refine`` in all. Where round 1
+    then accepts nothing and its screen is :func:`blind`, diagnose refines every linear candidate too."""
     refine = set()
     for key in {tuple(sorted(sc[2].items())) for _e, _c, _f, scs in screened for sc in scs}:
         by_set = sorted(screened, key=lambda x: min((sc[0] for sc in x[3] if tuple(sorted(sc[2].items())) == key),
                                                     default=np.inf))
         refine |= {x[1].name for x in by_set[:max(n_refine - 1, 1)]}
     refine |= {x[1].name for x in screened[:n_refine]}
-    if base is not None and blind(screened, base, unc_start, current["error"]):
-        refine |= {x[1].name for x in screened if not x[1].nonlinear}
     return refine
 
 
@@ -144,8 +141,9 @@ def blind(screened, base, unc_start, error) -> bool:
     absorbed what a linear candidate would show; a housing's compliance taken up by a softer bearing and a stiffer
     coupling left it 1.1 of a squared error of 36.7 at those values (the other drive's seed 2304, docs/validation.md
     "The screen's blind spot"), below what the best ``n_refine`` were, though refined it takes the error 18.3 ->
-    0.99. So every linear candidate is then refined, each fit free to undo the re-calibration (a nonlinear
-    candidate's screen is not blinded by a linear re-calibration)."""
+    0.99. So where round 1 then accepts nothing, every linear candidate is refined too, each fit free to undo the
+    re-calibration (a nonlinear candidate's screen is not blinded by a linear re-calibration), and the round is
+    chosen again."""
     key = tuple(sorted(unc_start.items()))
     sums = [v for (k, frf_only), v in base.items() if k == key and not frf_only]
     if error <= UNEXPLAINED or not sums:

@@ -1,9 +1,9 @@
-"""Which screened candidates diagnose refines (bscomp.validate.screening.to_refine), on the round-1 screen of the other
-drive's housing truth, seed 2304 (docs/validation.md, "The screen's blind spot"): 18.3x the noise floor is left after
-the re-calibration, whose softer bearing and stiffer coupling absorbed the 22.2 kg housing, so at the re-calibrated
-values no start of any candidate takes more than 11 % of the squared error (the housing's best 2.9 %) and at the
-nominal ones the mis-set table mass ranks the table's candidates first. The best ``n_refine`` per set left the
-housing out (diagnose said "outside the candidates"); refined, it takes the error 18.3 -> 0.99."""
+"""Which screened candidates diagnose refines (bscomp.validate.screening.to_refine, blind), on the round-1 screen of the
+other drive's housing truth, seed 2304 (docs/validation.md, "The screen's blind spot"): 18.3x the noise floor is left
+after the re-calibration, whose softer bearing and stiffer coupling absorbed the 22.2 kg housing, so at the
+re-calibrated values no start of any candidate takes more than 11 % of the squared error (the housing's best 2.9 %)
+and at the nominal ones the mis-set table mass ranks the table's candidates first. The best ``n_refine`` per set left
+the housing out (diagnose said "outside the candidates"); refined, it takes the error 18.3 -> 0.99."""
 
 from types import SimpleNamespace
 
@@ -34,21 +34,16 @@ def _screened(rows):
     return sorted(out, key=lambda x: x[0])
 
 
-def test_a_blind_screen_refines_every_linear_candidate_and_no_more_nonlinear_ones():
+def test_a_blind_screen_is_told_and_the_usual_budget_leaves_the_housing_out():
     screened = _screened(SCREEN_2304)
     assert blind(screened, BASE, START, ERROR)
     usual = to_refine(screened, 3)
     assert "bearing_housing" not in usual                       # the miss: the best 3 of each set
     assert usual == {"missing_inertia", "table_subassembly", "amplifier_delay", "extra_damping", "support_damping"}
-    more = to_refine(screened, 3, BASE, START, {"error": ERROR})
-    linear = {name for name, nonlinear, _, _ in SCREEN_2304 if not nonlinear}
-    assert more == usual | linear
-    assert "bearing_housing" in more
-    assert not {name for name, nonlinear, _, _ in SCREEN_2304 if nonlinear} & more
 
 
 @pytest.mark.parametrize("change", ["within_five_times_the_noise", "a_candidate_takes_a_quarter", "no_baseline"])
-def test_a_screen_that_sees_or_a_small_error_keeps_the_usual_budget(change):
+def test_a_screen_that_sees_or_a_small_error_is_not_blind(change):
     rows, base, error = list(SCREEN_2304), dict(BASE), ERROR
     if change == "within_five_times_the_noise":
         error = UNEXPLAINED
@@ -56,6 +51,5 @@ def test_a_screen_that_sees_or_a_small_error_keeps_the_usual_budget(change):
         rows[4] = ("bearing_housing", False, -CLOSEST * 36.659 - 0.01, -318.92)
     else:
         base = {k: v for k, v in base.items() if k[0] != tuple(sorted(START.items()))}
-    screened = _screened(rows)
-    assert not blind(screened, base, START, error)
-    assert to_refine(screened, 3, base, START, {"error": error}) == to_refine(screened, 3)
+    assert not blind(_screened(rows), base, START, error)
+    assert blind(_screened(SCREEN_2304), BASE, START, ERROR)   # the unchanged screen is
