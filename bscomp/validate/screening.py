@@ -17,11 +17,16 @@ from bscomp.validate.evaluation import Problem
 __all__ = ["screen", "linear_medians", "add_baseline", "to_refine", "blind"]
 
 
+def base_key(unc: dict, frf_only: bool) -> tuple:
+    """The key of :func:`add_baseline`'s squared errors: the uncertain values and whether the FRFs alone count."""
+    return tuple(sorted(unc.items())), bool(frf_only)
+
+
 def add_baseline(base: dict, ev, st, sigmas, unc: dict, effects, frf_only: bool) -> int:
     """Put the squared error of the model without the candidate (``effects`` only, uncertain values ``unc``, the FRFs
     alone with ``frf_only``) into ``base`` under :func:`screen`'s key, once; returns the evaluations spent (0 when the
     key was there). Each screening score is the improvement over it."""
-    key = (tuple(sorted(unc.items())), frf_only)
+    key = base_key(unc, frf_only)
     if key in base:
         return 0
     pb = Problem(ev, sigmas, dict(unc), [], effects, st)
@@ -71,7 +76,7 @@ def screen(cand, effects, ev, st, sigmas, unc_sets, frf_only, n_scan, n_screen, 
             starts += list(zip(*[p.starts(n_screen) for p in cand.parameters]))[1:3]
         pr0 = Problem(ev, sigmas, dict(unc), [], effects, st)
         pr0.only_frf = frf_only and not cand.nonlinear
-        e0 = (base or {}).get((tuple(sorted(unc.items())), pr0.only_frf), 0.0)
+        e0 = (base or {}).get(base_key(unc, pr0.only_frf), 0.0)
 
         def score(stv, pr0=pr0, e0=e0, unc=unc):
             th = np.log(np.array(stv, float))
@@ -144,9 +149,8 @@ def blind(screened, base, unc_start, error) -> bool:
     0.99. So where round 1 then accepts nothing, every linear candidate is refined too, each fit free to undo the
     re-calibration (a nonlinear candidate's screen is not blinded by a linear re-calibration), and the round is
     chosen again."""
-    key = tuple(sorted(unc_start.items()))
-    sums = [v for (k, frf_only), v in base.items() if k == key and not frf_only]
-    if error <= UNEXPLAINED or not sums:
+    total = base.get(base_key(unc_start, False))
+    if error <= UNEXPLAINED or total is None:
         return False
     best = min((sc[0] for _e, _c, _f, scs in screened for sc in scs if sc[2] == unc_start), default=0.0)
-    return -best < CLOSEST * sums[0]
+    return -best < CLOSEST * total
