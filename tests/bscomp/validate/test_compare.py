@@ -369,22 +369,29 @@ def test_signatures_point_at_coulomb_friction(own):
     assert c.time[0].fit["table.a"] < 99 and "sign_velocity" in c.summary()
 
 
-def test_a_nonlinear_model_is_compared_through_the_modal_method_as_accurately_as_tight_idas():
-    """compare's time series of a model with friction runs ``method="modal"`` (it took IDAS at rtol 1e-7: on the
-    demo's FE model 10.7 s against 0.10-0.15 s, and further from IDAS at rtol 1e-10); here the lumped drive with a
-    Coulomb friction at the table that sticks and slides: within 1e-4 of IDAS at rtol 1e-10 on every channel
-    (measured: table.a 1.3e-5, rotor.w 4.7e-7; IDAS at compare's former rtol 1e-7: 8.5e-4, 3.8e-5)."""
+def _with_friction():
+    """small_drive with a 40 N Coulomb friction from the table to ground."""
     from bscomp.components.coulomb_friction import CoulombFriction
     from bscomp.components.fixed import Fixed
-    from bscomp.kernel.flattening import flatten
-    from bscomp.simulation.dispatch import simulate
-    from bscomp.validate.residuals import simulate_for
 
     s = small_drive()
     s.add("guide_ground", Fixed())
     s.add("friction", CoulombFriction(F_c=40.0, v_reg=1e-4))
     s.connect("friction.flange_a", "guide_ground.flange")
     s.connect("friction.flange_b", "table.flange_b")
+    return s
+
+
+def test_a_nonlinear_model_is_compared_through_the_modal_method_as_accurately_as_tight_idas():
+    """compare's time series of a model with friction runs ``method="modal"`` (it took IDAS at rtol 1e-7: on the
+    demo's FE model 10.7 s against 0.10-0.15 s, and further from IDAS at rtol 1e-10); here the lumped drive with a
+    Coulomb friction at the table that sticks and slides: within 1e-4 of IDAS at rtol 1e-10 on every channel
+    (measured: table.a 1.3e-5, rotor.w 4.7e-7; IDAS at compare's former rtol 1e-7: 8.5e-4, 3.8e-5)."""
+    from bscomp.kernel.flattening import flatten
+    from bscomp.simulation.dispatch import simulate
+    from bscomp.validate.residuals import simulate_for
+
+    s = _with_friction()
     d = TimeData(T, {"motor.tau": 3.0 * U}, {"rotor.w": np.zeros_like(T), "table.a": np.zeros_like(T)},
                  units={"motor.tau": "N m", "rotor.w": "rad/s", "table.a": "m/s^2"}, source="friction")
     res, _ = simulate_for(s, d, extra=["table.v"])
@@ -401,8 +408,6 @@ def test_a_nonlinear_model_is_compared_through_the_modal_method_as_accurately_as
 def test_a_model_the_modal_method_refuses_is_compared_through_idas(monkeypatch):
     """A model ``method="modal"`` does not take (ModalSimulationError: a nonlinearity it does not correct) is
     simulated by IDAS at simulate_for's tolerances, not refused."""
-    from bscomp.components.coulomb_friction import CoulombFriction
-    from bscomp.components.fixed import Fixed
     from bscomp.simulation import modal_channels
     from bscomp.validate import residuals
 
@@ -416,11 +421,7 @@ def test_a_model_the_modal_method_refuses_is_compared_through_idas(monkeypatch):
         return real(dae, t, method=method, **kw)
 
     monkeypatch.setattr(residuals, "simulate", refusing)
-    s = small_drive()
-    s.add("guide_ground", Fixed())
-    s.add("friction", CoulombFriction(F_c=40.0, v_reg=1e-4))
-    s.connect("friction.flange_a", "guide_ground.flange")
-    s.connect("friction.flange_b", "table.flange_b")
+    s = _with_friction()
     d = TimeData(T[:200], {"motor.tau": 3.0 * U[:200]}, {"table.a": np.zeros(200)}, units={"motor.tau": "N m",
                  "table.a": "m/s^2"}, source="friction")
     res, _ = residuals.simulate_for(s, d)
