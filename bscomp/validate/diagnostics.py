@@ -231,7 +231,8 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         chosen = _rank_and_choose(results, current, datasets, sigmas, ref, thresholds, unconfirmed_why, unconfirmed)
         if chosen is None and rnd == 1 and blind(screened, base, unc_start, current["error"]):
             # the screen could not tell: every linear candidate refined (screening.blind), then chosen again
-            more, n = _refine_more(results, screened, current, k_now, unc_nominal, **ctx)
+            fit_ctx = {k: ctx[k] for k in ("structures", "sigmas", "ref", "unc", "has_frf", "prog", "remote")}
+            more, n = _refine_more(results, screened, current, k_now, unc_nominal, **fit_ctx)
             n_evals += n
             if more:
                 del unconfirmed[n_unconfirmed:]
@@ -299,7 +300,7 @@ def _rank_and_choose(results, current, datasets, sigmas, ref, thresholds, unconf
 
 
 def _refine_more(results, screened, current, k_now, unc_nominal, *, structures, sigmas, ref, unc, has_frf, prog,
-                 remote=None, **_):
+                 remote=None):
     """Where round 1 accepted nothing and its screen was blind (:func:`~bscomp.validate.screening.blind`): fit
     every linear candidate not refined yet; returns ``({name: EffectFit}, evaluations)``."""
     done = {r.name for r in results if r.refined}

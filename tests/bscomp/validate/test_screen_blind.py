@@ -53,3 +53,33 @@ def test_a_screen_that_sees_or_a_small_error_is_not_blind(change):
         base = {k: v for k, v in base.items() if k[0] != tuple(sorted(START.items()))}
     assert not blind(_screened(rows), base, START, error)
     assert blind(_screened(SCREEN_2304), BASE, START, ERROR)   # the unchanged screen is
+
+
+def test_a_blind_round_fits_every_linear_candidate_not_refined_yet(monkeypatch):
+    """``diagnostics._refine_more`` (what diagnose does where round 1 accepted nothing and the screen was blind): the
+    linear candidates of 2304's screen that round 1 did not refine are fitted, in one ``_fits`` call with the round's
+    context; the nonlinear ones and those refined already are not, and the progress bar's total grows by the count."""
+    from bscomp.validate import diagnostics
+
+    screened = _screened(SCREEN_2304)
+    refined = {"missing_inertia", "table_subassembly", "amplifier_delay"}
+    results = [SimpleNamespace(name=x[1].name, refined=x[1].name in refined) for x in screened]
+    prog = SimpleNamespace(total=10)
+    calls = []
+
+    def fits(rnd, rest, names, current, k_now, unc_nominal, **ctx):
+        calls.append((rnd, [x[1].name for x in rest], names, ctx))
+        return [SimpleNamespace(name=n) for n in names], 7 * len(names)
+
+    monkeypatch.setattr(diagnostics, "_fits", fits)
+    ctx = dict(structures="S", sigmas="sig", ref="ref", unc=["table.m"], has_frf=True, prog=prog, remote=None)
+    more, n = diagnostics._refine_more(results, screened, {"error": ERROR}, 0, NOMINAL, **ctx)
+    linear_rest = {"bearing_housing", "nut_table_joint", "extra_damping", "support_damping", "coupling_damping"}
+    assert set(more) == linear_rest and n == 7 * len(linear_rest)
+    (rnd, rest, names, passed), = calls
+    assert rnd == 1 and set(rest) == names == linear_rest and passed == ctx
+    assert prog.total == 10 + len(linear_rest)
+    # nothing left to fit: no call
+    done = [SimpleNamespace(name=x[1].name, refined=True) for x in screened]
+    assert diagnostics._refine_more(done, screened, {"error": ERROR}, 0, NOMINAL, **ctx) == ({}, 0)
+    assert len(calls) == 1
