@@ -212,10 +212,11 @@ def simulate_at(system, data: TimeData, extra=(), rtol=1e-7, atol=1e-10):
     # a linear model driven by held inputs is stepped exactly (zero-order hold, as the data were sampled)
     if not nonlinear_elements(system) and not dae.mech.has_internal_states and dae.nz == 0:
         return simulate(dae, data.t, method="lti", **run)
-    # friction, backlash, a moving nut: the modal method (the linear part exact, the laws' forces held with their
-    # error checked); on the demo's model with friction it is 64x faster than IDAS at rtol 1e-7 and closer to IDAS
-    # at rtol 1e-10 (table.a 8.0e-5 against 2.9e-4; docs/validation.md "Engine"). Models it does not take
-    # (controller states, other nonlinear equations) go to IDAS.
+    # friction, backlash, a moving nut, internal states (a Pade delay): the modal method (the linear part exact, the
+    # laws' forces held with their error checked); on the demo's model with friction ~100x faster than IDAS at rtol
+    # 1e-7 and closer to IDAS at rtol 1e-10 (table.a 9.8e-5 against 3.0e-4; docs/validation.md, "compare's time
+    # series through the modal method"). Models it does not take (a nonlinear equation it does not correct, such as
+    # an active current limit: ModalSimulationError) go to IDAS.
     try:
         return simulate(dae, data.t, method="modal", **run)
     except ModalSimulationError:
