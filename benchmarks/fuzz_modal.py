@@ -15,6 +15,8 @@ error over the reference's peak-to-peak) per case, then the summary docs/nonline
 (:data:`bscomp.simulation.modal_kernels.FORCE_FLOOR`; the kept rule is 1: the run's largest alone; 0.1 was
 measured and not kept, docs/nonlinear.md).
 ``--others`` adds ``modal`` with ``jit=True``, ``split`` and ``fixed`` (their errors, walls and failures).
+``--compare`` adds IDAS at rtol 1e-7, atol 1e-10 (what ``compare`` simulated a nonlinear model with until
+2026-12-07; it runs ``modal`` at ``tol`` 1e-4 now) and counts the chains where each modal run is less accurate.
 """
 
 from __future__ import annotations
@@ -77,6 +79,7 @@ RUNS = [("modal", {"method": "modal"}), ("modal tol 1e-4", {"method": "modal", "
         ("idas", {"max_num_steps": 10**7})]
 OTHERS = [("modal jit", {"method": "modal", "jit": True}), ("split", {"method": "split"}),
           ("fixed", {"method": "fixed"})]
+COMPARE = [("idas rtol 1e-7", {"rtol": 1e-7, "atol": 1e-10, "max_num_steps": 10**7})]
 
 
 def case(seed, t, runs=RUNS):
@@ -107,9 +110,9 @@ def case(seed, t, runs=RUNS):
     return errs, walls
 
 
-def main(first=0, last=80, others=False):
+def main(first=0, last=80, others=False, compare=False):
     t = np.linspace(0.0, 0.2, 2001)
-    runs = RUNS + (OTHERS if others else [])
+    runs = RUNS + (OTHERS if others else []) + (COMPARE if compare else [])
     names = [n for n, _ in runs]
     E, W = [], []
     for seed in range(first, last):
@@ -127,6 +130,13 @@ def main(first=0, last=80, others=False):
         ok = ~np.isnan(E[:, i])
         print(f"  {n:<16} median {np.median(E[ok, i]):.1e}, above 1e-2 in {int(np.sum(E[ok, i] > 1e-2))}, raised "
               f"SimulationError in {int(np.sum(~ok))}; wall sum {W[:, i].sum():.1f} s")
+    if compare:
+        ec = E[:, names.index("idas rtol 1e-7")]
+        for i in (0, 1):
+            em = E[:, i]
+            print(f"  {names[i]} against idas rtol 1e-7: less accurate in {int(np.sum(em > ec))}, >3x in "
+                  f"{int(np.sum(em > 3 * ec))}, >10x in {int(np.sum(em > 10 * ec))}; geometric mean of the ratio "
+                  f"{np.exp(np.mean(np.log(em / ec))):.2f}")
 
 
 if __name__ == "__main__":
@@ -134,5 +144,5 @@ if __name__ == "__main__":
         i = sys.argv.index("--floor")
         modal_kernels.FORCE_FLOOR = modal_driver.FORCE_FLOOR = float(sys.argv[i + 1])
         del sys.argv[i:i + 2]
-    others = "--others" in sys.argv
-    main(*[int(a) for a in sys.argv[1:3] if not a.startswith("--")], others=others)
+    others, compare = "--others" in sys.argv, "--compare" in sys.argv
+    main(*[int(a) for a in sys.argv[1:3] if not a.startswith("--")], others=others, compare=compare)
