@@ -222,8 +222,9 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         # into the table (docs/validation.md); the joint fits below restart the uncertain parameters from nominal
         unc_start = dict(unc_values)
         unc_nominal = {k: float(ref.get(k)) for k in unc}
-        ctx = dict(structures=structures, sigmas=sigmas, ref=ref, unc=unc, has_frf=has_frf, n_scan=n_scan,
-                   n_screen=n_screen, n_refine=n_refine, prog=prog, skipped=skipped, remote=remote)
+        fit_ctx = dict(structures=structures, sigmas=sigmas, ref=ref, unc=unc, has_frf=has_frf, prog=prog,
+                       remote=remote)
+        ctx = dict(fit_ctx, n_scan=n_scan, n_screen=n_screen, n_refine=n_refine, skipped=skipped)
         results, n, (screened, base) = _round(rnd, pool, fixed_effects, current, k_now, unc_nominal, unc_start,
                                               **ctx)
         n_evals += n
@@ -231,7 +232,6 @@ def _diagnose(system_or_build, datasets, uncertain, candidates, max_effects, n_r
         chosen = _rank_and_choose(results, current, datasets, sigmas, ref, thresholds, unconfirmed_why, unconfirmed)
         if chosen is None and rnd == 1 and blind(screened, base, unc_start, current["error"]):
             # the screen could not tell: every linear candidate refined (screening.blind), then chosen again
-            fit_ctx = {k: ctx[k] for k in ("structures", "sigmas", "ref", "unc", "has_frf", "prog", "remote")}
             more, n = _refine_more(results, screened, current, k_now, unc_nominal, **fit_ctx)
             n_evals += n
             if more:

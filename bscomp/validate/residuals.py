@@ -196,7 +196,9 @@ def simulate_for(system_or_build, data: TimeData, params: dict | None = None, ex
     """Simulate with the measured inputs; record the measured outputs and ``extra`` observables.
 
     Returns ``(SimulationResult, system)``. Inputs are held constant from each sample to the next
-    (zero-order hold, as a D/A converter does).
+    (zero-order hold, as a D/A converter does). A linear model is stepped exactly (``method="lti"``), a nonlinear
+    one by ``method="modal"`` at :data:`MODAL_TOL`; ``rtol``, ``atol`` are IDAS's, used where the modal method
+    refuses the model (``result.stats["method"]`` says which ran).
     """
     system = build_for_data(system_or_build, data, params)
     return simulate_at(system, data, extra, rtol, atol), system
