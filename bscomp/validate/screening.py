@@ -17,9 +17,14 @@ from bscomp.validate.evaluation import Problem
 __all__ = ["screen", "linear_medians", "add_baseline", "to_refine", "blind"]
 
 
+def set_key(unc: dict) -> tuple:
+    """A set of uncertain values as a hashable key (the same values in any order: the same key)."""
+    return tuple(sorted(unc.items()))
+
+
 def base_key(unc: dict, frf_only: bool) -> tuple:
     """The key of :func:`add_baseline`'s squared errors: the uncertain values and whether the FRFs alone count."""
-    return tuple(sorted(unc.items())), bool(frf_only)
+    return set_key(unc), bool(frf_only)
 
 
 def add_baseline(base: dict, ev, st, sigmas, unc: dict, effects, frf_only: bool) -> int:
@@ -129,8 +134,8 @@ def to_refine(screened, n_refine) -> set:
     over the re-calibrated one, those the re-calibration has not absorbed), up to ``n_refine`` in all. Where round 1
     then accepts nothing and its screen is :func:`blind`, diagnose refines every linear candidate too."""
     refine = set()
-    for key in {tuple(sorted(sc[2].items())) for _e, _c, _f, scs in screened for sc in scs}:
-        by_set = sorted(screened, key=lambda x: min((sc[0] for sc in x[3] if tuple(sorted(sc[2].items())) == key),
+    for key in {set_key(sc[2]) for _e, _c, _f, scs in screened for sc in scs}:
+        by_set = sorted(screened, key=lambda x: min((sc[0] for sc in x[3] if set_key(sc[2]) == key),
                                                     default=np.inf))
         refine |= {x[1].name for x in by_set[:max(n_refine - 1, 1)]}
     refine |= {x[1].name for x in screened[:n_refine]}
