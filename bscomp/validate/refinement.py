@@ -94,10 +94,7 @@ def _refine_from(cand, effects, ev, st, sigmas, scores, pr, frf_only, rnd):
     # joint fit is also started from the parameter's screening value, and the better of the two ends kept.
     moved = pr0.near_bounds(th0) & ~pr0.near_bounds(th_screen) & pr0.near_bounds(th[len(th_prev):])
     if np.any(moved):
-        th_alt = np.where(moved, th_screen, th0)
-        th2, sl2 = pr.fit(np.r_[th_prev, th_alt], max_nfev=budget)
-        if sl is None or (sl2 is not None and sl2.cost < sl.cost):
-            th, sl = th2, sl2
+        th, sl = _better_end(pr, th, sl, np.r_[th_prev, np.where(moved, th_screen, th0)], budget)
     # a clearance's contact stiffness (a ``linear`` parameter of a nonlinear candidate) is screened at the FRFs'
     # value; the candidate-alone fit, the uncertain parameters held at their start, can trade it for the gap and
     # lead the joint fit into another valley that ends at a bound -- which rule (e) rejects as a stand-in. Where the
@@ -108,10 +105,14 @@ def _refine_from(cand, effects, ev, st, sigmas, scores, pr, frf_only, rnd):
     if cand.nonlinear and any(p.linear for p in cand.parameters):
         th_point = np.asarray(scores[0][1], float)
         if sl is not None and np.any(pr0.near_bounds(th[len(th_prev):]) & ~pr0.near_bounds(th_point)):
-            th2, sl2 = pr.fit(np.r_[th_prev, th_point], max_nfev=budget)
-            if sl2 is not None and sl2.cost < sl.cost:
-                th, sl = th2, sl2
+            th, sl = _better_end(pr, th, sl, np.r_[th_prev, th_point], budget)
     return th, sl, pr0.nfev
+
+
+def _better_end(pr, th, sl, start, budget):
+    """The joint fit ``pr`` also run from ``start``: the end with the lower cost, ``(theta, sol)``."""
+    th2, sl2 = pr.fit(start, max_nfev=budget)
+    return (th2, sl2) if sl is None or (sl2 is not None and sl2.cost < sl.cost) else (th, sl)
 
 
 def _line_search(pr, th0, scores):
