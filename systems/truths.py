@@ -482,10 +482,10 @@ def _jsonable(x):
 
 
 def generate_case(case: str, model: str, out_dir, seed: int | None = None, *, time: bool = True,
-                  drive: str = "thesis", **time_kw) -> dict:
+                  drive: str = "thesis", freqs=None, **time_kw) -> dict:
     """Write ``frf.csv``, ``time.csv`` (unless ``time=False``) and ``truth.json`` of one truth of ``drive``
     (:data:`DRIVES`) into ``out_dir/model/case``; returns ``{"frf": path, "time": path, "truth": path,
-    "info": info}``."""
+    "info": info}``. ``freqs`` goes to :func:`make_frf`, ``time_kw`` (e.g. ``dt``) to :func:`make_time`."""
 
     from bscomp.validate.measurements import write_frf_csv, write_time_csv
 
@@ -493,7 +493,7 @@ def generate_case(case: str, model: str, out_dir, seed: int | None = None, *, ti
     folder.mkdir(parents=True, exist_ok=True)
     out = {}
     t0 = _time.perf_counter()
-    frf_data, info = make_frf(case, model, seed, drive=drive)
+    frf_data, info = make_frf(case, model, seed, freqs=freqs, drive=drive)
     frf_wall = _time.perf_counter() - t0
     info.pop("frf_noise_free")
     frf_data = replace(frf_data, H={k: _rounded(v.real, 9) + 1j * _rounded(v.imag, 9) for k, v in frf_data.H.items()})

@@ -15,6 +15,7 @@ candidates, with its order.
 import json
 from importlib import resources
 
+import drawn_truths  # this folder's: the truths drawn anew, read from data/truths
 import numpy as np
 import pytest
 
@@ -47,6 +48,28 @@ def _case(model, case):
         name = {"axial_torsional": "testbed_axial_torsional", "full": "testbed"}[model]
         _cache[key] = (truth, diagnose(name, data, max_effects=2))
     return _cache[key]
+
+
+def _drawn(case, seed):
+    """(FrfData, TimeData, truth info) of a truth drawn anew, from the files ``drawn_truths.py`` wrote with the
+    truths' generator (their time series are 12-47 s of IDAS each)."""
+    root = drawn_truths.HERE / str(seed) / "axial_torsional" / case
+    frf, run = load_all([str(root / "frf.csv"), str(root / "time.csv")])
+    return frf, run, json.loads((root / "truth.json").read_text())
+
+
+def test_the_drawn_truths_are_the_generators():
+    """Each drawn truth's FRF file is what the generator draws today (to the CSV's digits), and its truth.json
+    names the seed and the hidden effect the tests check against."""
+    from bscomp.systems.truths import make_frf
+
+    for case, seed, kw in drawn_truths.TRUTHS:
+        frf, _run, info = _drawn(case, seed)
+        again, info2 = make_frf(case, "axial_torsional", seed, freqs=kw.get("freqs"))
+        assert info["seed"] == seed and info["hidden"] == json.loads(json.dumps(info2["hidden"])), (case, seed)
+        for pq, h in again.H.items():
+            assert np.allclose(frf.H[pq], h, rtol=1e-6, atol=0), (case, seed, pq)   # 2 % noise; CSV digits
+        assert np.allclose(frf.freqs, again.freqs, rtol=1e-12)
 
 
 def _check_values(acc, hidden):
@@ -171,10 +194,7 @@ def test_two_losses_neither_of_which_passes_alone_are_found_together():
     effect at a time found nothing (108x the noise floor left on the full data, docs/validation.md). Fitted together
     (bscomp.validate.pairs) both are named, each within 3 % of the truth's, each needed beside the other, and the
     error reaches the noise floor."""
-    from bscomp.systems.truths import make_frf, make_time
-
-    frf, info = make_frf("damping", "axial_torsional", 2203, freqs=np.geomspace(2.0, 1000.0, 120))
-    run, _ = make_time("damping", "axial_torsional", 2203, dt=5e-4)
+    frf, run, info = _drawn("damping", 2203)
     diag = diagnose("testbed_axial_torsional", [frf, run], max_effects=2)
     singles = [r for r in diag.rounds[0] if r.name in ("coupling_damping", "support_damping")]
     assert len(singles) == 2 and all(r.refined and not r.accepted for r in singles), diag.table()
@@ -199,11 +219,9 @@ def test_a_clearance_is_refit_from_its_screening_point_when_its_fit_ends_at_a_bo
     a stand-in, 16x the noise floor left, nothing found. Started from its screening point the joint fit ends at
     the truth (bscomp.validate.refinement._refine_from); measured b +4.9 %, k +5.9 %, the error 120 -> 1.18 with
     every default candidate (docs/validation.md, "Seeds 2231 and 2331"). Here the candidate alone."""
-    from bscomp.systems.truths import make_frf, make_time
     from bscomp.validate.candidates.nonlinear import CompliantBacklash
 
-    frf, info = make_frf("backlash", "axial_torsional", 2231)
-    run, _ = make_time("backlash", "axial_torsional", 2231)
+    frf, run, info = _drawn("backlash", 2231)
     diag = diagnose("testbed_axial_torsional", [frf, run], max_effects=1, candidates=[CompliantBacklash()])
     assert [a.name for a in diag.accepted] == ["compliant_backlash"], diag.table()
     v, h = diag.accepted[0].values, info["hidden"]["backlash"]
@@ -220,10 +238,7 @@ def test_a_heavy_table_part_beside_friction_is_found_with_a_linear_partner():
     (bscomp.validate.pairs.linear_partner: the linear candidates screened on the FRFs on top of the friction's fit)
     is the part; the two fitted together are named, each parameter within 1 % (the part's damping ratio 5 %), at the
     noise floor (docs/validation.md)."""
-    from bscomp.systems.truths import make_frf, make_time
-
-    frf, info = make_frf("joint_friction", "axial_torsional", 2213)
-    run, _ = make_time("joint_friction", "axial_torsional", 2213)
+    frf, run, info = _drawn("joint_friction", 2213)
     diag = diagnose("testbed_axial_torsional", [frf, run], max_effects=2)
     assert not any(r.accepted for r in diag.rounds[0]), diag.table()
     assert "(clearly worse)" in next(r for r in diag.rounds[0] if r.name == "guideway_friction").verdict
