@@ -16,6 +16,7 @@ import casadi as ca
 import numpy as np
 
 from bscomp.errors import ArgumentTypeError, UsageError, check_number
+from bscomp.kernel.signal_meta import unit_of, unit_suffix
 from bscomp.optimal.result import OcpError, OcpResult
 
 __all__ = ["MAX_DEGREE", "check_count", "check_degree", "check_signal", "check_bound_pair", "reference_values",
@@ -93,8 +94,9 @@ def check_boundary_in_bounds(ocp) -> None:
             continue
         how = {"initial": "the start state (initial() or the model's start value)",
                "final": "the final target (final() values, 0 for a velocity with rest=True)"}[which]
-        err = OcpError(f"the {which} value of '{name}' = {v:.6g} is outside its path bound [{lo:.6g}, {hi:.6g}] "
-                       f"(the {side} bound {b:.6g}), so no trajectory can satisfy both: change {how} or the bound "
+        u = unit_suffix(unit_of(dae, name))
+        err = OcpError(f"the {which} value of '{name}' = {v:.6g}{u} is outside its path bound [{lo:.6g}, {hi:.6g}]{u} "
+                       f"(the {side} bound {b:.6g}{u}), so no trajectory can satisfy both: change {how} or the bound "
                        f"(bound('{name}', ...))")
         err.infeasibility = {"worst": {"constraint": f"{which} value", "variable": name, "time": t,
                                        "violation": abs(v - b), "side": side}, "bounds": []}

@@ -145,16 +145,16 @@ def test_tracking_with_numpy_scalar_reference_solves():
 # ---- 7. boundary values outside their own path bounds ---------------------------------------------------
 def test_initial_state_outside_its_bound():
     ocp = move().bound("rotor.phi", 1.0, 20.0).minimize_effort(T=0.1)
-    with pytest.raises(OcpError, match=r"initial value of 'rotor\.phi' = 0 is outside its path bound \[1, 20\] "
-                                       r"\(the lower bound 1\)") as info:
+    with pytest.raises(OcpError, match=r"initial value of 'rotor\.phi' = 0 rad is outside its path bound \[1, 20\] rad "
+                                       r"\(the lower bound 1 rad\)") as info:
         ocp.solve()
     assert info.value.infeasibility["worst"]["variable"] == "rotor.phi"
 
 
 def test_final_target_outside_its_bound():
-    with pytest.raises(OcpError, match=r"final value of 'rotor\.phi' = 10 is outside .*upper bound 5"):
+    with pytest.raises(OcpError, match=r"final value of 'rotor\.phi' = 10 rad is outside .*upper bound 5 rad"):
         move().bound("rotor.phi", -1.0, 5.0).minimize_effort(T=0.1).solve()
-    with pytest.raises(OcpError, match=r"final value of 'der\(rotor\.phi\)' = 0 .*lower bound 1.*rest=True"):
+    with pytest.raises(OcpError, match=r"final value of 'der\(rotor\.phi\)' = 0 rad/s .*lower bound 1 rad/s.*rest"):
         move().initial({"der(rotor.phi)": 2.0}).bound("der(rotor.phi)", 1.0, 100.0).minimize_effort(T=0.1).solve()
 
 
