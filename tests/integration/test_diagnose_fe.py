@@ -42,9 +42,7 @@ CASES = [
 def _case(model, case):
     key = (model, case)
     if key not in _cache:
-        root = resources.files("bscomp.systems") / "data" / "truths" / model / case
-        data = load_all([str(root / "frf.csv"), str(root / "time.csv")])
-        truth = json.loads((root / "truth.json").read_text())
+        *data, truth = _read(resources.files("bscomp.systems") / "data" / "truths" / model / case)
         name = {"axial_torsional": "testbed_axial_torsional", "full": "testbed"}[model]
         _cache[key] = (truth, diagnose(name, data, max_effects=2))
     return _cache[key]
@@ -53,7 +51,11 @@ def _case(model, case):
 def _drawn(case, seed):
     """(FrfData, TimeData, truth info) of a truth drawn anew, from the files ``drawn_truths.py`` wrote with the
     truths' generator (their time series are 12-47 s of IDAS each)."""
-    root = drawn_truths.HERE / str(seed) / "axial_torsional" / case
+    return _read(drawn_truths.HERE / str(seed) / "axial_torsional" / case)
+
+
+def _read(root):
+    """(FrfData, TimeData, truth info) of a truth's folder (``frf.csv``, ``time.csv``, ``truth.json``)."""
     frf, run = load_all([str(root / "frf.csv"), str(root / "time.csv")])
     return frf, run, json.loads((root / "truth.json").read_text())
 
